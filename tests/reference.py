@@ -8,7 +8,6 @@ as variables (numpy arrays, numbers, strings, lists) and returns the dict the co
 import os
 import pickle
 import subprocess
-import sys
 import tempfile
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -32,6 +31,13 @@ def reference_available():
     return os.path.exists(REFERENCE_PYTHON)
 
 
+def _reference_env():
+    # Our PYTHONPATH (the colcon install tree) holds our own `rps`: keep it away from the reference.
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "AMENT_PREFIX_PATH")}
+    env["MPLBACKEND"] = "Agg"
+    return env
+
+
 def run_reference(code, timeout=600, **inputs):
     if not reference_available():
         raise RuntimeError(
@@ -40,7 +46,7 @@ def run_reference(code, timeout=600, **inputs):
     with tempfile.NamedTemporaryFile(suffix=".pkl") as out:
         completed = subprocess.run(
             [REFERENCE_PYTHON, "-c", script, out.name], input=pickle.dumps(inputs),
-            capture_output=True, timeout=timeout, cwd=tempfile.gettempdir())
+            capture_output=True, timeout=timeout, cwd=tempfile.gettempdir(), env=_reference_env())
         if completed.returncode != 0:
             raise RuntimeError("reference code failed:\n" + completed.stderr.decode(errors="replace"))
         with open(out.name, "rb") as f:

@@ -1,0 +1,266 @@
+"""The Robotarium arena and the GTernal robot model: plain numpy, no ROS.
+
+Every number here comes from the user's guide (../shared/seed/robotarium_python_guide.txt, cited
+as "guide §x") or from the Robotarium Python simulator it documents (PyPI
+robotarium-python-simulator 0.0.0, cited as "rps": rps/robotarium_abc.py and rps/robotarium.py).
+
+One step of the testbed, as in rps.Robotarium.step():
+  1. count the debug report's errors on the poses *before* the move and the commands as set
+     (collisions, boundary violations, actuator-limit iterations);
+  2. threshold the commands to the wheel limits, keeping the commanded arc (guide §2.5);
+  3. integrate the unicycle with one forward-Euler step of TIME_STEP and wrap the heading.
+
+Where rps 0.0.0 differs from the guide we follow the guide and say so: rps clips v and omega
+separately in set_velocities() and its _threshold() has no effect (it never returns), so a
+command beyond the wheel limits drives on a different arc there; here it is scaled to the wheel
+limits along its own arc (guide §2.5 "scaling both the linear and angular components
+proportionally"). Commands within the limits move the robots bit for bit as rps does.
+"""
+import numpy as np
+
+# Arena: 3.2 m x 2 m (guide §2.7.2); rps: boundaries = [-1.6, -1, 3.2, 2] (lower left, width, height).
+ARENA_X_MIN, ARENA_X_MAX = -1.6, 1.6
+ARENA_Y_MIN, ARENA_Y_MAX = -1.0, 1.0
+BOUNDARIES = [ARENA_X_MIN, ARENA_Y_MIN, ARENA_X_MAX - ARENA_X_MIN, ARENA_Y_MAX - ARENA_Y_MIN]
+
+# Time step 0.033 s (guide §2.7.6, §4.2.4; rps time_step).
+TIME_STEP = 0.033
+
+# GTernal (rps robotarium_abc.py constants; guide §2.7.1, §2.7.4).
+ROBOT_DIAMETER = 0.11
+ROBOT_RADIUS = ROBOT_DIAMETER / 2
+WHEEL_RADIUS = 0.016
+BASE_LENGTH = 0.105
+MAX_LINEAR_VELOCITY = 0.2                                   # m/s, |v| <= 0.2 (guide §2.7.1)
+MAX_WHEEL_VELOCITY = MAX_LINEAR_VELOCITY / WHEEL_RADIUS     # 12.5 rad/s (guide §2.7.1)
+# rps: 2*(wheel_radius/robot_diameter)*(max_linear_velocity/wheel_radius), about 3.64 rad/s (guide §2.7.1 "about 3.6").
+MAX_ANGULAR_VELOCITY = 2 * (WHEEL_RADIUS / ROBOT_DIAMETER) * (MAX_LINEAR_VELOCITY / WHEEL_RADIUS)
+
+# Number of robots: 1 to 50 in simulation (guide §2.7.3).
+MIN_ROBOTS, MAX_ROBOTS = 1, 50
+
+# Commands older than this stop the robot until a new one arrives (guide §2.7.6).
+COMMAND_TIMEOUT = 0.5
+
+
+class RobotariumError(ValueError, AssertionError):
+    """A bad argument or input, with a message that says what is wrong and what would be right.
+
+    It is a ValueError, and also an AssertionError because rps signals the same mistakes with
+    failed asserts: scripts written against rps that catch AssertionError keep working.
+    """
+
+
+def wrap_angle(theta):
+    """Wrap angles to [-pi, pi] the way rps does (arctan2 of sine and cosine)."""
+    return np.arctan2(np.sin(theta), np.cos(theta))
+
+
+def unicycle_to_wheels(dxu, wheel_radius=WHEEL_RADIUS, base_length=BASE_LENGTH):
+    """2xN (v, omega) -> 2xN (left, right) wheel speeds in rad/s (rps _uni_to_diff, guide §2.5.1)."""
+    v, w = dxu[0], dxu[1]
+    return np.vstack(((2 * v - base_length * w) / (2 * wheel_radius),
+                      (2 * v + base_length * w) / (2 * wheel_radius)))
+
+
+def wheels_to_unicycle(dxdd, wheel_radius=WHEEL_RADIUS, base_length=BASE_LENGTH):
+    """2xN (left, right) wheel speeds -> 2xN (v, omega) (rps _diff_to_uni, guide §2.5.1)."""
+    left, right = dxdd[0], dxdd[1]
+    return np.vstack((wheel_radius / 2 * (left + right), wheel_radius / base_length * (right - left)))
+
+
+def exceeds_actuator_limits(dxu, max_linear=MAX_LINEAR_VELOCITY, max_angular=MAX_ANGULAR_VELOCITY,
+                            max_wheel=MAX_WHEEL_VELOCITY, wheel_radius=WHEEL_RADIUS,
+                            base_length=BASE_LENGTH):
+    """True when some robot's command is over the wheel-speed limit, judged as rps judges it.
+
+    rps first clips v to +-0.2 m/s and omega to +-3.64 rad/s separately (set_velocities) and then
+    counts the iteration when a wheel of the clipped command turns faster than 12.5 rad/s
+    (_validate). Doing the same keeps our debug report equal to the reference's.
+    """
+    clipped = np.vstack((np.clip(dxu[0], -max_linear, max_linear), np.clip(dxu[1], -max_angular, max_angular)))
+    return bool(np.any(np.abs(unicycle_to_wheels(clipped, wheel_radius, base_length)) > max_wheel))
+
+
+def threshold_keeping_arc(dxu, max_linear=MAX_LINEAR_VELOCITY, max_angular=MAX_ANGULAR_VELOCITY,
+                          max_wheel=MAX_WHEEL_VELOCITY, wheel_radius=WHEEL_RADIUS, base_length=BASE_LENGTH):
+    """Scale each robot's (v, omega) by one factor alpha <= 1 so that both wheels stay within
+    max_wheel, |v| <= max_linear and |omega| <= max_angular (guide §2.5: v_scaled = alpha v,
+    w_scaled = alpha w keeps the arc radius v/omega). Commands already within limits are
+    returned unchanged, bit for bit."""
+    wheels = np.max(np.abs(unicycle_to_wheels(dxu, wheel_radius, base_length)), axis=0)
+    with np.errstate(divide="ignore"):
+        alpha = np.minimum.reduce([np.ones(dxu.shape[1]), max_wheel / wheels,
+                                   max_linear / np.abs(dxu[0]), max_angular / np.abs(dxu[1])])
+    scaled = dxu.copy()
+    over = alpha < 1
+    scaled[:, over] *= alpha[over]
+    return scaled
+
+
+def count_collisions(poses, robot_diameter=ROBOT_DIAMETER):
+    """Robot pairs whose centres are within one robot diameter (rps _validate counts each pair)."""
+    xy = poses[:2]
+    i, j = np.triu_indices(xy.shape[1], k=1)
+    distances = np.hypot(xy[0, i] - xy[0, j], xy[1, i] - xy[1, j])
+    return int(np.count_nonzero(distances <= robot_diameter))
+
+
+def outside_arena(poses, arena=(ARENA_X_MIN, ARENA_X_MAX, ARENA_Y_MIN, ARENA_Y_MAX)):
+    """Boolean mask of robots whose centre is outside the arena (rps _validate)."""
+    x, y = poses[0], poses[1]
+    return (x < arena[0]) | (x > arena[1]) | (y < arena[2]) | (y > arena[3])
+
+
+def validate_number_of_robots(number_of_robots):
+    if isinstance(number_of_robots, bool) or not isinstance(number_of_robots, (int, np.integer)):
+        raise RobotariumError(
+            "number_of_robots must be an integer from %d to %d; received %r of type %s."
+            % (MIN_ROBOTS, MAX_ROBOTS, number_of_robots, type(number_of_robots).__name__))
+    if not MIN_ROBOTS <= number_of_robots <= MAX_ROBOTS:
+        raise RobotariumError(
+            "number_of_robots must be from %d to %d (the simulator's range; the real testbed takes up to 20); "
+            "received %d." % (MIN_ROBOTS, MAX_ROBOTS, number_of_robots))
+
+
+def validate_initial_conditions(poses, number_of_robots, robot_diameter=ROBOT_DIAMETER,
+                                arena=(ARENA_X_MIN, ARENA_X_MAX, ARENA_Y_MIN, ARENA_Y_MAX)):
+    """Raise RobotariumError unless `poses` is a finite 3xN array of robots inside the arena, no
+    two of them closer than a robot diameter (they would start in collision)."""
+    poses = np.asarray(poses, dtype=float)
+    if poses.shape != (3, number_of_robots):
+        raise RobotariumError(
+            "initial_conditions must be a 3 x %d array (x, y, theta of each robot); received shape %s."
+            % (number_of_robots, poses.shape))
+    if not np.all(np.isfinite(poses)):
+        raise RobotariumError("initial_conditions must be finite; received NaN or inf at robots %s."
+                              % np.flatnonzero(~np.all(np.isfinite(poses), axis=0)).tolist())
+    outside = np.flatnonzero(outside_arena(poses, arena))
+    if outside.size:
+        raise RobotariumError(
+            "initial_conditions put robots %s outside the arena [%g, %g] x [%g, %g]; move them inside."
+            % (outside.tolist(), *arena))
+    if number_of_robots > 1:
+        i, j = np.triu_indices(number_of_robots, k=1)
+        distances = np.hypot(poses[0, i] - poses[0, j], poses[1, i] - poses[1, j])
+        close = distances <= robot_diameter
+        if np.any(close):
+            k = int(np.argmax(close))
+            raise RobotariumError(
+                "initial_conditions place robots %d and %d %.3f m apart, in collision; keep centres more "
+                "than %.2f m apart (0.15 m or more is recommended)." % (i[k], j[k], distances[k], robot_diameter))
+    return poses
+
+
+def random_initial_conditions(number_of_robots, rng, spacing=0.2, width=2.5, height=1.5):
+    """Random poses on a grid of `spacing` in a width x height box centred in the arena.
+
+    The same algorithm and defaults as rps (misc.generate_initial_conditions called by
+    RobotariumABC with spacing=0.2, width=2.5, height=1.5), drawn from `rng` (a
+    numpy.random.Generator or RandomState) so that a seed reproduces them.
+    """
+    validate_number_of_robots(number_of_robots)
+    x_range, y_range = int(np.floor(width / spacing)), int(np.floor(height / spacing))
+    choices = rng.choice(x_range * y_range, number_of_robots, replace=False) + 1
+    x_cell, y_cell = np.divmod(choices, y_range)
+    return np.vstack((x_cell * spacing - width / 2, y_cell * spacing - height / 2,
+                      rng.random(number_of_robots) * 2 * np.pi - np.pi))
+
+
+def check_commands(ids, v, w, number_of_robots):
+    """Why an incoming command array must be dropped, or None if it is fine.
+
+    Returns one of "length_mismatch" (ids, v and omega of different lengths, or an id twice),
+    "unknown_id" (an id outside 0..N-1) or "nonfinite" (NaN or inf in v or omega).
+    """
+    if not (len(ids) == len(v) == len(w)) or len(np.unique(ids)) != len(ids):
+        return "length_mismatch"
+    if len(ids) and (np.min(ids) < 0 or np.max(ids) >= number_of_robots):
+        return "unknown_id"
+    if not (np.all(np.isfinite(v)) and np.all(np.isfinite(w))):
+        return "nonfinite"
+    return None
+
+
+def debug_report(iterations, boundary_violations, collisions, actuator_limit_iterations):
+    """The text rps.Robotarium.call_at_scripts_end() prints, character for character."""
+    lines = ["##### DEBUG OUTPUT #####\n",
+             "Your simulation will take approximately {0} real seconds when deployed on the Robotarium. \n\n"
+             .format(int(np.ceil(iterations * 0.033)))]
+    if boundary_violations or collisions or actuator_limit_iterations:
+        if boundary_violations:
+            lines.append("\t Simulation had {0} iteration(s) robots were outside the boundaries.\n\n"
+                         .format(boundary_violations))
+        if collisions:
+            lines.append("\t Simulation had {0} iteration(s) where robots collided.\n\n".format(collisions))
+        if actuator_limit_iterations:
+            lines.append("\t Simulation had {0} iteration(s) where the actuator limits were exceeded.\n"
+                         .format(actuator_limit_iterations))
+    else:
+        lines.append("No errors in your simulation! Acceptance of your experiment is likely!\n")
+    return "".join(lines)
+
+
+class Testbed:
+    """The arena with N GTernals: poses, current commands, and the debug report's counters.
+
+    Time is not kept here: the simulator node decides when to step (30 Hz timer or lockstep)
+    and passes wall-clock times for the command timeout.
+    """
+
+    def __init__(self, initial_poses, time_step=TIME_STEP, robot_diameter=ROBOT_DIAMETER,
+                 arena=(ARENA_X_MIN, ARENA_X_MAX, ARENA_Y_MIN, ARENA_Y_MAX),
+                 max_linear=MAX_LINEAR_VELOCITY, max_angular=MAX_ANGULAR_VELOCITY,
+                 max_wheel=MAX_WHEEL_VELOCITY, wheel_radius=WHEEL_RADIUS, base_length=BASE_LENGTH):
+        self.poses = np.array(initial_poses, dtype=float)
+        self.number_of_robots = self.poses.shape[1]
+        validate_number_of_robots(self.number_of_robots)
+        validate_initial_conditions(self.poses, self.number_of_robots, robot_diameter, arena)
+        self.time_step = time_step
+        self.robot_diameter = robot_diameter
+        self.arena = tuple(arena)
+        self.limits = dict(max_linear=max_linear, max_angular=max_angular, max_wheel=max_wheel,
+                           wheel_radius=wheel_radius, base_length=base_length)
+        self.velocities = np.zeros((2, self.number_of_robots))   # commands as set, before thresholding
+        self.command_times = np.full(self.number_of_robots, -np.inf)
+        self.steps = 0
+        self.collisions = 0
+        self.boundary_violations = 0
+        self.actuator_limit_iterations = 0
+        self.command_timeouts = 0
+
+    def set_commands(self, ids, v, w, now=0.0):
+        """Set (v, omega) for the robots `ids` (already checked with check_commands)."""
+        ids = np.asarray(ids, dtype=int)
+        self.velocities[0, ids] = v
+        self.velocities[1, ids] = w
+        self.command_times[ids] = now
+
+    def expire_commands(self, now, timeout=COMMAND_TIMEOUT):
+        """Stop robots whose command is older than `timeout` (guide §2.7.6); count each expiry once."""
+        stale = (now - self.command_times > timeout) & np.any(self.velocities != 0, axis=0)
+        if np.any(stale):
+            self.velocities[:, stale] = 0.0
+            self.command_timeouts += int(np.count_nonzero(stale))
+        return stale
+
+    def step(self):
+        """Advance one time step, as rps.Robotarium.step(): count, threshold, integrate."""
+        self.boundary_violations += int(np.count_nonzero(outside_arena(self.poses, self.arena)))
+        self.collisions += count_collisions(self.poses, self.robot_diameter)
+        if exceeds_actuator_limits(self.velocities, **self.limits):
+            self.actuator_limit_iterations += 1
+        v, w = threshold_keeping_arc(self.velocities, **self.limits)
+        # Same expression order as rps so that runs agree bit for bit.
+        self.poses[0, :] = self.poses[0, :] + self.time_step * np.cos(self.poses[2, :]) * v
+        self.poses[1, :] = self.poses[1, :] + self.time_step * np.sin(self.poses[2, :]) * v
+        self.poses[2, :] = self.poses[2, :] + self.time_step * w
+        self.poses[2, :] = wrap_angle(self.poses[2, :])
+        self.steps += 1
+
+    @property
+    def sim_time(self):
+        return self.steps * self.time_step
+
+    def report(self):
+        return debug_report(self.steps, self.boundary_violations, self.collisions, self.actuator_limit_iterations)

@@ -1,0 +1,305 @@
+"""The Robotarium simulator node: a thin ROS 2 shell around robotarium_sim.model.Testbed.
+
+Topics (relative to the node's namespace, /robotarium by default):
+  cmd_safe        robotarium_msgs/TwistArray   in:  the safety node's commands (the only command input)
+  safety_report   robotarium_msgs/SafetyReport in:  counted as safety interventions
+  poses           robotarium_msgs/RobotPoses   out: every step
+  pose_array      geometry_msgs/PoseArray      out: every step, for viewers (built only when someone listens)
+  status          robotarium_msgs/TestbedStatus out: every step, and once a second while idle or in lockstep
+Services:
+  start_experiment robotarium_msgs/StartExperiment, end_experiment robotarium_msgs/EndExperiment
+
+Modes, chosen per experiment: real time (a timer at `rate` Hz; a robot whose last command is older
+than `command_timeout` stops) or lockstep (exactly one step per accepted command array, as fast as
+commands come, so a run is deterministic).
+"""
+import array
+import math
+import re
+import sys
+import time
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import Pose, PoseArray
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+
+from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
+from robotarium_msgs.srv import EndExperiment, StartExperiment
+from robotarium_sim import model
+
+DEFAULT_NAMESPACE = "robotarium"
+
+# Commands and poses must not be lost (lockstep waits for each), so reliable with room to spare.
+RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+# The recorder announces where it records; a late subscriber still gets the last announcement.
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+PARAMETERS = {
+    # name: (default, check, what a valid value is)
+    "rate": (30.0, lambda v: 0 < v <= 1000, "a tick rate in Hz, 0 < rate <= 1000"),
+    "command_timeout": (model.COMMAND_TIMEOUT, lambda v: v > 0, "seconds, > 0"),
+    "time_step": (model.TIME_STEP, lambda v: 0 < v <= 1, "seconds per step, 0 < time_step <= 1"),
+    "arena": ([model.ARENA_X_MIN, model.ARENA_X_MAX, model.ARENA_Y_MIN, model.ARENA_Y_MAX], lambda v: len(v) == 4 and v[0] < v[1] and v[2] < v[3], "[x_min, x_max, y_min, y_max] with min < max"),
+    "robot_diameter": (model.ROBOT_DIAMETER, lambda v: v > 0, "metres, > 0"),
+    "wheel_radius": (model.WHEEL_RADIUS, lambda v: v > 0, "metres, > 0"),
+    "base_length": (model.BASE_LENGTH, lambda v: v > 0, "metres, > 0"),
+    "max_linear_velocity": (model.MAX_LINEAR_VELOCITY, lambda v: v > 0, "m/s, > 0"),
+    "max_angular_velocity": (model.MAX_ANGULAR_VELOCITY, lambda v: v > 0, "rad/s, > 0"),
+    "max_wheel_velocity": (model.MAX_WHEEL_VELOCITY, lambda v: v > 0, "rad/s, > 0"),
+}
+
+DROP_REASONS = {
+    "nonfinite": "NaN or inf in a velocity",
+    "length_mismatch": "ids and twists of different lengths, or an id given twice",
+    "unknown_id": "an id that is not a robot of this experiment",
+}
+
+
+def to_float_array(values):
+    """numpy float64 vector -> array.array('d') without a Python loop (what rclpy stores for float64[])."""
+    return array.array("d", np.ascontiguousarray(values, dtype=np.float64).tobytes())
+
+
+class SimulatorNode(Node):
+    def __init__(self):
+        super().__init__("simulator", namespace=DEFAULT_NAMESPACE)
+        self.params = self._read_parameters()
+        self.testbed = None
+        self.real_time = True
+        self.experiment = ""
+        self.run_id = ""
+        self.recording = ""
+        self.safety_interventions = 0
+        self.commands_accepted = 0
+        self.dropped = {kind: 0 for kind in DROP_REASONS}
+        self._logged_drops = set()
+        self._clock_start = 0.0
+        self._tick_timer = None
+
+        self.poses_pub = self.create_publisher(RobotPoses, "poses", RELIABLE)
+        self.pose_array_pub = self.create_publisher(PoseArray, "pose_array", 10)
+        self.status_pub = self.create_publisher(TestbedStatus, "status", RELIABLE)
+        self.create_subscription(TwistArray, "cmd_safe", self.on_command, RELIABLE)
+        self.create_subscription(SafetyReport, "safety_report", self.on_safety_report, RELIABLE)
+        self.create_subscription(String, "recording", self.on_recording, LATCHED)
+        self.create_service(StartExperiment, "start_experiment", self.on_start)
+        self.create_service(EndExperiment, "end_experiment", self.on_end)
+        self.create_timer(1.0, self.publish_status_heartbeat)
+        self.get_logger().info("simulator ready in namespace %s" % self.get_namespace())
+
+    def _read_parameters(self):
+        values = {}
+        for name, (default, valid, meaning) in PARAMETERS.items():
+            value = self.declare_parameter(name, default).value
+            if isinstance(value, (list, tuple, array.array)):
+                value = [float(v) for v in value]
+            else:
+                value = float(value)
+            if not valid(value):
+                raise ValueError("parameter %s=%r is invalid: it must be %s." % (name, value, meaning))
+            values[name] = value
+        return values
+
+    # -- experiments -------------------------------------------------------------------------
+
+    def on_start(self, request, response):
+        response.success = False
+        if self.testbed is not None:
+            response.message = ("experiment %r is still running; end it (end_experiment) before starting another."
+                                % self.experiment)
+            return response
+        name = request.name or "experiment"
+        if not re.fullmatch(r"[A-Za-z0-9_-]{1,64}", name):
+            response.message = "name %r must be 1 to 64 letters, digits, '-' or '_'." % name
+            return response
+        p = self.params
+        try:
+            model.validate_number_of_robots(int(request.number_of_robots))
+            n = int(request.number_of_robots)
+            given = (len(request.x), len(request.y), len(request.theta))
+            if given == (0, 0, 0):
+                seed = request.seed or None
+                poses = model.random_initial_conditions(n, np.random.default_rng(seed))
+            elif given == (n, n, n):
+                poses = np.array([request.x, request.y, request.theta], dtype=float)
+            else:
+                raise model.RobotariumError(
+                    "initial conditions need x, y and theta of length %d each, or all empty for random ones; "
+                    "received lengths %s." % (n, given))
+            self.testbed = model.Testbed(
+                poses, time_step=p["time_step"], robot_diameter=p["robot_diameter"], arena=p["arena"],
+                max_linear=p["max_linear_velocity"], max_angular=p["max_angular_velocity"],
+                max_wheel=p["max_wheel_velocity"], wheel_radius=p["wheel_radius"], base_length=p["base_length"])
+        except model.RobotariumError as error:
+            response.message = str(error)
+            return response
+
+        self.real_time = bool(request.real_time)
+        self.experiment = name
+        self.run_id = "%s_%s" % (name, time.strftime("%Y%m%d-%H%M%S"))
+        self.safety_interventions = 0
+        self.commands_accepted = 0
+        self.dropped = {kind: 0 for kind in DROP_REASONS}
+        self._logged_drops = set()
+        self._clock_start = time.monotonic()
+        if self.real_time:
+            self._tick_timer = self.create_timer(1.0 / p["rate"], self.tick)
+        self.publish_state()
+        response.success = True
+        response.run_id = self.run_id
+        response.x, response.y, response.theta = (to_float_array(row) for row in self.testbed.poses)
+        response.message = "started %s: %d robots, %s" % (
+            self.run_id, n, "real time at %g Hz" % p["rate"] if self.real_time else "lockstep")
+        self.get_logger().info(response.message)
+        return response
+
+    def on_end(self, request, response):
+        if self.testbed is None:
+            response.success = False
+            response.message = "no experiment is running."
+            return response
+        if self._tick_timer is not None:
+            self.destroy_timer(self._tick_timer)
+            self._tick_timer = None
+        tb = self.testbed
+        response.success = True
+        response.run_id = self.run_id
+        response.steps = tb.steps
+        response.sim_time = tb.sim_time
+        response.collisions = tb.collisions
+        response.boundary_violations = tb.boundary_violations
+        response.actuator_limit_iterations = tb.actuator_limit_iterations
+        response.command_timeouts = tb.command_timeouts
+        response.report = tb.report()
+        response.recording = self.recording
+        response.message = "ended %s after %d steps" % (self.run_id, tb.steps)
+        self.publish_status()  # the final counters, still marked running, so recorders keep them
+        self.testbed = None
+        self.publish_status()
+        self.get_logger().info(response.message)
+        return response
+
+    # -- commands ----------------------------------------------------------------------------
+
+    def on_command(self, msg):
+        tb = self.testbed
+        if tb is None:
+            return
+        ids = np.frombuffer(msg.ids, dtype=np.uint32) if len(msg.ids) else np.zeros(0, dtype=np.uint32)
+        v = np.array([t.linear.x for t in msg.twists], dtype=float)
+        w = np.array([t.angular.z for t in msg.twists], dtype=float)
+        problem = model.check_commands(ids, v, w, tb.number_of_robots)
+        if problem is not None:
+            self.dropped[problem] += 1
+            if problem not in self._logged_drops:
+                self._logged_drops.add(problem)
+                self.get_logger().warning(
+                    "dropped a command array (step %d): %s. Further drops of this kind are only counted "
+                    "in the status topic." % (msg.step, DROP_REASONS[problem]))
+            self.publish_status()
+            return
+        self.commands_accepted += 1
+        tb.set_commands(ids, v, w, now=time.monotonic())
+        if not self.real_time:
+            tb.step()
+            self.publish_state()
+
+    def on_safety_report(self, msg):
+        if self.testbed is not None and msg.status not in ("passthrough",):
+            self.safety_interventions += 1
+
+    def on_recording(self, msg):
+        self.recording = msg.data
+
+    # -- stepping and publishing ---------------------------------------------------------------
+
+    def tick(self):
+        tb = self.testbed
+        if tb is None:
+            return
+        tb.expire_commands(time.monotonic(), self.params["command_timeout"])
+        tb.step()
+        self.publish_state()
+
+    def publish_state(self):
+        tb = self.testbed
+        stamp = self.get_clock().now().to_msg()
+        msg = RobotPoses()
+        msg.header.stamp = stamp
+        msg.header.frame_id = "arena"
+        msg.step = tb.steps
+        msg.sim_time = tb.sim_time
+        msg.ids = array.array("I", range(tb.number_of_robots))
+        msg.x, msg.y, msg.theta = (to_float_array(row) for row in tb.poses)
+        self.poses_pub.publish(msg)
+        if self.pose_array_pub.get_subscription_count() > 0:
+            self.pose_array_pub.publish(self.pose_array(tb.poses, stamp))
+        self.publish_status(stamp)
+
+    @staticmethod
+    def pose_array(poses, stamp):
+        out = PoseArray()
+        out.header.stamp = stamp
+        out.header.frame_id = "arena"
+        for x, y, theta in poses.T:
+            pose = Pose()
+            pose.position.x, pose.position.y = float(x), float(y)
+            pose.orientation.z, pose.orientation.w = math.sin(theta / 2), math.cos(theta / 2)
+            out.poses.append(pose)
+        return out
+
+    def publish_status_heartbeat(self):
+        # Real-time runs publish status every tick; idle and lockstep (which may wait) once a second.
+        if self.testbed is None or not self.real_time:
+            self.publish_status()
+
+    def publish_status(self, stamp=None):
+        tb = self.testbed
+        msg = TestbedStatus()
+        msg.header.stamp = stamp or self.get_clock().now().to_msg()
+        msg.header.frame_id = "arena"
+        msg.experiment = self.experiment
+        msg.run_id = self.run_id
+        msg.mode = "realtime" if self.real_time else "lockstep"
+        msg.commands_accepted = self.commands_accepted
+        msg.dropped_nonfinite = self.dropped["nonfinite"]
+        msg.dropped_length_mismatch = self.dropped["length_mismatch"]
+        msg.dropped_unknown_id = self.dropped["unknown_id"]
+        msg.safety_interventions = self.safety_interventions
+        if tb is None:
+            msg.state = TestbedStatus.STATE_IDLE
+        else:
+            msg.state = TestbedStatus.STATE_RUNNING
+            msg.number_of_robots = tb.number_of_robots
+            msg.step = tb.steps
+            msg.sim_time = tb.sim_time
+            msg.collisions = tb.collisions
+            msg.boundary_violations = tb.boundary_violations
+            msg.actuator_limit_iterations = tb.actuator_limit_iterations
+            msg.command_timeouts = tb.command_timeouts
+        self.status_pub.publish(msg)
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    try:
+        node = SimulatorNode()
+    except ValueError as error:
+        print("simulator: %s" % error, file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

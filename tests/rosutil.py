@@ -1,0 +1,134 @@
+"""Helpers for node-level tests: real nodes in subprocesses, each test on its own DDS domain.
+
+- `unique_domain_id()` hands out a ROS_DOMAIN_ID no other test of this run (or of another pytest
+  run on this machine, by pid offset) uses; discovery is localhost-only, so tests cannot hear
+  each other or the network.
+- `NodeProcess` starts `python -m MODULE` from the source tree in its own process group and always
+  kills the whole group on close (SIGINT, then SIGKILL).
+- `RosProbe` is an rclpy node in a private context on a given domain, with small synchronous
+  helpers (call a service, wait for messages).
+"""
+import itertools
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SOURCE_PATHS = [os.path.join(REPO, p) for p in ("robotarium_sim", "robotarium_safety", "robotarium_client")]
+
+# Domain ids 0..232 are valid with Fast DDS; spread pytest runs by pid so concurrent runs differ.
+_domain_ids = itertools.count()
+_DOMAIN_BASE = 1 + (os.getpid() % 23) * 10
+
+
+def unique_domain_id():
+    return 1 + (_DOMAIN_BASE - 1 + next(_domain_ids)) % 230
+
+
+def node_env(domain_id, **extra):
+    env = dict(os.environ)
+    env["ROS_DOMAIN_ID"] = str(domain_id)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env.pop("ROS_LOCALHOST_ONLY", None)
+    env["PYTHONPATH"] = os.pathsep.join(SOURCE_PATHS + [env.get("PYTHONPATH", "")])
+    env["PYTHONUNBUFFERED"] = "1"
+    env["MPLBACKEND"] = "Agg"
+    env.update({k: str(v) for k, v in extra.items()})
+    return env
+
+
+class NodeProcess:
+    """A node (or any `python -m` module) in a subprocess of its own process group."""
+
+    def __init__(self, module, domain_id, args=(), ros_args=(), log_path=None, env=None):
+        self.module = module
+        cmd = [sys.executable, "-m", module, *args]
+        if ros_args:
+            cmd += ["--ros-args", *ros_args]
+        self.log_path = log_path
+        self._log = open(log_path, "wb") if log_path else subprocess.DEVNULL
+        self.proc = subprocess.Popen(cmd, env=env or node_env(domain_id), stdout=self._log,
+                                     stderr=subprocess.STDOUT, start_new_session=True, cwd=REPO)
+
+    def alive(self):
+        return self.proc.poll() is None
+
+    def kill(self, sig=signal.SIGKILL):
+        if self.alive():
+            os.killpg(self.proc.pid, sig)
+
+    def close(self, grace=3.0):
+        if self.alive():
+            try:
+                os.killpg(self.proc.pid, signal.SIGINT)
+                self.proc.wait(timeout=grace)
+            except (subprocess.TimeoutExpired, ProcessLookupError):
+                pass
+        try:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        self.proc.wait()
+        if self._log is not subprocess.DEVNULL:
+            self._log.close()
+
+    def output(self):
+        if not self.log_path:
+            return ""
+        with open(self.log_path, "rb") as f:
+            return f.read().decode(errors="replace")
+
+
+class RosProbe:
+    """An rclpy node in its own context on `domain_id`, spun by hand from the test."""
+
+    def __init__(self, domain_id, name="probe"):
+        self.context = Context()
+        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = Node(name, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+
+    def spin_for(self, seconds):
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=min(0.05, max(0.0, end - time.monotonic())))
+
+    def spin_until(self, predicate, timeout):
+        end = time.monotonic() + timeout
+        while not predicate():
+            if time.monotonic() > end:
+                return False
+            self.executor.spin_once(timeout_sec=0.05)
+        return True
+
+    def call(self, srv_type, name, request, timeout=10.0):
+        client = self.node.create_client(srv_type, name)
+        try:
+            if not client.wait_for_service(timeout_sec=timeout):
+                raise TimeoutError("service %s did not appear within %.0f s" % (name, timeout))
+            future = client.call_async(request)
+            if not self.spin_until(future.done, timeout):
+                raise TimeoutError("service %s did not answer within %.0f s" % (name, timeout))
+            return future.result()
+        finally:
+            self.node.destroy_client(client)
+
+    def collect(self, msg_type, topic, qos=50):
+        """Subscribe and return the list that received messages are appended to."""
+        received = []
+        self.node.create_subscription(msg_type, topic, received.append, qos)
+        return received
+
+    def close(self):
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)

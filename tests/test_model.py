@@ -1,0 +1,225 @@
+"""The arena and GTernal model against hand-computed cases and against the reference simulator."""
+import math
+
+import numpy as np
+import pytest
+
+from robotarium_sim import model
+from robotarium_sim.model import RobotariumError
+
+
+from reference import reference_available, run_reference
+
+
+def one_robot(x=0.0, y=0.0, theta=0.0):
+    return model.Testbed(np.array([[x], [y], [theta]]))
+
+
+def test_straight_line():
+    tb = one_robot(theta=0.0)
+    tb.set_commands([0], [0.1], [0.0])
+    for _ in range(30):
+        tb.step()
+    assert tb.poses[0, 0] == pytest.approx(30 * 0.033 * 0.1, abs=1e-12)
+    assert tb.poses[1, 0] == pytest.approx(0.0, abs=1e-12)
+    assert tb.poses[2, 0] == 0.0
+    assert tb.steps == 30 and tb.sim_time == pytest.approx(0.99)
+
+
+def test_straight_line_along_heading():
+    tb = one_robot(theta=math.pi / 3)
+    tb.set_commands([0], [0.2], [0.0])
+    tb.step()
+    assert tb.poses[:2, 0] == pytest.approx([0.033 * 0.2 * 0.5, 0.033 * 0.2 * math.sqrt(3) / 2], abs=1e-12)
+
+
+def test_pure_rotation_does_not_translate():
+    tb = one_robot(x=0.3, y=-0.2, theta=0.0)
+    tb.set_commands([0], [0.0], [1.0])
+    for _ in range(10):
+        tb.step()
+    assert tb.poses[:2, 0] == pytest.approx([0.3, -0.2], abs=1e-15)
+    assert tb.poses[2, 0] == pytest.approx(0.33, abs=1e-12)
+
+
+def test_angle_wraps_to_minus_pi_pi():
+    tb = one_robot(theta=3.1)
+    tb.set_commands([0], [0.0], [3.0])
+    tb.step()  # 3.1 + 0.099 = 3.199 > pi
+    assert tb.poses[2, 0] == pytest.approx(3.199 - 2 * math.pi, abs=1e-12)
+    assert -math.pi <= tb.poses[2, 0] <= math.pi
+    assert model.wrap_angle(np.array([-3.5]))[0] == pytest.approx(-3.5 + 2 * math.pi)
+
+
+def test_threshold_keeps_commands_within_limits_unchanged():
+    dxu = np.array([[0.1, -0.12, 0.0, 0.05], [0.5, -1.0, 3.0, 0.0]])
+    assert np.array_equal(model.threshold_keeping_arc(dxu), dxu)
+
+
+def test_threshold_preserves_arc_and_respects_wheel_limits():
+    dxu = np.array([[0.3, 0.2, 0.0, -0.5], [1.0, 2.0, 10.0, 0.4]])
+    out = model.threshold_keeping_arc(dxu)
+    wheels = model.unicycle_to_wheels(out)
+    assert np.all(np.abs(wheels) <= model.MAX_WHEEL_VELOCITY + 1e-9)
+    assert np.all(np.abs(out[0]) <= 0.2 + 1e-12) and np.all(np.abs(out[1]) <= model.MAX_ANGULAR_VELOCITY + 1e-12)
+    # Same arc: same ratio v/omega, same signs; and one wheel (or a limit) is exactly at its bound.
+    moving = dxu[1] != 0
+    assert out[0, moving] / out[1, moving] == pytest.approx(dxu[0, moving] / dxu[1, moving])
+    assert np.all(np.sign(out) == np.sign(dxu))
+    # Hand-computed: v=0.3, w=1 -> wheels (0.6 -+ 0.105)/0.032 = 15.47, 22.03 -> alpha = 12.5/22.03
+    alpha = 12.5 / ((0.6 + 0.105) / 0.032)
+    assert out[:, 0] == pytest.approx([0.3 * alpha, 1.0 * alpha])
+    # Pure rotation at 10 rad/s is held to the rps angular limit of 2*0.2/0.11 rad/s.
+    assert out[:, 2] == pytest.approx([0.0, 2 * 0.2 / 0.11])
+
+
+def test_actuator_limit_counted_like_rps():
+    # v = 0.3 alone: rps clips v to 0.2 first, wheels at exactly 12.5 -> not counted.
+    assert not model.exceeds_actuator_limits(np.array([[0.3], [0.0]]))
+    # v = 0.2 with a little turn: one wheel over 12.5 -> counted.
+    assert model.exceeds_actuator_limits(np.array([[0.2], [0.5]]))
+    tb = model.Testbed(np.array([[0.0, 0.5], [0.0, 0.0], [0.0, 0.0]]))
+    tb.set_commands([0, 1], [0.2, 0.0], [0.5, 0.0])
+    tb.step()
+    tb.set_commands([0, 1], [0.1, 0.0], [0.0, 0.0])
+    tb.step()
+    assert tb.actuator_limit_iterations == 1
+
+
+def test_collision_counting_per_pair_and_step():
+    poses = np.array([[0.0, 0.10, 0.20, 1.0], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]])
+    # pairs within 0.11: (0,1) 0.10, (1,2) 0.10; (0,2) is 0.20 apart.
+    assert model.count_collisions(poses) == 2
+    assert model.count_collisions(np.array([[0.0, 0.11], [0.0, 0.0], [0.0, 0.0]])) == 1  # <= counts, as rps
+    assert model.count_collisions(np.array([[0.0, 0.1101], [0.0, 0.0], [0.0, 0.0]])) == 0
+
+
+def test_boundary_counting_and_collisions_accumulate_per_step():
+    tb = model.Testbed(np.array([[1.55, -0.5], [0.0, 0.0], [0.0, 0.0]]))
+    tb.set_commands([0], [0.2], [0.0])
+    for _ in range(20):  # 0.0066 m per step: crosses x = 1.6 after 8 steps
+        tb.step()
+    # Counted on the poses before each move: steps 9..20 see robot 0 outside.
+    crossing = next(k for k in range(30) if 1.55 + k * 0.0066 > 1.6)
+    assert tb.boundary_violations == 20 - crossing
+    assert tb.collisions == 0
+    assert "robots were outside the boundaries" in tb.report()
+
+
+def test_command_timeout_stops_and_counts_once():
+    tb = one_robot()
+    tb.set_commands([0], [0.1], [0.0], now=10.0)
+    assert not tb.expire_commands(10.4).any()
+    assert tb.expire_commands(10.6).tolist() == [True]
+    assert tb.velocities[:, 0].tolist() == [0.0, 0.0]
+    assert not tb.expire_commands(20.0).any()
+    assert tb.command_timeouts == 1
+
+
+def test_check_commands_finds_each_problem():
+    ok = model.check_commands(np.array([0, 1]), np.array([0.1, 0.0]), np.array([0.0, 0.2]), 2)
+    assert ok is None
+    assert model.check_commands(np.array([0, 1]), np.array([0.1]), np.array([0.0, 0.2]), 2) == "length_mismatch"
+    assert model.check_commands(np.array([0, 0]), np.array([0.1, 0.1]), np.array([0.0, 0.2]), 2) == "length_mismatch"
+    assert model.check_commands(np.array([0, 5]), np.array([0.1, 0.1]), np.array([0.0, 0.2]), 2) == "unknown_id"
+    assert model.check_commands(np.array([0, 1]), np.array([np.nan, 0.1]), np.array([0.0, 0.2]), 2) == "nonfinite"
+    assert model.check_commands(np.array([0, 1]), np.array([0.1, 0.1]), np.array([np.inf, 0.2]), 2) == "nonfinite"
+
+
+@pytest.mark.parametrize("n", [1, 5, 20, 50])
+def test_random_initial_conditions_are_valid_and_seeded(n):
+    a = model.random_initial_conditions(n, np.random.default_rng(3))
+    b = model.random_initial_conditions(n, np.random.default_rng(3))
+    assert np.array_equal(a, b)
+    model.validate_initial_conditions(a, n)  # inside the arena and no two in collision
+    assert a.shape == (3, n)
+
+
+@pytest.mark.parametrize("bad, words", [
+    (np.array([[0.0, 0.05], [0.0, 0.0], [0.0, 0.0]]), "collision"),
+    (np.array([[0.0, 1.7], [0.0, 0.0], [0.0, 0.0]]), "outside the arena"),
+    (np.array([[0.0, np.nan], [0.0, 0.0], [0.0, 0.0]]), "finite"),
+    (np.zeros((2, 2)), "3 x 2"),
+])
+def test_invalid_initial_conditions_are_refused(bad, words):
+    with pytest.raises(RobotariumError, match=words):
+        model.validate_initial_conditions(bad, 2)
+
+
+@pytest.mark.parametrize("n", [0, 51, -1, 2.0, True])
+def test_number_of_robots_range(n):
+    with pytest.raises(RobotariumError, match="number_of_robots"):
+        model.validate_number_of_robots(n)
+
+
+def test_report_text_matches_rps_format():
+    clean = model.debug_report(450, 0, 0, 0)
+    assert clean == ("##### DEBUG OUTPUT #####\n"
+                     "Your simulation will take approximately 15 real seconds when deployed on the Robotarium. \n\n"
+                     "No errors in your simulation! Acceptance of your experiment is likely!\n")
+    assert "\t Simulation had 450 iteration(s) where the actuator limits were exceeded.\n" in model.debug_report(450, 0, 0, 450)
+
+
+@pytest.mark.skipif(not reference_available(), reason="reference venv missing (./robotarium setup makes it)")
+def test_steps_match_reference_bit_for_bit():
+    """Within the actuator limits our step is the reference's step, bit for bit, and the
+    debug counters (collisions per pair, boundary per robot, actuator per iteration) agree."""
+    rng = np.random.default_rng(7)
+    n, steps = 8, 150
+    initial = model.random_initial_conditions(n, rng)
+    # Commands inside the wheel limits, plus some steps over them (the counters must agree there too,
+    # though rps then drives a different arc, so poses are compared only while commands are within limits).
+    commands = np.stack([np.vstack((rng.uniform(-0.08, 0.08, n), rng.uniform(-1.5, 1.5, n))) for _ in range(steps)])
+    code = """
+import numpy as np
+import rps.robotarium as robotarium
+r = robotarium.Robotarium(number_of_robots=n, show_figure=False, initial_conditions=initial.copy(), sim_in_real_time=False)
+trace = []
+for k in range(steps):
+    r.get_poses()
+    r.set_velocities(np.arange(n), commands[k].copy())
+    r.step()
+    trace.append(r.poses.copy())
+result["trace"] = np.array(trace)
+result["errors"] = {k: v for k, v in r._errors.items() if not k.endswith("_string")}
+"""
+    ref = run_reference(code, n=n, steps=steps, initial=initial, commands=commands)
+    tb = model.Testbed(initial)
+    ours = []
+    for k in range(steps):
+        tb.set_commands(range(n), commands[k][0], commands[k][1])
+        tb.step()
+        ours.append(tb.poses.copy())
+    assert np.array_equal(np.array(ours), ref["trace"])
+    assert tb.collisions == ref["errors"].get("collision", 0)
+    assert tb.boundary_violations == ref["errors"].get("boundary", 0)
+    assert tb.actuator_limit_iterations == ref["errors"].get("actuator", 0)
+
+
+@pytest.mark.skipif(not reference_available(), reason="reference venv missing (./robotarium setup makes it)")
+def test_counters_match_reference_in_a_messy_run():
+    """Robots driven into each other, out of the arena and over the wheel limits: the counters
+    of the debug report agree with the reference's (poses differ once limits are exceeded)."""
+    initial = np.array([[-0.3, 0.3, 1.4, -1.0], [0.0, 0.0, 0.8, -0.5], [0.0, math.pi, 0.5, 0.0]])
+    steps = 120
+    # A head-on pair, one robot leaving the arena, and one far from all others driving a circle
+    # over the wheel limits (rps drives it on another arc, but nowhere near anyone or any wall).
+    commands = np.array([[0.15, 0.15, 0.19, 0.2], [0.0, 0.0, 0.1, 0.5]])
+    code = """
+import numpy as np
+import rps.robotarium as robotarium
+r = robotarium.Robotarium(number_of_robots=4, show_figure=False, initial_conditions=initial.copy(), sim_in_real_time=False)
+for k in range(steps):
+    r.get_poses()
+    r.set_velocities(np.arange(4), commands.copy())
+    r.step()
+result["errors"] = {k: v for k, v in r._errors.items() if not k.endswith("_string")}
+"""
+    ref = run_reference(code, initial=initial, steps=steps, commands=commands)
+    tb = model.Testbed(initial)
+    for _ in range(steps):
+        tb.set_commands(range(4), commands[0], commands[1])
+        tb.step()
+    assert tb.collisions == ref["errors"]["collision"] > 0
+    assert tb.boundary_violations == ref["errors"]["boundary"] > 0
+    assert tb.actuator_limit_iterations == ref["errors"]["actuator"] == steps
