@@ -16,6 +16,8 @@ command beyond the wheel limits drives on a different arc there; here it is scal
 limits along its own arc (guide §2.5 "scaling both the linear and angular components
 proportionally"). Commands within the limits move the robots bit for bit as rps does.
 """
+import functools
+
 import numpy as np
 
 # Arena: 3.2 m x 2 m (guide §2.7.2); rps: boundaries = [-1.6, -1, 3.2, 2] (lower left, width, height).
@@ -69,6 +71,11 @@ def wheels_to_unicycle(dxdd, wheel_radius=WHEEL_RADIUS, base_length=BASE_LENGTH)
     return np.vstack((wheel_radius / 2 * (left + right), wheel_radius / base_length * (right - left)))
 
 
+def fastest_wheel(v, w, wheel_radius=WHEEL_RADIUS, base_length=BASE_LENGTH):
+    """Speed of the faster wheel of each robot: max(|2v - Lw|, |2v + Lw|) / 2r = (2|v| + L|w|) / 2r."""
+    return (2 * np.abs(v) + base_length * np.abs(w)) / (2 * wheel_radius)
+
+
 def exceeds_actuator_limits(dxu, max_linear=MAX_LINEAR_VELOCITY, max_angular=MAX_ANGULAR_VELOCITY,
                             max_wheel=MAX_WHEEL_VELOCITY, wheel_radius=WHEEL_RADIUS,
                             base_length=BASE_LENGTH):
@@ -78,8 +85,9 @@ def exceeds_actuator_limits(dxu, max_linear=MAX_LINEAR_VELOCITY, max_angular=MAX
     counts the iteration when a wheel of the clipped command turns faster than 12.5 rad/s
     (_validate). Doing the same keeps our debug report equal to the reference's.
     """
-    clipped = np.vstack((np.clip(dxu[0], -max_linear, max_linear), np.clip(dxu[1], -max_angular, max_angular)))
-    return bool(np.any(np.abs(unicycle_to_wheels(clipped, wheel_radius, base_length)) > max_wheel))
+    v = np.minimum(np.abs(dxu[0]), max_linear)   # |clip(v)|: fastest_wheel needs magnitudes only
+    w = np.minimum(np.abs(dxu[1]), max_angular)
+    return bool(np.any(fastest_wheel(v, w, wheel_radius, base_length) > max_wheel))
 
 
 def threshold_keeping_arc(dxu, max_linear=MAX_LINEAR_VELOCITY, max_angular=MAX_ANGULAR_VELOCITY,
@@ -88,22 +96,30 @@ def threshold_keeping_arc(dxu, max_linear=MAX_LINEAR_VELOCITY, max_angular=MAX_A
     max_wheel, |v| <= max_linear and |omega| <= max_angular (guide §2.5: v_scaled = alpha v,
     w_scaled = alpha w keeps the arc radius v/omega). Commands already within limits are
     returned unchanged, bit for bit."""
-    wheels = np.max(np.abs(unicycle_to_wheels(dxu, wheel_radius, base_length)), axis=0)
+    v, w = np.abs(dxu[0]), np.abs(dxu[1])
     with np.errstate(divide="ignore"):
-        alpha = np.minimum.reduce([np.ones(dxu.shape[1]), max_wheel / wheels,
-                                   max_linear / np.abs(dxu[0]), max_angular / np.abs(dxu[1])])
-    scaled = dxu.copy()
+        alpha = np.minimum(np.minimum(max_wheel / fastest_wheel(v, w, wheel_radius, base_length), 1.0),
+                           np.minimum(max_linear / v, max_angular / w))
     over = alpha < 1
+    if not np.any(over):
+        return dxu.copy()
+    scaled = dxu.copy()
     scaled[:, over] *= alpha[over]
     return scaled
 
 
+@functools.lru_cache(maxsize=64)
+def robot_pairs(number_of_robots):
+    """Index arrays (i, j) of every pair i < j, cached per N (the step's hot path uses them)."""
+    return np.triu_indices(number_of_robots, k=1)
+
+
 def count_collisions(poses, robot_diameter=ROBOT_DIAMETER):
     """Robot pairs whose centres are within one robot diameter (rps _validate counts each pair)."""
-    xy = poses[:2]
-    i, j = np.triu_indices(xy.shape[1], k=1)
-    distances = np.hypot(xy[0, i] - xy[0, j], xy[1, i] - xy[1, j])
-    return int(np.count_nonzero(distances <= robot_diameter))
+    x, y = poses[0], poses[1]
+    i, j = robot_pairs(poses.shape[1])
+    dx, dy = x[i] - x[j], y[i] - y[j]
+    return int(np.count_nonzero(np.sqrt(dx * dx + dy * dy) <= robot_diameter))  # as np.linalg.norm in rps
 
 
 def outside_arena(poses, arena=(ARENA_X_MIN, ARENA_X_MAX, ARENA_Y_MIN, ARENA_Y_MAX)):
@@ -141,7 +157,7 @@ def validate_initial_conditions(poses, number_of_robots, robot_diameter=ROBOT_DI
             "initial_conditions put robots %s outside the arena [%g, %g] x [%g, %g]; move them inside."
             % (outside.tolist(), *arena))
     if number_of_robots > 1:
-        i, j = np.triu_indices(number_of_robots, k=1)
+        i, j = robot_pairs(number_of_robots)
         distances = np.hypot(poses[0, i] - poses[0, j], poses[1, i] - poses[1, j])
         close = distances <= robot_diameter
         if np.any(close):

@@ -1,0 +1,109 @@
+"""Simulator node benchmark: real-time tick period and jitter, and lockstep steps per second.
+
+For N = 1, 5, 20, 50 robots it starts the simulator node in a subprocess (own DDS domain,
+localhost only) and measures
+  - real time: the period between consecutive ticks as stamped by the node itself (header
+    stamps of the poses), its mean and the 99th percentile of |period - 1/30 s|;
+  - lockstep: steps per second when a plain rclpy client publishes a command array on
+    cmd_safe and waits for the poses of that step before sending the next (the simulator alone,
+    no safety node in the loop).
+Run: ./robotarium bench simulator [--seconds S] [--steps K]
+"""
+import argparse
+import os
+import platform
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tests"))
+import conftest  # noqa: E402,F401  (puts the package sources on sys.path)
+from rosutil import NodeProcess, RosProbe, unique_domain_id  # noqa: E402
+from geometry_msgs.msg import Twist  # noqa: E402
+from robotarium_msgs.msg import RobotPoses, TwistArray  # noqa: E402
+from robotarium_msgs.srv import EndExperiment, StartExperiment  # noqa: E402
+from robotarium_sim import model  # noqa: E402
+
+NS = "/robotarium"
+
+
+def start(probe, n, real_time):
+    response = probe.call(StartExperiment, NS + "/start_experiment", StartExperiment.Request(
+        name="bench", number_of_robots=n, real_time=real_time, seed=1))
+    assert response.success, response.message
+
+
+def end(probe):
+    probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request())
+
+
+def real_time_jitter(probe, n, seconds):
+    poses = probe.collect(RobotPoses, NS + "/poses")
+    start(probe, n, real_time=True)
+    probe.spin_for(seconds)
+    end(probe)
+    stamps = np.array([p.header.stamp.sec + p.header.stamp.nanosec * 1e-9 for p in poses if p.step > 0])
+    periods = np.diff(stamps)
+    jitter = np.abs(periods - 1 / 30)
+    return periods.mean() * 1e3, np.percentile(jitter, 99) * 1e3, len(stamps)
+
+
+def lockstep_rate(probe, n, steps):
+    poses = probe.collect(RobotPoses, NS + "/poses")
+    publisher = probe.node.create_publisher(TwistArray, NS + "/cmd_safe", 50)
+    start(probe, n, real_time=False)
+    probe.spin_until(lambda: publisher.get_subscription_count() > 0, 10)
+    msg = TwistArray()
+    msg.ids = list(range(n))
+    msg.twists = [Twist() for _ in range(n)]
+    for t in msg.twists:
+        t.linear.x, t.angular.z = 0.01, 0.1
+    t0 = time.perf_counter()
+    for k in range(1, steps + 1):
+        msg.step = k
+        publisher.publish(msg)
+        if not probe.spin_until(lambda: poses and poses[-1].step >= k, 5):
+            raise RuntimeError("lockstep stalled at step %d" % k)
+    elapsed = time.perf_counter() - t0
+    end(probe)
+    return steps / elapsed
+
+
+def model_rate(n, steps):
+    tb = model.Testbed(model.random_initial_conditions(n, np.random.default_rng(1)))
+    tb.set_commands(range(n), np.full(n, 0.01), np.full(n, 0.1))
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        tb.step()
+    return steps / (time.perf_counter() - t0)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=5.0, help="real-time measurement per N")
+    parser.add_argument("--steps", type=int, default=1000, help="lockstep steps per N")
+    parser.add_argument("--robots", type=int, nargs="+", default=[1, 5, 20, 50])
+    args = parser.parse_args()
+
+    print("simulator benchmark, %s, %s, %d cores, %s" % (
+        time.strftime("%Y-%m-%d"), platform.processor() or platform.machine(), os.cpu_count(),
+        platform.python_version()))
+    print("%4s | %16s %18s %7s | %18s | %16s" % (
+        "N", "tick mean (ms)", "jitter p99 (ms)", "ticks", "lockstep steps/s", "model steps/s"))
+    for n in args.robots:
+        domain = unique_domain_id()
+        sim = NodeProcess("robotarium_sim.simulator_node", domain)
+        probe = RosProbe(domain, name="bench")
+        try:
+            mean_ms, p99_ms, ticks = real_time_jitter(probe, n, args.seconds)
+            rate = lockstep_rate(probe, n, args.steps)
+        finally:
+            probe.close()
+            sim.close()
+        print("%4d | %16.3f %18.3f %7d | %18.0f | %16.0f" % (n, mean_ms, p99_ms, ticks, rate, model_rate(n, 5000)))
+    print("goals: jitter p99 < 2 ms at N = 50; lockstep > 1000 steps/s at N = 20")
+
+
+if __name__ == "__main__":
+    main()
