@@ -1,0 +1,156 @@
+"""Graph Laplacians and neighbour sets (guide section 4.8).
+
+A graph Laplacian is L = D - A: node degrees on the diagonal, -1 for every edge off it, so each
+row sums to zero and the neighbours of i are the nonzero off-diagonal entries of row i.
+
+Differences from rps 0.0.0, each marked "Fix:" in the code:
+* cycle_GL(1) was [[-1]], cycle_GL(2) [[2, -1], [-1, 2]] and lineGL(1) [[1]]: not Laplacians
+  (rows must sum to zero), and consensus on them drives robots towards the origin.
+* topological_neighbors wrote 0 into the diagonal of the caller's L.
+* topological_neighbors and delta_disk_neighbors accepted agent = N (off by one) and then raised
+  IndexError; delta_disk_neighbors's message for a bad delta named agent.
+* randomGL checked none of its arguments.
+"""
+import numpy as np
+
+from rps.utilities import RobotariumError, _check_array, _check_number
+
+__all__ = [
+    "np",
+    "cycle_GL",
+    "lineGL",
+    "completeGL",
+    "random_connectedGL",
+    "randomGL",
+    "topological_neighbors",
+    "delta_disk_neighbors",
+]
+
+
+def _laplacian(n, rows, cols):
+    """Laplacian of the simple undirected graph on n nodes with edges (rows[k], cols[k])."""
+    L = np.zeros((n, n))
+    L[rows, cols] = -1
+    L[cols, rows] = -1
+    L[np.diag_indices(n)] = np.count_nonzero(L, axis=1)   # degree = number of edges at the node
+    return L
+
+
+def cycle_GL(N):
+    """N x N Laplacian of the cycle 0-1-...-(N-1)-0 (guide 4.8.1). N >= 1.
+
+    Fix: N = 1 and N = 2 give the graphs a cycle degenerates to (one node; one edge), where rps
+    returned matrices whose rows do not sum to zero.
+    """
+    N = _check_number(N, "N (number of nodes)", "cycle_GL", low=1, integer=True)
+    nodes = np.arange(N)
+    if N <= 2:
+        return lineGL(N)
+    return _laplacian(N, nodes, (nodes + 1) % N)
+
+
+def lineGL(N):
+    """N x N Laplacian of the path 0-1-...-(N-1) (guide 4.8.2). N >= 1.
+
+    Fix: lineGL(1) is [[0]] (rps: [[1]]).
+    """
+    N = _check_number(N, "N (number of nodes)", "lineGL", low=1, integer=True)
+    nodes = np.arange(N - 1)
+    return _laplacian(N, nodes, nodes + 1)
+
+
+def completeGL(N):
+    """N x N Laplacian of the complete graph: N - 1 on the diagonal, -1 elsewhere (guide 4.8.3). N >= 1."""
+    N = _check_number(N, "N (number of nodes)", "completeGL", low=1, integer=True)
+    return N * np.identity(N) - np.ones((N, N))
+
+
+def _add_random_edges(L, candidates, count):
+    """Add `count` of the candidate edges (row-major (rows, cols) of free upper-triangle cells),
+    chosen by np.random.permutation over all of them, as rps does (same draws)."""
+    chosen = np.random.permutation(len(candidates[0]))[:count]
+    rows, cols = candidates[0][chosen], candidates[1][chosen]
+    L[rows, cols] = -1
+    L[cols, rows] = -1
+    np.add.at(L, (rows, rows), 1)
+    np.add.at(L, (cols, cols), 1)
+    return L
+
+
+def random_connectedGL(v, e):
+    """v x v Laplacian of a random connected graph with v - 1 + min(e, free pairs) edges (guide 4.8.4).
+
+    rps's algorithm and draws from numpy's global random state: a random tree (node i joins a
+    uniformly drawn earlier node), then e more distinct edges among the pairs not yet joined.
+    v: >= 1 nodes. e: >= 0 extra edges.
+    """
+    where = "random_connectedGL"
+    v = _check_number(v, "v (number of vertices)", where, low=1, integer=True)
+    e = _check_number(e, "e (number of additional edges)", where, low=0, integer=True)
+
+    # The tree: one np.random.randint(i, size=(1, 1)) per node i >= 1, as rps draws them.
+    parents = np.array([np.random.randint(i, size=(1, 1))[0, 0] for i in range(1, v)], dtype=int)
+    L = _laplacian(v, np.arange(1, v), parents)
+
+    # Free pairs: upper-triangle cells of L that are still zero (rps: np.where on that mask).
+    free = np.triu(L == 0, 1)
+    candidates = np.nonzero(free)
+    count = min(e, len(candidates[0]))
+    if count <= 0:
+        return L   # rps draws nothing more in this case
+    return _add_random_edges(L, candidates, count)
+
+
+def randomGL(v, e):
+    """v x v Laplacian of a random graph with min(e, v(v-1)/2) distinct edges (guide 4.8.5).
+
+    rps's algorithm and draws (one np.random.permutation over all node pairs, even for e = 0).
+    v: >= 1 nodes. e: >= 0 edges. The graph need not be connected.
+    """
+    where = "randomGL"
+    # Fix: rps checked neither argument.
+    v = _check_number(v, "v (number of vertices)", where, low=1, integer=True)
+    e = _check_number(e, "e (number of edges)", where, low=0, integer=True)
+    candidates = np.nonzero(np.triu(np.ones((v, v), dtype=bool), 1))
+    return _add_random_edges(np.zeros((v, v)), candidates, min(e, len(candidates[0])))
+
+
+def _check_agent(agent, n, where):
+    # Fix: rps allowed agent == N (it checked agent <= N), then failed with IndexError.
+    return _check_number(agent, "agent", where + " (for %d agents)" % n, low=0, high=n - 1, integer=True)
+
+
+def topological_neighbors(L, agent):
+    """Indices of agent's neighbours in the graph with Laplacian L (guide 4.8.6).
+
+    L: N x N numpy array; agent: 0 to N-1. Returns a 1-D integer array (M neighbours).
+    Fix: rps zeroed L[agent, agent] in the caller's matrix; L is left untouched here.
+    """
+    where = "topological_neighbors"
+    L = _check_array(L, "L", where, None, what="graph Laplacian (N x N)")
+    if L.shape[0] != L.shape[1]:
+        raise RobotariumError("%s: L must be a square N x N graph Laplacian; received an array of shape %s."
+                              % (where, L.shape))
+    agent = _check_agent(agent, L.shape[0], where)
+    row = L[agent] != 0
+    row[agent] = False
+    return np.nonzero(row)[0]
+
+
+def delta_disk_neighbors(poses, agent, delta):
+    """Indices of the agents within distance delta (2-norm, inclusive) of agent, itself excluded (guide 4.8.7).
+
+    poses: 2xN or 3xN numpy array (x, y first); agent: 0 to N-1; delta: >= 0 (m).
+    Returns a 1-D integer array (M neighbours).
+    """
+    where = "delta_disk_neighbors"
+    poses = _check_array(poses, "poses", where, None, what="of poses [x; y] or [x; y; theta]")
+    if poses.shape[0] < 2:
+        raise RobotariumError("%s: poses must have at least 2 rows ([x; y] ...); received an array of shape %s."
+                              % (where, poses.shape))
+    agent = _check_agent(agent, poses.shape[1], where)
+    # Fix: rps's message for a bad delta named agent.
+    delta = _check_number(delta, "delta", where, low=0, allow_inf=True)
+    near = np.linalg.norm(poses[:2] - poses[:2, [agent]], axis=0) <= delta
+    near[agent] = False
+    return np.nonzero(near)[0]

@@ -1,0 +1,161 @@
+"""Mappings between single-integrator and unicycle models (guide section 4.3).
+
+A unicycle at pose (x, y, theta) takes commands (v, omega). Two ways to drive it with a
+single-integrator velocity dxi = (x_dot, y_dot):
+
+* heading tracking (create_si_to_uni_dynamics, ..._with_backwards_motion): v is dxi projected on
+  the heading, omega turns the heading towards dxi;
+* a point projected `projection_distance` ahead of the wheel axle (create_si_to_uni_mapping,
+  create_uni_to_si_dynamics): that point moves exactly like a single integrator, since
+      [x_dot_p; y_dot_p] = [cos theta, -l sin theta; sin theta, l cos theta] [v; omega]
+  and the matrix is invertible for l > 0 (guide 4.3.3-4.3.4; rps transformations.py).
+
+Differences from rps 0.0.0, each marked "Fix:" in the code:
+* create_si_to_uni_dynamics_with_backwards_motion was a copy of the forward mapping; it now
+  drives backwards when that needs less rotation, as the guide (4.3.2) and the Robotarium MATLAB
+  toolbox describe.
+* A zero command could spin a robot at 2*angular_velocity_limit: with theta in (-pi, -pi/2)
+  the projections come out as -0.0 and arctan2(+0.0, -0.0) = pi.
+* create_si_to_uni_mapping checked projection_distance twice and never angular_velocity_limit.
+* uni_to_si_dyn's type check referred to an undefined name (dxi) and raised NameError.
+* uni_to_si_states did not check its input.
+"""
+import numpy as np
+
+from rps.utilities import _check_array, _check_number
+
+__all__ = [
+    "np",
+    "create_si_to_uni_dynamics",
+    "create_si_to_uni_dynamics_with_backwards_motion",
+    "create_si_to_uni_mapping",
+    "create_uni_to_si_dynamics",
+]
+
+
+def _heading_frame(dxi, theta):
+    """dxi expressed in the robot's frame: (component along the heading, component to its left).
+
+    For a zero command these can come out as -0.0 (0 times a negative cosine), and
+    arctan2(+0.0, -0.0) = pi: the callers add +0.0 to arctan2's second argument, which turns -0.0
+    into +0.0 and leaves every other number alone, so a robot asked to stand still gets omega = 0
+    (Fix: rps made it spin at 2*angular_velocity_limit).
+    """
+    c, s = np.cos(theta), np.sin(theta)
+    return c * dxi[0] + s * dxi[1], -s * dxi[0] + c * dxi[1]
+
+
+def _inputs(dxi, poses, where):
+    dxi = _check_array(dxi, "dxi", where, 2, what="of single-integrator velocities [x_dot; y_dot]")
+    poses = _check_array(poses, "poses", where, 3, dxi.shape[1], "of unicycle poses [x; y; theta], one column per column of dxi")
+    return dxi, poses
+
+
+def create_si_to_uni_dynamics(linear_velocity_gain=1, angular_velocity_limit=np.pi):
+    """Return si_to_uni_dyn(dxi, poses) -> 2xN unicycle commands [v; omega] (guide 4.3.1).
+
+    v = linear_velocity_gain * (dxi . heading)
+    omega = angular_velocity_limit * phi / (pi/2), phi = arctan2(dxi . left normal, v) in (-pi, pi]
+    (for a gain of 1, phi is the angle from the heading to dxi)
+
+    As in rps and the MATLAB toolbox, angular_velocity_limit is reached at phi = +-pi/2, so a
+    target behind the robot gives up to twice it (the testbed then thresholds to the wheel limits).
+
+    linear_velocity_gain: > 0. angular_velocity_limit: >= 0 (rad/s).
+    """
+    where = "create_si_to_uni_dynamics"
+    gain = _check_number(linear_velocity_gain, "linear_velocity_gain", where, low=0, strict=True)
+    limit = _check_number(angular_velocity_limit, "angular_velocity_limit", where, low=0)
+
+    def si_to_uni_dyn(dxi, poses):
+        """dxi: 2xN single-integrator velocities; poses: 3xN unicycle poses -> 2xN [v; omega]."""
+        dxi, poses = _inputs(dxi, poses, "si_to_uni_dyn (from create_si_to_uni_dynamics)")
+        along, left = _heading_frame(dxi, poses[2])
+        v = gain * along
+        # rps and MATLAB measure the angle of (v, left), so the gain also shapes the turn rate.
+        return np.vstack((v, limit * np.arctan2(left, v + 0.0) / (np.pi / 2)))
+
+    return si_to_uni_dyn
+
+
+def create_si_to_uni_dynamics_with_backwards_motion(linear_velocity_gain=1, angular_velocity_limit=np.pi):
+    """Like create_si_to_uni_dynamics, but a robot drives backwards when that needs less rotation.
+
+    Fix: in rps 0.0.0 this was the forward mapping (upstream marks it "TODO: Backwards motion is
+    the same as without backwards motion"). Here, as guide 4.3.2 describes and the Robotarium
+    MATLAB toolbox computes: when dxi points behind the robot (dxi . heading < 0), the robot
+    steers its *rear* towards dxi and v is negative.
+
+    v = linear_velocity_gain * (dxi . heading) (negative when backing up)
+    omega = angular_velocity_limit * psi / (pi/2), psi = arctan2(+-(dxi . left normal), |v|) in
+    [-pi/2, pi/2] (for a gain of 1, the angle from the nearer of heading and reverse heading to
+    dxi), so |omega| <= angular_velocity_limit.
+    """
+    where = "create_si_to_uni_dynamics_with_backwards_motion"
+    gain = _check_number(linear_velocity_gain, "linear_velocity_gain", where, low=0, strict=True)
+    limit = _check_number(angular_velocity_limit, "angular_velocity_limit", where, low=0)
+
+    def si_to_uni_dyn(dxi, poses):
+        """dxi: 2xN single-integrator velocities; poses: 3xN unicycle poses -> 2xN [v; omega]."""
+        dxi, poses = _inputs(dxi, poses, "si_to_uni_dyn (from create_si_to_uni_dynamics_with_backwards_motion)")
+        along, left = _heading_frame(dxi, poses[2])
+        # Turning the reference heading by pi flips the sign of both components; the angle to dxi
+        # is then measured from the rear (MATLAB: states(3,i) = wrap(states(3,i) + pi)).
+        v = gain * along
+        sign = np.where(along < 0, -1.0, 1.0)
+        omega = limit * np.arctan2(sign * left, sign * v + 0.0) / (np.pi / 2)
+        return np.vstack((v, omega))
+
+    return si_to_uni_dyn
+
+
+def create_si_to_uni_mapping(projection_distance=0.05, angular_velocity_limit=np.pi):
+    """Return (si_to_uni_dyn, uni_to_si_states) for a control point projection_distance ahead (guide 4.3.3).
+
+    si_to_uni_dyn(dxi, poses): inverts the projected point's kinematics,
+        v = dxi . heading, omega = (dxi . left normal) / projection_distance,
+    with omega clipped to +-angular_velocity_limit.
+    uni_to_si_states(poses): the 2xN positions of the projected points.
+
+    projection_distance: > 0 (m). angular_velocity_limit: >= 0 (rad/s; +inf for no clip).
+    """
+    where = "create_si_to_uni_mapping"
+    distance = _check_number(projection_distance, "projection_distance", where, low=0, strict=True)
+    # Fix: rps checked projection_distance >= 0 here under angular_velocity_limit's message.
+    limit = _check_number(angular_velocity_limit, "angular_velocity_limit", where, low=0, allow_inf=True)
+
+    def si_to_uni_dyn(dxi, poses):
+        """dxi: 2xN velocities of the projected points; poses: 3xN unicycle poses -> 2xN [v; omega]."""
+        dxi, poses = _inputs(dxi, poses, "si_to_uni_dyn (from create_si_to_uni_mapping)")
+        along, left = _heading_frame(dxi, poses[2])
+        return np.vstack((along, np.clip(left / distance, -limit, limit)))
+
+    def uni_to_si_states(poses):
+        """poses: 3xN unicycle poses -> 2xN positions of the projected control points."""
+        poses = _check_array(poses, "poses", "uni_to_si_states (from create_si_to_uni_mapping)", 3,
+                             what="of unicycle poses [x; y; theta]")
+        return poses[:2] + distance * np.vstack((np.cos(poses[2]), np.sin(poses[2])))
+
+    return si_to_uni_dyn, uni_to_si_states
+
+
+def create_uni_to_si_dynamics(projection_distance=0.05):
+    """Return uni_to_si_dyn(dxu, poses) -> 2xN velocities of points projection_distance ahead (guide 4.3.4).
+
+    [x_dot; y_dot] = [cos theta, -l sin theta; sin theta, l cos theta] [v; omega], l = projection_distance.
+    """
+    where = "create_uni_to_si_dynamics"
+    distance = _check_number(projection_distance, "projection_distance", where, low=0, strict=True)
+
+    def uni_to_si_dyn(dxu, poses):
+        """dxu: 2xN unicycle commands [v; omega]; poses: 3xN unicycle poses -> 2xN [x_dot; y_dot]."""
+        # Fix: rps's type check named an undefined variable (dxi) and raised NameError instead.
+        where_dyn = "uni_to_si_dyn (from create_uni_to_si_dynamics)"
+        dxu = _check_array(dxu, "dxu", where_dyn, 2, what="of unicycle commands [v; omega]")
+        poses = _check_array(poses, "poses", where_dyn, 3, dxu.shape[1],
+                             "of unicycle poses [x; y; theta], one column per column of dxu")
+        c, s = np.cos(poses[2]), np.sin(poses[2])
+        v, omega = dxu
+        return np.vstack((c * v - distance * s * omega, s * v + distance * c * omega))
+
+    return uni_to_si_dyn
