@@ -20,6 +20,8 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
+from robotarium_sim.topics import TESTBED_QOS
+
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SOURCE_PATHS = [os.path.join(REPO, p) for p in ("robotarium_sim", "robotarium_safety", "robotarium_client")]
 
@@ -96,6 +98,7 @@ class RosProbe:
         self.node = Node(name, context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
+        self._subscriptions = []
 
     def spin_for(self, seconds):
         end = time.monotonic() + seconds
@@ -122,11 +125,19 @@ class RosProbe:
         finally:
             self.node.destroy_client(client)
 
-    def collect(self, msg_type, topic, qos=50):
-        """Subscribe and return the list that received messages are appended to."""
+    def collect(self, msg_type, topic, qos=TESTBED_QOS):
+        """Subscribe and return the list that received messages are appended to. With the
+        testbed's QoS the publisher's recent history is delivered too, whenever matching happens."""
         received = []
-        self.node.create_subscription(msg_type, topic, received.append, qos)
+        self._subscriptions.append(self.node.create_subscription(msg_type, topic, received.append, qos))
         return received
+
+    def wait_for_publishers(self, timeout=15.0):
+        """Wait until discovery matched every subscription made with collect() to a publisher:
+        messages published before that are not delivered."""
+        if not self.spin_until(lambda: all(s.get_publisher_count() > 0 for s in self._subscriptions), timeout):
+            missing = [s.topic_name for s in self._subscriptions if s.get_publisher_count() == 0]
+            raise TimeoutError("no publisher matched %s within %.0f s" % (missing, timeout))
 
     def close(self):
         self.executor.shutdown()

@@ -10,6 +10,7 @@ from geometry_msgs.msg import Twist
 from robotarium_msgs.msg import RobotPoses, TestbedStatus, TwistArray
 from robotarium_msgs.srv import EndExperiment, StartExperiment
 from rosutil import REPO, NodeProcess, RosProbe, node_env, unique_domain_id
+from robotarium_sim.topics import TESTBED_QOS
 
 NS = "/robotarium"
 
@@ -95,15 +96,23 @@ def test_random_initial_conditions_are_valid_and_seeded(testbed):
     assert np.all(np.abs(a[0]) < 1.6) and np.all(np.abs(a[1]) < 1.0)
 
 
+def lockstep(probe, publisher, msg, poses_topic, timeout=10.0):
+    """Publish lockstep command `msg` (msg.step = k), wait for the poses of step k, return them."""
+    k = msg.step
+    publisher.publish(msg)
+    if not probe.spin_until(lambda: poses_topic and poses_topic[-1].step >= k, timeout):
+        raise AssertionError("no poses for step %d within %.0f s" % (k, timeout))
+    assert poses_topic[-1].step == k, "step %d produced poses of step %d" % (k, poses_topic[-1].step)
+    return poses_topic[-1]
+
+
 def run_lockstep(probe, commands, poses_topic):
     """Send each command array, wait for the step it produces; return the poses seen."""
-    publisher = probe.node.create_publisher(TwistArray, NS + "/cmd_safe", 50)
+    publisher = probe.node.create_publisher(TwistArray, NS + "/cmd_safe", TESTBED_QOS)
     assert probe.spin_until(lambda: publisher.get_subscription_count() > 0, 10)
     trace = []
     for k, (v, w) in enumerate(commands, start=1):
-        publisher.publish(command(range(len(v)), v, w, step=k))
-        assert probe.spin_until(lambda: poses_topic and poses_topic[-1].step == k, 10), "no poses for step %d" % k
-        trace.append(as_array(poses_topic[-1]))
+        trace.append(as_array(lockstep(probe, publisher, command(range(len(v)), v, w, step=k), poses_topic)))
     probe.node.destroy_publisher(publisher)
     return np.array(trace)
 
@@ -111,6 +120,7 @@ def run_lockstep(probe, commands, poses_topic):
 def test_lockstep_is_deterministic(testbed):
     _, probe = testbed
     poses = probe.collect(RobotPoses, NS + "/poses")
+    probe.wait_for_publishers()
     rng = np.random.default_rng(0)
     commands = [(rng.uniform(-0.1, 0.1, 3), rng.uniform(-1, 1, 3)) for _ in range(60)]
     runs = []
@@ -129,8 +139,9 @@ def test_bad_commands_are_dropped_counted_and_never_move_robots(testbed):
     _, probe = testbed
     poses = probe.collect(RobotPoses, NS + "/poses")
     status = probe.collect(TestbedStatus, NS + "/status")
+    probe.wait_for_publishers()
     assert start(probe, n=3, poses=LINE).success
-    publisher = probe.node.create_publisher(TwistArray, NS + "/cmd_safe", 50)
+    publisher = probe.node.create_publisher(TwistArray, NS + "/cmd_safe", TESTBED_QOS)
     assert probe.spin_until(lambda: publisher.get_subscription_count() > 0, 10)
     bad = [
         command([0, 1, 2], [0.1, float("nan"), 0.1], [0, 0, 0]),     # nonfinite
@@ -149,14 +160,14 @@ def test_bad_commands_are_dropped_counted_and_never_move_robots(testbed):
     assert status[-1].step == 0 and status[-1].commands_accepted == 0
     assert all(p.step == 0 for p in poses) and np.array_equal(as_array(poses[-1]), LINE)
 
-    publisher.publish(command([0, 1, 2], [0.1, 0.1, 0.1], [0, 0, 0], step=1))  # a good one still works
-    assert probe.spin_until(lambda: poses[-1].step == 1, 10)
+    lockstep(probe, publisher, command([0, 1, 2], [0.1, 0.1, 0.1], [0, 0, 0], step=1), poses)  # good ones work
     assert as_array(poses[-1])[0, 0] == pytest.approx(-0.5 + 0.033 * 0.1)
 
 
 def test_real_time_tick_rate_is_30_hz(testbed):
     _, probe = testbed
     poses = probe.collect(RobotPoses, NS + "/poses")
+    probe.wait_for_publishers()
     assert start(probe, n=5, real_time=True).success
     probe.spin_for(3.5)
     stamps = np.array([p.header.stamp.sec + p.header.stamp.nanosec * 1e-9 for p in poses if p.step > 0])
@@ -171,8 +182,9 @@ def test_command_held_for_half_a_second_then_robot_stops(testbed):
     _, probe = testbed
     poses = probe.collect(RobotPoses, NS + "/poses")
     status = probe.collect(TestbedStatus, NS + "/status")
+    probe.wait_for_publishers()
     assert start(probe, n=1, real_time=True, poses=np.array([[0.0], [0.0], [0.0]])).success
-    publisher = probe.node.create_publisher(TwistArray, NS + "/cmd_safe", 50)
+    publisher = probe.node.create_publisher(TwistArray, NS + "/cmd_safe", TESTBED_QOS)
     assert probe.spin_until(lambda: publisher.get_subscription_count() > 0, 10)
     publisher.publish(command([0], [0.1], [0.0]))
     probe.spin_for(1.5)
@@ -189,8 +201,9 @@ def test_safety_interventions_are_counted(testbed):
     from robotarium_msgs.msg import SafetyReport
     _, probe = testbed
     status = probe.collect(TestbedStatus, NS + "/status")
+    probe.wait_for_publishers()
     assert start(probe, n=2, poses=LINE[:, :2]).success
-    publisher = probe.node.create_publisher(SafetyReport, NS + "/safety_report", 50)
+    publisher = probe.node.create_publisher(SafetyReport, NS + "/safety_report", TESTBED_QOS)
     assert probe.spin_until(lambda: publisher.get_subscription_count() > 0, 10)
     for state in ("passthrough", "solved", "stop_no_poses", "passthrough"):
         publisher.publish(SafetyReport(status=state))

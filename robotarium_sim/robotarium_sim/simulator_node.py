@@ -11,7 +11,9 @@ Services:
 
 Modes, chosen per experiment: real time (a timer at `rate` Hz; a robot whose last command is older
 than `command_timeout` stops) or lockstep (exactly one step per accepted command array, as fast as
-commands come, so a run is deterministic).
+commands come, so a run is deterministic). In lockstep a command array's `step` is the step it
+produces; one whose step was already taken is a re-send and is ignored, so a client may re-send
+safely when a message was lost before discovery completed (step 0 means "unnumbered": always taken).
 """
 import array
 import math
@@ -29,11 +31,8 @@ from std_msgs.msg import String
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
 from robotarium_msgs.srv import EndExperiment, StartExperiment
 from robotarium_sim import model
+from robotarium_sim.topics import DEFAULT_NAMESPACE, TESTBED_QOS
 
-DEFAULT_NAMESPACE = "robotarium"
-
-# Commands and poses must not be lost (lockstep waits for each), so reliable with room to spare.
-RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 # The recorder announces where it records; a late subscriber still gets the last announcement.
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -79,11 +78,11 @@ class SimulatorNode(Node):
         self._clock_start = 0.0
         self._tick_timer = None
 
-        self.poses_pub = self.create_publisher(RobotPoses, "poses", RELIABLE)
+        self.poses_pub = self.create_publisher(RobotPoses, "poses", TESTBED_QOS)
         self.pose_array_pub = self.create_publisher(PoseArray, "pose_array", 10)
-        self.status_pub = self.create_publisher(TestbedStatus, "status", RELIABLE)
-        self.create_subscription(TwistArray, "cmd_safe", self.on_command, RELIABLE)
-        self.create_subscription(SafetyReport, "safety_report", self.on_safety_report, RELIABLE)
+        self.status_pub = self.create_publisher(TestbedStatus, "status", TESTBED_QOS)
+        self.create_subscription(TwistArray, "cmd_safe", self.on_command, TESTBED_QOS)
+        self.create_subscription(SafetyReport, "safety_report", self.on_safety_report, TESTBED_QOS)
         self.create_subscription(String, "recording", self.on_recording, LATCHED)
         self.create_service(StartExperiment, "start_experiment", self.on_start)
         self.create_service(EndExperiment, "end_experiment", self.on_end)
@@ -188,6 +187,8 @@ class SimulatorNode(Node):
         tb = self.testbed
         if tb is None:
             return
+        if not self.real_time and 0 < msg.step <= tb.steps:
+            return  # a lockstep command re-sent by a client that missed our poses: already applied
         ids = np.frombuffer(msg.ids, dtype=np.uint32) if len(msg.ids) else np.zeros(0, dtype=np.uint32)
         v = np.array([t.linear.x for t in msg.twists], dtype=float)
         w = np.array([t.angular.z for t in msg.twists], dtype=float)
@@ -230,6 +231,7 @@ class SimulatorNode(Node):
         msg = RobotPoses()
         msg.header.stamp = stamp
         msg.header.frame_id = "arena"
+        msg.run_id = self.run_id
         msg.step = tb.steps
         msg.sim_time = tb.sim_time
         msg.ids = array.array("I", range(tb.number_of_robots))

@@ -1,0 +1,200 @@
+"""The always-on safety node: every command on its way to the robots passes a barrier certificate.
+
+Topics (relative to the node's namespace, /robotarium by default):
+  cmd_requested  robotarium_msgs/TwistArray    in:  what the client asks for
+  poses          robotarium_msgs/RobotPoses    in:  the newest poses from the simulator
+  cmd_safe       robotarium_msgs/TwistArray    out: the filtered commands, the simulator's only input
+  safety_report  robotarium_msgs/SafetyReport  out: one per command array: change, solve time, status
+
+Each requested array is merged into the current command of all robots (robots not named keep
+their last command, as on the simulator) and filtered through the unicycle barrier certificate
+with the arena boundary (robotarium_safety.barrier_certificates, OSQP) at the newest poses. If it
+has no recent poses, or the input is malformed, or the solver fails, it sends a stop for the
+robots concerned: never the raw command. Without this node nothing reaches the simulator.
+
+In lockstep the client numbers its command arrays: step k is sent right after the client saw the
+poses of step k - 1. Those poses may reach this node a moment after the command (two topics, no
+ordering between them), so a numbered command waits here until the poses it was computed from
+have arrived (at most `lockstep_wait`). That keeps lockstep deterministic. Unnumbered commands
+(step 0, real time) use the newest poses, if they are younger than `pose_timeout`.
+"""
+import sys
+import time
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import Twist
+from rclpy.node import Node
+
+from robotarium_msgs.msg import RobotPoses, SafetyReport, TwistArray
+from robotarium_safety.barrier_certificates import create_unicycle_barrier_certificate_with_boundary
+from robotarium_sim import model
+from robotarium_sim.topics import DEFAULT_NAMESPACE, TESTBED_QOS
+
+PARAMETERS = {
+    # name: (default, check, what a valid value is). Certificate defaults are the guide's (§4.5.5).
+    "barrier_gain": (100.0, lambda v: v > 0, "> 0"),
+    "safety_radius": (0.12, lambda v: v >= 0.12, ">= 0.12 m (a robot diameter and some margin)"),
+    "projection_distance": (0.05, lambda v: v > 0, "> 0 m"),
+    "magnitude_limit": (model.MAX_LINEAR_VELOCITY, lambda v: 0 < v <= model.MAX_LINEAR_VELOCITY, "in (0, 0.2] m/s"),
+    "boundary": ([model.ARENA_X_MIN, model.ARENA_X_MAX, model.ARENA_Y_MIN, model.ARENA_Y_MAX],
+                 lambda v: len(v) == 4 and v[0] < v[1] and v[2] < v[3], "[x_min, x_max, y_min, y_max] with min < max"),
+    "pose_timeout": (0.5, lambda v: v > 0, "seconds, > 0: poses older than this are not trusted"),
+    # Long enough for DDS discovery between a freshly started safety node and simulator.
+    "lockstep_wait": (3.0, lambda v: v > 0, "seconds a lockstep command waits for its poses"),
+}
+
+
+def twists_of(v, w):
+    out = []
+    for vi, wi in zip(v.tolist(), w.tolist()):
+        t = Twist()
+        t.linear.x, t.angular.z = vi, wi
+        out.append(t)
+    return out
+
+
+class SafetyNode(Node):
+    def __init__(self):
+        super().__init__("safety", namespace=DEFAULT_NAMESPACE)
+        self.params = {}
+        for name, (default, valid, meaning) in PARAMETERS.items():
+            value = self.declare_parameter(name, default).value
+            value = [float(x) for x in value] if isinstance(value, (list, tuple)) or hasattr(value, "tolist") \
+                else float(value)
+            if not valid(value):
+                raise ValueError("parameter %s=%r is invalid: it must be %s." % (name, value, meaning))
+            self.params[name] = value
+        p = self.params
+        self.certificate = create_unicycle_barrier_certificate_with_boundary(
+            barrier_gain=p["barrier_gain"], safety_radius=p["safety_radius"],
+            projection_distance=p["projection_distance"], magnitude_limit=p["magnitude_limit"],
+            boundary_points=np.array(p["boundary"]))
+
+        self.poses = None            # 3 x N, newest
+        self.poses_step = -1
+        self.poses_time = -np.inf    # monotonic receive time
+        self.commands = None         # 2 x N, the current requested command of every robot
+        self.pending = None          # (msg, received) a numbered command waiting for its poses
+        self._logged = set()
+
+        self.safe_pub = self.create_publisher(TwistArray, "cmd_safe", TESTBED_QOS)
+        self.report_pub = self.create_publisher(SafetyReport, "safety_report", TESTBED_QOS)
+        self.create_subscription(TwistArray, "cmd_requested", self.on_request, TESTBED_QOS)
+        self.create_subscription(RobotPoses, "poses", self.on_poses, TESTBED_QOS)
+        self.create_timer(0.05, self.check_pending)
+        self.get_logger().info("safety node ready in namespace %s (safety radius %.3f m, boundary %s)" % (
+            self.get_namespace(), p["safety_radius"], p["boundary"]))
+
+    def warn_once(self, kind, text):
+        if kind not in self._logged:
+            self._logged.add(kind)
+            self.get_logger().warning(text + " (logged once; every case is in safety_report)")
+
+    def on_poses(self, msg):
+        n = len(msg.x)
+        if self.poses is None or self.poses.shape[1] != n or msg.step < self.poses_step:
+            self.commands = np.zeros((2, n))  # a new experiment: nobody has a command yet
+        self.poses = np.array([msg.x, msg.y, msg.theta])
+        self.poses_step = msg.step
+        self.poses_time = time.monotonic()
+        if self.pending is not None and self.poses_step >= self.pending[0].step - 1:
+            msg, _ = self.pending
+            self.pending = None
+            self.filter(msg)
+
+    def on_request(self, msg):
+        if msg.step > 0 and (self.poses is None or msg.step - 1 > self.poses_step):
+            if self.pending is not None and self.pending[0].step == msg.step:
+                return  # a re-send of the command that is already waiting
+            if self.pending is not None:  # a newer step: the client gave up on the old one
+                self.filter(self.pending[0])
+            self.pending = (msg, time.monotonic())
+            return
+        self.filter(msg)
+
+    def check_pending(self):
+        if self.pending is not None and time.monotonic() - self.pending[1] > self.params["lockstep_wait"]:
+            msg, _ = self.pending
+            self.pending = None
+            self.warn_once("late_poses", "poses for step %d did not come in time; filtering with step %d"
+                           % (msg.step - 1, self.poses_step))
+            self.filter(msg)
+
+    def filter(self, msg):
+        started = time.perf_counter()
+        ids = np.array(msg.ids, dtype=np.int64)
+        v = np.array([t.linear.x for t in msg.twists], dtype=float)
+        w = np.array([t.angular.z for t in msg.twists], dtype=float)
+        report = SafetyReport(step=msg.step)
+
+        # In lockstep (numbered commands) time stands still between steps: only real-time poses age.
+        stale = msg.step == 0 and time.monotonic() - self.poses_time > self.params["pose_timeout"]
+        if self.poses is None or stale:
+            self.warn_once("no_poses", "no recent poses from the simulator: sending stop")
+            return self.send_stop(msg, ids, report, "stop_no_poses", started)
+        n = self.poses.shape[1]
+        problem = model.check_commands(ids, v, w, n)
+        if problem is not None:
+            self.warn_once(problem, "malformed command array (%s): sending stop" % problem)
+            return self.send_stop(msg, ids, report, "stop_bad_input", started)
+
+        self.commands[0, ids] = v
+        self.commands[1, ids] = w
+        requested = self.commands.copy()
+        safe = self.certificate(requested, self.poses)
+        info = self.certificate.info
+        if info["fallback"]:
+            self.warn_once("solver", "barrier certificate failed (%s): sending stop" % info["reason"])
+            status = "stop_solver_failed"
+            safe = np.zeros_like(requested)
+        else:
+            status = "passthrough" if info["status"] == "passthrough" else "solved"
+        change = np.abs(safe - requested)
+        report.status = status
+        report.solver_status = info["status"]
+        report.max_change = float(change.max()) if n else 0.0
+        report.robots_changed = int(np.count_nonzero(change.max(axis=0) > 1e-6))
+        self.publish(msg, np.arange(n), safe[0], safe[1], report, started)
+
+    def send_stop(self, msg, ids, report, status, started):
+        if self.poses is not None:
+            ids = np.arange(self.poses.shape[1])  # stop every robot we know of
+            self.commands[:] = 0.0
+        report.status = status
+        report.solver_status = ""
+        self.publish(msg, ids, np.zeros(len(ids)), np.zeros(len(ids)), report, started)
+
+    def publish(self, request, ids, v, w, report, started):
+        out = TwistArray(step=request.step)
+        out.header.stamp = self.get_clock().now().to_msg()
+        out.header.frame_id = "arena"
+        out.ids = [int(i) for i in ids]
+        out.twists = twists_of(np.asarray(v, dtype=float), np.asarray(w, dtype=float))
+        self.safe_pub.publish(out)
+        report.header = out.header
+        report.number_of_robots = len(ids)
+        report.solve_time = time.perf_counter() - started
+        self.report_pub.publish(report)
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    try:
+        node = SafetyNode()
+    except (ValueError, AssertionError) as error:
+        print("safety: %s" % error, file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,152 @@
+"""The safety node between client and simulator, all real nodes on a private DDS domain."""
+import numpy as np
+import pytest
+
+from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
+from robotarium_msgs.srv import EndExperiment, StartExperiment
+from robotarium_sim import model
+from rosutil import NodeProcess, RosProbe, unique_domain_id
+from robotarium_sim.topics import TESTBED_QOS
+from test_simulator_node import as_array, command, lockstep
+
+NS = "/robotarium"
+
+
+@pytest.fixture
+def stack(tmp_path):
+    domain = unique_domain_id()
+    nodes = {
+        "sim": NodeProcess("robotarium_sim.simulator_node", domain, log_path=tmp_path / "sim.log"),
+        "safety": NodeProcess("robotarium_safety.safety_node", domain, log_path=tmp_path / "safety.log"),
+    }
+    probe = RosProbe(domain)
+    try:
+        yield nodes, probe
+    finally:
+        probe.close()
+        for node in nodes.values():
+            node.close()
+
+
+def start(probe, poses, real_time=False):
+    request = StartExperiment.Request(name="safety", number_of_robots=poses.shape[1], real_time=real_time)
+    request.x, request.y, request.theta = (list(map(float, row)) for row in poses)
+    response = probe.call(StartExperiment, NS + "/start_experiment", request)
+    assert response.success, response.message
+
+
+def connected(probe, publisher, count=1):
+    assert probe.spin_until(lambda: publisher.get_subscription_count() >= count, 15), "nobody listens"
+
+
+HEAD_ON = np.array([[-0.4, 0.4], [0.0, 0.0], [0.0, np.pi]])
+
+
+def test_head_on_command_comes_out_changed_and_safe(stack):
+    _, probe = stack
+    poses = probe.collect(RobotPoses, NS + "/poses")
+    reports = probe.collect(SafetyReport, NS + "/safety_report")
+    safe = probe.collect(TwistArray, NS + "/cmd_safe")
+    probe.wait_for_publishers()
+    start(probe, HEAD_ON)
+    requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
+    connected(probe, requests)
+    assert probe.spin_until(lambda: poses, 10)
+    closest = np.inf
+    for k in range(1, 151):  # both drive straight at each other at 0.15 m/s: they would meet at step ~81
+        p = as_array(lockstep(probe, requests, command([0, 1], [0.15, 0.15], [0.0, 0.0], step=k), poses))
+        closest = min(closest, np.hypot(*(p[:2, 0] - p[:2, 1])))
+    end = probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request())
+    assert end.collisions == 0 and end.boundary_violations == 0
+    assert closest > model.ROBOT_DIAMETER
+    assert any(r.status == "solved" and r.max_change > 0.05 for r in reports)
+    changed = [s for s in safe if abs(s.twists[0].linear.x - 0.15) > 1e-3]
+    assert changed, "the safety node never changed the head-on command"
+    # and without it they would have collided: the same commands straight into the model
+    tb = model.Testbed(HEAD_ON)
+    for _ in range(150):
+        tb.set_commands([0, 1], [0.15, 0.15], [0.0, 0.0])
+        tb.step()
+    assert tb.collisions > 0
+
+
+def test_safe_command_passes_unchanged(stack):
+    _, probe = stack
+    poses = probe.collect(RobotPoses, NS + "/poses")
+    safe = probe.collect(TwistArray, NS + "/cmd_safe")
+    reports = probe.collect(SafetyReport, NS + "/safety_report")
+    probe.wait_for_publishers()
+    start(probe, np.array([[-1.0, 1.0], [0.0, 0.0], [np.pi / 2, -np.pi / 2]]))
+    requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
+    connected(probe, requests)
+    lockstep(probe, requests, command([0, 1], [0.05, 0.05], [0.3, -0.2], step=1), poses)
+    # the safe command and the poses it produced come from two nodes: either may arrive first
+    assert probe.spin_until(lambda: safe and reports, 10)
+    assert [t.linear.x for t in safe[-1].twists] == [0.05, 0.05]
+    assert [t.angular.z for t in safe[-1].twists] == [0.3, -0.2]
+    assert reports[-1].status == "passthrough" and reports[-1].max_change == 0.0
+
+
+def test_bad_request_becomes_a_stop(stack):
+    _, probe = stack
+    poses = probe.collect(RobotPoses, NS + "/poses")
+    safe = probe.collect(TwistArray, NS + "/cmd_safe")
+    reports = probe.collect(SafetyReport, NS + "/safety_report")
+    probe.wait_for_publishers()
+    start(probe, np.array([[-1.0, 1.0], [0.0, 0.0], [0.0, 0.0]]))
+    requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
+    connected(probe, requests)
+    lockstep(probe, requests, command([0, 1], [0.1, 0.1], [0.0, 0.0], step=1), poses)
+    lockstep(probe, requests, command([0, 1], [0.1, float("nan")], [0.0, 0.0], step=2), poses)
+    assert probe.spin_until(lambda: reports and reports[-1].step == 2 and safe and safe[-1].step == 2, 10)
+    assert reports[-1].status == "stop_bad_input"
+    assert [t.linear.x for t in safe[-1].twists] == [0.0, 0.0]
+    # the stop held the robots where they were
+    assert np.array_equal(as_array(poses[-1])[:2], as_array(poses[-2])[:2])
+
+
+def test_no_poses_means_stop(tmp_path):
+    domain = unique_domain_id()
+    safety = NodeProcess("robotarium_safety.safety_node", domain, log_path=tmp_path / "safety.log")
+    probe = RosProbe(domain)
+    try:
+        safe = probe.collect(TwistArray, NS + "/cmd_safe")
+        reports = probe.collect(SafetyReport, NS + "/safety_report")
+        probe.wait_for_publishers()
+        requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
+        connected(probe, requests)
+        requests.publish(command([0, 1, 2], [0.2, 0.2, 0.2], [1.0, 0.0, -1.0]))
+        assert probe.spin_until(lambda: safe and reports, 10)
+        assert reports[-1].status == "stop_no_poses"
+        assert list(safe[-1].ids) == [0, 1, 2]
+        assert all(t.linear.x == 0.0 and t.angular.z == 0.0 for t in safe[-1].twists)
+    finally:
+        probe.close()
+        safety.close()
+
+
+def test_robots_stop_when_the_safety_node_dies(stack):
+    nodes, probe = stack
+    poses = probe.collect(RobotPoses, NS + "/poses")
+    status = probe.collect(TestbedStatus, NS + "/status")
+    probe.wait_for_publishers()
+    start(probe, np.array([[-1.0, 0.0], [-0.5, 0.5], [0.0, 0.0]]), real_time=True)
+    requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
+    connected(probe, requests)
+
+    def drive(seconds):
+        for _ in range(int(seconds * 30)):
+            requests.publish(command([0, 1], [0.1, 0.1], [0.0, 0.0]))
+            probe.spin_for(1 / 30)
+
+    drive(0.5)  # until the safety node has matched the simulator (it sends stops until it has poses)
+    x_before = as_array(poses[-1])[0]
+    drive(1.0)
+    moved = as_array(poses[-1])[0] - x_before
+    assert np.all(moved > 0.05), "robots did not move through the safety node"
+    nodes["safety"].kill()  # SIGKILL: no goodbye
+    drive(1.5)  # the client keeps asking; nothing passes any more
+    x_late = as_array(poses[-1])[0]
+    drive(0.5)
+    assert np.array_equal(as_array(poses[-1])[0], x_late), "robots kept moving without the safety node"
+    assert status[-1].command_timeouts >= 2
