@@ -22,6 +22,8 @@ setup(
     entry_points={
         "console_scripts": [
             "simulator = robotarium_sim.simulator_node:main",
+            "recorder = robotarium_sim.recorder_node:main",
+            "replay = robotarium_sim.replay_node:main",
         ],
     },
 )

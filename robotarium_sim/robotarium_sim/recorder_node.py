@@ -1,0 +1,350 @@
+"""The recorder node: every experiment of the testbed, recorded as a rosbag2 folder with MCAP storage.
+
+It listens to every topic of its namespace (/robotarium by default: poses, pose_array,
+cmd_requested, cmd_safe, safety_report, status, and any other that appears there) and to the
+/rosout entries of that namespace's nodes, all taken serialized (no decode/encode round trip).
+An experiment begins when <ns>/status says RUNNING with a run id not seen before and ends with
+the IDLE status that follows (the simulator publishes a last RUNNING status with the final
+counters first). Each run goes to <bags_dir>/<run_id>/ (see robotarium_sim.bag for the format and
+why a killed recorder still leaves a readable bag); its absolute path is announced on
+<ns>/recording (std_msgs/String, reliable + transient local), which the simulator hands back in
+end_experiment's `recording`, and an empty string is announced when the run is closed.
+
+Subscriptions follow rosbag2's rule: a topic is subscribed once it has publishers, reliable unless
+one of them is best effort, transient local when all of them are (the testbed's topics are: see
+robotarium_sim.topics), so the history a publisher keeps is handed over on matching and nothing
+published before discovery completed is lost. /rosout is taken live only (volatile).
+
+Which messages belong to a run (RunRecorder below, no ROS in it): messages from different
+publishers can arrive in any order around the start and end, so the node keeps the last seconds
+while idle and, when a run starts at status stamp S, keeps those published at or after S (poses
+of step 0 carry S exactly); after the final IDLE status at stamp E it keeps, for half a second,
+the late messages published up to E and the namespace's log lines. A RUNNING status published
+before the recorder started (history handed over on matching) opens a bag only once a live one
+confirms that the run is still going, so a run that ended before (or a replay of an old run,
+which carries the old stamps) is never recorded as new. This compares the simulator's stamps
+with the recorder's clock: on two machines their clocks must agree to within a second or so.
+
+Timestamps: log time = when the recorder received the message; publish time = the message's
+header stamp (or the Log stamp), else the receive time.
+
+Parameters: bags_dir (default $ROBOTARIUM_ROOT/bags, else ./bags), chunk_seconds (0.8: a chunk
+is closed and put on disk this long after the previous one at the latest, checked on every
+message and five times a second, so no received message waits more than a second).
+Run: ros2 run robotarium_sim recorder [--ros-args -r __ns:=/other -p bags_dir:=/data/bags]
+"""
+import importlib
+import os
+import sys
+import time
+from collections import deque
+
+import rclpy
+from rclpy.node import Node
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
+                       ReliabilityPolicy)
+from rclpy.serialization import deserialize_message
+from rcl_interfaces.msg import Log
+from std_msgs.msg import String
+
+from robotarium_msgs.msg import TestbedStatus
+from robotarium_sim import bag
+
+DEFAULT_NAMESPACE = "robotarium"
+
+# The testbed's topics (any other topic that appears in the namespace is recorded too).
+KNOWN_TOPICS = {
+    "poses": "robotarium_msgs/msg/RobotPoses",
+    "pose_array": "geometry_msgs/msg/PoseArray",
+    "cmd_requested": "robotarium_msgs/msg/TwistArray",
+    "cmd_safe": "robotarium_msgs/msg/TwistArray",
+    "safety_report": "robotarium_msgs/msg/SafetyReport",
+    "status": "robotarium_msgs/msg/TestbedStatus",
+}
+# Our own announcement is not part of a run.
+EXCLUDED_TOPICS = {"recording"}
+
+# Deep queues: at N = 50 and 30 Hz a topic carries 30 messages a second; nothing may be dropped
+# while a chunk is compressed.
+SUBSCRIPTION_DEPTH = 1000
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def default_bags_dir():
+    root = os.environ.get("ROBOTARIUM_ROOT")
+    return os.path.join(root, "bags") if root else os.path.abspath("bags")
+
+
+class RunRecorder:
+    """Splits the stream of messages into runs and writes each run's bag. Plain Python.
+
+    describe(topic) -> (type_name, offered_qos_profiles) is asked once per topic per bag.
+    on_started(path) / on_finished(path, writer) are called when a bag is opened / closed.
+    Times are ns since the epoch (receive and publish times of each message).
+    """
+
+    def __init__(self, bags_dir, describe, on_started=None, on_finished=None, log=None,
+                 preroll_ns=3_000_000_000, grace_ns=500_000_000, chunk_seconds=1.0, live_after_ns=None):
+        self.bags_dir = os.path.abspath(bags_dir)
+        self.describe = describe
+        self.on_started = on_started or (lambda path: None)
+        self.on_finished = on_finished or (lambda path, writer: None)
+        self.log = log or (lambda text: None)
+        self.preroll_ns = preroll_ns
+        self.grace_ns = grace_ns
+        self.chunk_seconds = chunk_seconds
+        self.preroll = deque()        # (topic, data, recv_ns, pub_ns) received while not recording
+        self.writer = None
+        self.run_id = None
+        self.state = "idle"           # idle -> recording -> closing -> idle
+        self.end_ns = None
+        self.grace_until = None
+        self.finished = {}            # run id -> stamp of its last status (ns)
+        # Statuses published before this are history handed over on matching, not live.
+        self.live_after_ns = time.time_ns() if live_after_ns is None else live_after_ns
+        self.pending = {}             # run id -> stamp of its first RUNNING status seen in history
+        self.namespace = ""
+
+    def on_message(self, topic, data, recv_ns, pub_ns, log_line=False):
+        if self.state == "recording" or (self.state == "closing" and (log_line or pub_ns <= self.end_ns)):
+            self._write(topic, data, recv_ns, pub_ns)
+        else:
+            self.preroll.append((topic, data, recv_ns, pub_ns))
+            self._prune(recv_ns)
+
+    def on_status(self, topic, data, recv_ns, pub_ns, running, run_id):
+        if running and self._is_new_run(run_id, pub_ns):
+            if pub_ns < self.live_after_ns:   # history: wait for a live status of this run
+                self.pending[run_id] = min(pub_ns, self.pending.get(run_id, pub_ns))
+                self.on_message(topic, data, recv_ns, pub_ns)
+                return
+            if self.writer is not None:
+                self.finish("a new run began")
+            self._start(run_id, self.pending.pop(run_id, pub_ns))
+            self._write(topic, data, recv_ns, pub_ns)
+        elif not running and run_id in self.pending:   # that run ended before we started
+            self.finished[run_id] = max(pub_ns, self.pending.pop(run_id))
+            self.on_message(topic, data, recv_ns, pub_ns)
+        elif self.state == "recording" and run_id == self.run_id:
+            self._write(topic, data, recv_ns, pub_ns)
+            self.end_ns = pub_ns
+            if not running:
+                self.state, self.grace_until = "closing", recv_ns + self.grace_ns
+        else:
+            self.on_message(topic, data, recv_ns, pub_ns)
+
+    def _is_new_run(self, run_id, pub_ns):
+        """A RUNNING status starts a run unless it belongs to the one being recorded or to one
+        already closed (a late status); the same run id stamped after that run ended is a new run
+        (two experiments of one name started within a second)."""
+        if not run_id or (self.state == "recording" and run_id == self.run_id):
+            return False
+        if self.state == "closing" and run_id == self.run_id:
+            return pub_ns > self.end_ns
+        return pub_ns > self.finished.get(run_id, -1)
+
+    def tick(self, now_ns, simulator_present=True):
+        """Call a few times a second: flushes chunks, ends the grace period, and closes a run whose
+        simulator went away without ending it."""
+        if self.writer is not None:
+            self.writer.maybe_flush()
+        if self.state == "closing" and now_ns >= self.grace_until:
+            self.finish("the experiment ended")
+        elif self.state == "recording" and not simulator_present:
+            self.finish("the simulator went away without ending the experiment")
+        self._prune(now_ns)
+
+    def finish(self, why):
+        writer, self.writer = self.writer, None
+        self.state = "idle"
+        if writer is None:
+            return
+        self.finished[self.run_id] = self.end_ns if self.end_ns is not None else time.time_ns()
+        writer.close()
+        self.log("closed %s (%s): %d messages, %s" % (writer.path, why, writer.message_count, ", ".join(
+            "%s %d" % (t.name, t.count[0]) for t in writer.topics.values())))
+        self.on_finished(writer.path, writer)
+
+    def _start(self, run_id, start_ns):
+        self.run_id, self.end_ns = run_id, start_ns
+        os.makedirs(self.bags_dir, exist_ok=True)
+        for suffix in range(1000):   # never overwrite an old run
+            path = os.path.join(self.bags_dir, run_id if suffix == 0 else "%s_%d" % (run_id, suffix))
+            try:
+                self.writer = bag.BagWriter(path, chunk_seconds=self.chunk_seconds, custom_data={
+                    "run_id": run_id, "namespace": self.namespace, "recorder": "robotarium_sim recorder"})
+                break
+            except FileExistsError:
+                continue
+        else:
+            raise RuntimeError("could not find a free folder name for run %s in %s" % (run_id, self.bags_dir))
+        self.state = "recording"
+        # Messages that overtook the RUNNING status (poses of step 0, first commands).
+        for topic, data, recv_ns, pub_ns in self.preroll:
+            if pub_ns >= start_ns:
+                self._write(topic, data, recv_ns, pub_ns)
+        self.preroll.clear()
+        self.log("recording run %s to %s" % (run_id, self.writer.path))
+        self.on_started(self.writer.path)
+
+    def _write(self, topic, data, recv_ns, pub_ns):
+        if topic not in self.writer.topics:
+            type_name, offered_qos = self.describe(topic)
+            self.writer.add_topic(topic, type_name, offered_qos)
+        self.writer.write(topic, data, recv_ns, pub_ns)
+        self.writer.maybe_flush()
+
+    def _prune(self, now_ns):
+        while self.preroll and self.preroll[0][2] < now_ns - self.preroll_ns:
+            self.preroll.popleft()
+
+    def close(self):
+        if self.writer is not None:
+            self.finish("the recorder was stopped")
+
+
+def message_class(type_name):
+    pkg, kind, name = bag.split_type(type_name)
+    return getattr(importlib.import_module("%s.%s" % (pkg, kind)), name)
+
+
+def offered_qos(endpoints):
+    """rosbag2-style profiles of the publishers' offered QoS (TopicEndpointInfo list)."""
+    profiles = []
+    for info in endpoints:
+        q = info.qos_profile
+        profiles.append(bag.qos_profile(
+            history=HistoryPolicy(q.history).name.lower(), depth=q.depth,
+            reliability=ReliabilityPolicy(q.reliability).name.lower(),
+            durability=DurabilityPolicy(q.durability).name.lower(),
+            deadline_ns=q.deadline.nanoseconds, lifespan_ns=q.lifespan.nanoseconds,
+            liveliness=LivelinessPolicy(q.liveliness).name.lower(),
+            lease_ns=q.liveliness_lease_duration.nanoseconds,
+            avoid_ros_namespace_conventions=q.avoid_ros_namespace_conventions))
+    return profiles
+
+
+class RecorderNode(Node):
+    def __init__(self):
+        super().__init__("recorder", namespace=DEFAULT_NAMESPACE)
+        bags_dir = self.declare_parameter("bags_dir", default_bags_dir()).value or default_bags_dir()
+        chunk_seconds = float(self.declare_parameter("chunk_seconds", 0.8).value)
+        if not 0 < chunk_seconds <= 60:
+            raise ValueError("parameter chunk_seconds=%r must be in (0, 60] seconds." % chunk_seconds)
+        self.ns = self.get_namespace().rstrip("/")
+        # Log lines of this namespace's nodes: logger names are the namespace with dots.
+        self.logger_prefix = self.ns.strip("/").replace("/", ".") + "." if self.ns else ""
+        self.topics = {}            # full name -> type name (None: cannot be recorded)
+        self.session = RunRecorder(bags_dir, self.describe, self.announce_start, self.announce_end,
+                                   self.get_logger().info, chunk_seconds=chunk_seconds)
+        self.session.namespace = self.ns or "/"
+        self.recording_pub = self.create_publisher(String, "recording", LATCHED)
+        self.status_topic = self.ns + "/status"
+        self.subscribe("/rosout", "rcl_interfaces/msg/Log", QoSProfile(depth=SUBSCRIPTION_DEPTH))
+        self._sim_missing_since = None
+        self.create_timer(0.2, self.tick)
+        self.create_timer(0.5, self.discover)
+        self.discover()
+        self.get_logger().info("recorder ready: topics of %s to %s" % (self.ns or "/", self.session.bags_dir))
+
+    # -- subscriptions -------------------------------------------------------------------------
+
+    def subscribe(self, topic, type_name, qos):
+        try:
+            cls = message_class(type_name)
+            leading_stamp = bag.has_leading_stamp(bag.message_definition(type_name))
+        except (ImportError, AttributeError, FileNotFoundError, ValueError) as error:
+            self.get_logger().warning("cannot record %s (%s): %s" % (topic, type_name, error))
+            self.topics[topic] = None
+            return
+        if topic == self.status_topic:
+            callback = self.on_status
+        elif topic == "/rosout":
+            callback = self.on_rosout
+        else:
+            def callback(data, topic=topic, leading_stamp=leading_stamp):
+                recv = time.time_ns()
+                self.session.on_message(topic, data, recv, (leading_stamp and bag.stamp_from_cdr(data)) or recv)
+        self.create_subscription(cls, topic, callback, qos, raw=True)
+        self.topics[topic] = type_name
+
+    def discover(self):
+        """Subscribe to every topic of the namespace that has publishers, with the QoS they offer
+        (a reliable subscription would not hear a best-effort publisher, a transient-local one not
+        a volatile publisher)."""
+        for name, types in self.get_topic_names_and_types():
+            if (not name.startswith(self.ns + "/") or name in self.topics or not types
+                    or name[len(self.ns) + 1:] in EXCLUDED_TOPICS or "/_" in name):
+                continue
+            offers = [o.qos_profile for o in self.get_publishers_info_by_topic(name)]
+            if not offers:
+                continue
+            reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offers)
+            latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offers)
+            self.subscribe(name, types[0], QoSProfile(
+                depth=SUBSCRIPTION_DEPTH,
+                reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+                durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE))
+
+    def describe(self, topic):
+        return self.topics[topic], offered_qos(self.get_publishers_info_by_topic(topic))
+
+    # -- callbacks -----------------------------------------------------------------------------
+
+    def on_status(self, data):
+        recv = time.time_ns()
+        msg = deserialize_message(data, TestbedStatus)
+        pub = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec or recv
+        self.session.on_status(self.status_topic, data, recv, pub,
+                               msg.state == TestbedStatus.STATE_RUNNING, msg.run_id)
+
+    def on_rosout(self, data):
+        recv = time.time_ns()
+        msg = deserialize_message(data, Log)
+        if msg.name.startswith(self.logger_prefix):
+            pub = msg.stamp.sec * 1_000_000_000 + msg.stamp.nanosec or recv
+            self.session.on_message("/rosout", data, recv, pub, log_line=True)
+
+    def tick(self):
+        # The simulator is gone when nobody publishes status any more (for 2 s, to ride out discovery).
+        present = self.count_publishers(self.status_topic) > 0
+        now = time.monotonic()
+        if present:
+            self._sim_missing_since = None
+        elif self._sim_missing_since is None:
+            self._sim_missing_since = now
+        self.session.tick(time.time_ns(), present or now - self._sim_missing_since < 2.0)
+
+    def announce_start(self, path):
+        self.recording_pub.publish(String(data=path))
+
+    def announce_end(self, path, writer):
+        # So that the simulator does not hand this path out for a later run that nobody records.
+        if self.context.ok():
+            self.recording_pub.publish(String(data=""))
+
+    def close(self):
+        self.session.close()
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    try:
+        node = RecorderNode()
+    except ValueError as error:
+        print("recorder: %s" % error, file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        pass
+    finally:
+        node.close()   # a run in progress is closed properly: summary, final metadata.yaml
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,120 @@
+"""Make bags/sample_consensus/: a short recorded run through the real nodes, for replay and report tests.
+
+It starts the simulator and the recorder (and the safety node when robotarium_safety has one) on a
+private DDS domain, runs 6 robots in real time (30 Hz) for about 4 s under a consensus controller
+on a cycle graph (each robot drives towards the mean of its two neighbours; they start on a wide
+circle, so they never get near each other in that time), ends the experiment and moves the
+recorded run folder to bags/sample_consensus/ (replacing an older one).
+
+Commands: with a safety node, the script publishes on <ns>/cmd_requested as the client would and
+the safety node filters them onto cmd_safe; without one it publishes directly on <ns>/cmd_safe
+(the only topic the simulator listens to) and says so.
+
+Run (after ./robotarium setup):  ./robotarium shell, then  python scripts/make_sample_bag.py
+"""
+import argparse
+import math
+import os
+import shutil
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(REPO, "tests"))
+import conftest  # noqa: E402,F401  (package sources on sys.path)
+from rosutil import NodeProcess, RosProbe, unique_domain_id  # noqa: E402
+from geometry_msgs.msg import Twist  # noqa: E402
+from std_msgs.msg import String  # noqa: E402
+from robotarium_msgs.msg import RobotPoses, TwistArray  # noqa: E402
+from robotarium_msgs.srv import EndExperiment, StartExperiment  # noqa: E402
+from robotarium_sim.recorder_node import LATCHED  # noqa: E402
+from robotarium_sim.topics import TESTBED_QOS  # noqa: E402
+
+NS = "/robotarium"
+N = 6
+
+
+def consensus(poses, gain=0.6, max_speed=0.1):
+    """Unicycle commands: single-integrator consensus on a cycle graph, mapped to (v, omega) at a
+    look-ahead point as rps' si_to_uni mapping does."""
+    x, y, theta = poses
+    xy = np.vstack((x, y))
+    dxi = gain * (np.roll(xy, 1, axis=1) + np.roll(xy, -1, axis=1) - 2 * xy) / 2
+    speed = np.linalg.norm(dxi, axis=0)
+    dxi *= np.minimum(1, max_speed / np.maximum(speed, 1e-9))
+    v = np.cos(theta) * dxi[0] + np.sin(theta) * dxi[1]
+    w = (-np.sin(theta) * dxi[0] + np.cos(theta) * dxi[1]) / 0.05
+    return v, np.clip(w, -1.5, 1.5)   # within the wheel limits: no actuator errors
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=4.0)
+    parser.add_argument("--out", default=os.path.join(REPO, "bags", "sample_consensus"))
+    args = parser.parse_args()
+
+    with_safety = os.path.exists(os.path.join(REPO, "robotarium_safety", "robotarium_safety", "safety_node.py"))
+    domain = unique_domain_id() + 100
+    work = tempfile.mkdtemp(prefix="sample_bag_")
+    nodes = [NodeProcess("robotarium_sim.simulator_node", domain, log_path=os.path.join(work, "simulator.log")),
+             NodeProcess("robotarium_sim.recorder_node", domain, ros_args=["-p", "bags_dir:=%s" % work],
+                         log_path=os.path.join(work, "recorder.log"))]
+    if with_safety:
+        nodes.append(NodeProcess("robotarium_safety.safety_node", domain, log_path=os.path.join(work, "safety.log")))
+    probe = RosProbe(domain, name="sample_consensus")
+    try:
+        poses = probe.collect(RobotPoses, NS + "/poses")
+        recording = probe.collect(String, NS + "/recording", LATCHED)
+        topic = NS + ("/cmd_requested" if with_safety else "/cmd_safe")
+        publisher = probe.node.create_publisher(TwistArray, topic, TESTBED_QOS)
+        ready = lambda: (publisher.get_subscription_count() >= (2 if with_safety else 2)  # noqa: E731
+                         and probe.node.count_subscribers(NS + "/pose_array") >= 1)
+        if not probe.spin_until(ready, 30):
+            raise RuntimeError("the nodes did not come up; logs in %s" % work)
+        probe.spin_for(1.0)
+        angles = np.arange(N) * 2 * math.pi / N
+        request = StartExperiment.Request(name="sample_consensus", number_of_robots=N, real_time=True)
+        request.x = list(0.8 * np.cos(angles) * 1.4)
+        request.y = list(0.8 * np.sin(angles))
+        request.theta = list(angles + math.pi / 2)
+        started = probe.call(StartExperiment, NS + "/start_experiment", request)
+        if not started.success:
+            raise RuntimeError(started.message)
+        print(started.message)
+        step, t_end = 0, time.monotonic() + args.seconds
+        while time.monotonic() < t_end:
+            probe.spin_until(lambda: poses and poses[-1].step > step, 1.0)
+            latest = poses[-1]
+            if latest.step == step:
+                continue
+            step = latest.step
+            v, w = consensus(np.array([latest.x, latest.y, latest.theta]))
+            msg = TwistArray(step=step, ids=list(range(N)))
+            msg.header.stamp = probe.node.get_clock().now().to_msg()
+            msg.header.frame_id = "arena"
+            for vi, wi in zip(v, w):
+                twist = Twist()
+                twist.linear.x, twist.angular.z = float(vi), float(wi)
+                msg.twists.append(twist)
+            publisher.publish(msg)
+        ended = probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request())
+        print(ended.report)
+        probe.spin_until(lambda: recording and recording[-1].data == "", 5)   # the recorder closed the run
+        run_dir = ended.recording or os.path.join(work, ended.run_id)
+    finally:
+        probe.close()
+        for node in nodes:
+            node.close()
+    if os.path.exists(args.out):
+        shutil.rmtree(args.out)
+    shutil.move(run_dir, args.out)
+    size = sum(os.path.getsize(os.path.join(args.out, f)) for f in os.listdir(args.out))
+    print("sample run in %s (%d bytes); commands were published on %s%s" % (
+        args.out, size, topic, "" if with_safety else " (no safety node yet: regenerate once it exists)"))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,366 @@
+"""The recorder: bags that independent readers (rosbags, the mcap library) open, counts and poses
+equal to what was published, and a bag that survives a SIGKILL of the recorder.
+
+Node tests start the simulator and the recorder from the source tree in subprocesses on their own
+DDS domain and drive the simulator in lockstep from the test (publishing on cmd_safe directly).
+"""
+import os
+import shutil
+
+import numpy as np
+import pytest
+import yaml
+from geometry_msgs.msg import Twist
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rosbags.rosbag2 import Reader
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from std_msgs.msg import String
+
+from robotarium_msgs.msg import RobotPoses, TwistArray
+from robotarium_msgs.srv import EndExperiment, StartExperiment
+from robotarium_sim import bag as bagmod
+from robotarium_sim.recorder_node import LATCHED, RunRecorder
+from robotarium_sim.topics import TESTBED_QOS
+from rosutil import NodeProcess, RosProbe, unique_domain_id
+
+NS = "/robotarium"
+
+
+# -- helpers shared with test_results.py -----------------------------------------------------------
+
+class Stack:
+    """Simulator + recorder on a private domain, and a probe that drives them."""
+
+    def __init__(self, tmp_path, recorder=True):
+        self.domain = unique_domain_id()
+        self.tmp_path = tmp_path
+        self.bags_dir = tmp_path / "bags"
+        self.sim = NodeProcess("robotarium_sim.simulator_node", self.domain, log_path=tmp_path / "simulator.log")
+        self.recorder = None
+        self.probe = RosProbe(self.domain)
+        self.poses = self.probe.collect(RobotPoses, NS + "/poses")
+        self.recording = self.probe.collect(String, NS + "/recording", LATCHED)
+        self.cmd = self.probe.node.create_publisher(TwistArray, NS + "/cmd_safe", TESTBED_QOS)
+        assert self.probe.spin_until(lambda: self.cmd.get_subscription_count() >= 1, 30), self.sim.output()
+        if recorder:
+            self.start_recorder()
+
+    def start_recorder(self):
+        self.recorder = NodeProcess("robotarium_sim.recorder_node", self.domain, log_path=self.tmp_path / "recorder.log",
+                                    ros_args=["-p", "bags_dir:=%s" % self.bags_dir])
+        node = self.probe.node
+        ready = lambda: (self.cmd.get_subscription_count() >= 2 and node.count_subscribers(NS + "/pose_array") >= 1  # noqa: E731
+                         and node.count_subscribers(NS + "/status") >= 1)
+        assert self.probe.spin_until(ready, 30), "recorder did not come up:\n%s" % self.recorder.output()
+        self.probe.spin_for(0.5)   # let the simulator see the recorder's pose_array subscription too
+
+    def start(self, n, poses=None, real_time=False, name="test", seed=1):
+        request = StartExperiment.Request(name=name, number_of_robots=n, real_time=real_time, seed=seed)
+        if poses is not None:
+            request.x, request.y, request.theta = (list(map(float, row)) for row in poses)
+        response = self.probe.call(StartExperiment, NS + "/start_experiment", request)
+        assert response.success, response.message
+        self.run_id = response.run_id
+        assert self.probe.spin_until(lambda: any(p.step == 0 for p in self.poses), 10)
+        return response
+
+    def step(self, k, v, w):
+        """One lockstep step: publish commands for every robot, wait for the poses of step k."""
+        msg = TwistArray(step=k, ids=list(range(len(v))))
+        msg.header.stamp = self.probe.node.get_clock().now().to_msg()
+        msg.header.frame_id = "arena"
+        for vi, wi in zip(v, w):
+            t = Twist()
+            t.linear.x, t.angular.z = float(vi), float(wi)
+            msg.twists.append(t)
+        self.cmd.publish(msg)
+        assert self.probe.spin_until(lambda: self.poses and self.poses[-1].step >= k, 10), "lockstep stalled at %d" % k
+
+    def end(self):
+        if self.recorder is not None and self.recorder.alive():
+            # The recorder announces the bag when the run starts; give the simulator time to hear
+            # it (a lockstep run of a few steps is over in milliseconds).
+            announced = lambda: self.recording and self.recording[-1].data.endswith(self.run_id)  # noqa: E731
+            assert self.probe.spin_until(announced, 10), self.recorder.output()
+            self.probe.spin_for(0.2)
+        response = self.probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request())
+        assert response.success, response.message
+        return response
+
+    def wait_closed(self, path, timeout=15):
+        """Until the recorder has finished the bag (final metadata.yaml says complete)."""
+        def closed():
+            try:
+                with open(os.path.join(path, "metadata.yaml")) as f:
+                    return yaml.safe_load(f)["rosbag2_bagfile_information"]["custom_data"]["complete"] == "true"
+            except (OSError, KeyError, TypeError):
+                return False
+        assert self.probe.spin_until(closed, timeout), self.recorder.output()
+
+    def close(self):
+        self.probe.close()
+        if self.recorder is not None:
+            self.recorder.close()
+        self.sim.close()
+
+
+@pytest.fixture
+def stack(tmp_path):
+    s = Stack(tmp_path)
+    try:
+        yield s
+    finally:
+        s.close()
+
+
+def rosbags_messages(path):
+    """{topic: [decoded messages]} read with rosbags alone (types from the bag's own definitions)."""
+    store = get_typestore(Stores.ROS2_JAZZY)
+    out = {}
+    with Reader(path) as reader:
+        for conn in reader.connections:
+            if conn.msgtype not in store.fielddefs or conn.msgtype.startswith("robotarium_msgs/"):
+                store.register(get_types_from_msg(conn.msgdef.data, conn.msgtype))
+        for conn, _, raw in reader.messages():
+            out.setdefault(conn.topic, []).append(store.deserialize_cdr(raw, conn.msgtype))
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        total = reader.message_count
+    return out, counts, total
+
+
+def mcap_messages(path):
+    """{topic: [(schema, channel, message, decoded)]} read with the mcap library alone."""
+    files = [f for f in os.listdir(path) if f.endswith(".mcap")]
+    assert len(files) == 1
+    out = {}
+    with open(os.path.join(path, files[0]), "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        header = reader.get_header()
+        for schema, channel, message, decoded in reader.iter_decoded_messages():
+            out.setdefault(channel.topic, []).append((schema, channel, message, decoded))
+    return header, out
+
+
+def check_statuses(statuses, steps):
+    """Every step's status (the simulator also repeats the current one once a second), the final
+    counters, then IDLE."""
+    assert {s.step for s in statuses[:-1]} == set(range(steps + 1))
+    assert all(s.state == 1 for s in statuses[:-1]) and statuses[-1].state == 0
+    assert statuses[-2].step == steps and [s.step for s in statuses[:-1]] == sorted(s.step for s in statuses[:-1])
+
+
+# -- node tests ------------------------------------------------------------------------------------
+
+LINE = np.array([[-0.6, -0.2, 0.2, 0.6], [0.0, 0.1, -0.1, 0.0], [0.0, 1.0, 2.0, 3.0]])
+
+
+def test_run_through_the_stack_is_recorded_completely(stack):
+    steps = 40
+    started = stack.start(4, LINE, name="recorded")
+    rng = np.random.default_rng(3)
+    for k in range(1, steps + 1):
+        stack.step(k, rng.uniform(-0.15, 0.15, 4), rng.uniform(-2, 2, 4))
+    ended = stack.end()
+    path = ended.recording
+    assert path and os.path.isabs(path) and os.path.basename(path) == started.run_id
+    assert os.path.dirname(path) == str(stack.bags_dir)
+    stack.wait_closed(path)
+    assert stack.probe.spin_until(lambda: stack.recording and stack.recording[-1].data == "", 5)
+    seen = {p.step: p for p in stack.poses}
+    expected = {NS + "/poses": steps + 1, NS + "/pose_array": steps + 1, NS + "/cmd_safe": steps}
+
+    # rosbags
+    decoded, counts, total = rosbags_messages(path)
+    for topic, count in expected.items():
+        assert counts[topic] == count == len(decoded[topic]), topic
+    assert total == sum(len(v) for v in decoded.values())
+    assert [p.step for p in decoded[NS + "/poses"]] == list(range(steps + 1))
+    for p in decoded[NS + "/poses"]:
+        assert np.array_equal(np.array([p.x, p.y, p.theta]), np.array([seen[p.step].x, seen[p.step].y, seen[p.step].theta]))
+    assert [c.step for c in decoded[NS + "/cmd_safe"]] == list(range(1, steps + 1))
+    check_statuses(decoded[NS + "/status"], steps)
+    assert counts[NS + "/status"] == len(decoded[NS + "/status"])
+    assert all(log.name.startswith("robotarium.") for log in decoded.get("/rosout", []))
+
+    # the mcap library's own reader: ROS 2 profile, ros2msg schemas, cdr, publish time = header stamp
+    header, by_topic = mcap_messages(path)
+    assert header.profile == "ros2"
+    for topic, count in expected.items():
+        assert len(by_topic[topic]) == count, topic
+    for schema, channel, message, msg in by_topic[NS + "/poses"]:
+        assert schema.encoding == "ros2msg" and schema.name == "robotarium_msgs/msg/RobotPoses"
+        assert "MSG: std_msgs/Header" in schema.data.decode()
+        assert channel.message_encoding == "cdr" and "offered_qos_profiles" in channel.metadata
+        assert message.publish_time == msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+        assert message.log_time >= message.publish_time
+        assert np.array_equal(np.array(msg.x), np.array(seen[msg.step].x))
+
+    # metadata.yaml as rosbag2 (Jazzy) writes it
+    with open(os.path.join(path, "metadata.yaml")) as f:
+        info = yaml.safe_load(f)["rosbag2_bagfile_information"]
+    assert info["version"] == 9 and info["storage_identifier"] == "mcap" and info["ros_distro"] == "jazzy"
+    assert info["relative_file_paths"] == ["%s_0.mcap" % started.run_id]
+    meta_counts = {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]}
+    assert all(meta_counts[t] == c for t, c in expected.items())
+    assert info["message_count"] == total and info["custom_data"]["run_id"] == started.run_id
+    poses_meta = next(t["topic_metadata"] for t in info["topics_with_message_count"] if t["topic_metadata"]["name"] == NS + "/poses")
+    assert poses_meta["type"] == "robotarium_msgs/msg/RobotPoses" and poses_meta["type_description_hash"].startswith("RIHS01_")
+    assert poses_meta["offered_qos_profiles"][0]["reliability"] == "reliable"
+
+    # our reader agrees; a second run goes to a new folder
+    bag = bagmod.Bag(path)
+    assert bag.complete and not bag.truncated and bag.message_count == total
+    stack.start(2, name="second")
+    stack.step(1, [0.1, 0.1], [0.0, 0.0])
+    second = stack.end()
+    assert second.recording and second.recording != path
+    stack.wait_closed(second.recording)
+    assert bagmod.Bag(second.recording).topics[NS + "/poses"].count == 2
+
+
+def test_a_recorder_started_after_the_run_began_still_gets_its_start(tmp_path):
+    """The testbed's topics keep a history (transient local) that a late recorder is handed."""
+    late = Stack(tmp_path, recorder=False)
+    try:
+        started = late.start(3, LINE[:, :3], name="late")
+        for k in range(1, 11):
+            late.step(k, [0.05] * 3, [0.2] * 3)
+        late.start_recorder()
+        for k in range(11, 21):
+            late.step(k, [0.05] * 3, [0.2] * 3)
+        ended = late.end()
+        path = os.path.join(late.bags_dir, started.run_id)
+        late.wait_closed(path)
+    finally:
+        late.close()
+    assert ended.recording == path
+    bag = bagmod.Bag(path)
+    assert list(bag.poses().steps) == list(range(21))
+    assert [c.step for c in bag.commands()] == list(range(1, 21))
+    check_statuses(bag.statuses(), 20)
+
+
+def test_recorder_killed_mid_run_leaves_a_readable_bag(stack):
+    stack.start(5, real_time=True, name="killed")
+    stack.probe.spin_for(2.5)
+    stack.recorder.kill()                      # SIGKILL: no chance to finish the file
+    stack.probe.spin_for(0.3)
+    stack.end()
+    runs = os.listdir(stack.bags_dir)
+    assert len(runs) == 1, stack.recorder.output()
+    path = os.path.join(stack.bags_dir, runs[0])
+
+    bag = bagmod.Bag(path)
+    assert not bag.complete, stack.recorder.output()
+    track = bag.poses()
+    assert len(track.steps) >= 20, (bag.topics, stack.recorder.output())   # chunks reach the disk within a second
+    assert np.array_equal(track.steps, np.arange(len(track.steps))), track.steps
+
+    if bag.truncated:   # killed inside the one write of a flush (rare): cut back to the last chunk
+        bagmod.recover_bag(path)
+    decoded, counts, total = rosbags_messages(path)          # the provisional end makes it a valid MCAP
+    assert [p.step for p in decoded[NS + "/poses"]] == list(track.steps)
+    _, by_topic = mcap_messages(path)
+    assert {t: len(v) for t, v in by_topic.items()} == {t: len(v) for t, v in decoded.items()}
+    assert all(counts[t] <= len(decoded[t]) for t in counts)  # metadata.yaml lags at most one flush
+
+    recovered = bagmod.recover_bag(path)                      # like ros2 bag reindex: exact counts
+    _, counts, total = rosbags_messages(path)
+    assert counts == {t: info.count for t, info in recovered.topics.items()} and total == recovered.message_count
+
+
+# -- plain tests (no ROS graph) ------------------------------------------------------------------
+
+def _write_sample(path, messages=300, flush_every=40):
+    from rclpy.serialization import serialize_message
+    writer = bagmod.BagWriter(str(path))
+    writer.add_topic(NS + "/poses", "robotarium_msgs/msg/RobotPoses", [bagmod.qos_profile(depth=50)])
+    for k in range(messages):
+        msg = RobotPoses(step=k, ids=[0, 1], x=[0.01 * k, 1.0], y=[0.0, -0.5], theta=[0.1, 0.2])
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 1000 + k, 5
+        data = serialize_message(msg)
+        writer.write(NS + "/poses", data, 2_000_000_000_000 + k * 1000, bagmod.stamp_from_cdr(data))
+        if k % flush_every == flush_every - 1:
+            writer.flush()
+    return writer
+
+
+def test_a_torn_file_gives_back_every_complete_chunk_and_can_be_recovered(tmp_path):
+    writer = _write_sample(tmp_path / "run")
+    writer.flush()                       # never closed: as a killed recorder leaves it
+    mcap_path = os.path.join(writer.path, writer.file_name)
+    size = os.path.getsize(mcap_path)
+    full = [m.data for m in bagmod.Bag(writer.path).messages()]
+    assert len(full) == 300
+    for cut in range(40, size, 997):     # cut anywhere: our reader returns a prefix, never fails
+        torn = tmp_path / ("torn_%d" % cut)
+        shutil.copytree(writer.path, torn)
+        with open(os.path.join(torn, writer.file_name), "r+b") as f:
+            f.truncate(cut)
+        bag = bagmod.Bag(str(torn))
+        got = [m.data for m in bag.messages()]
+        assert got == full[:len(got)] and bag.truncated
+        if cut > size // 2:
+            assert len(got) >= 120
+            bagmod.recover_bag(str(torn))
+            decoded, counts, total = rosbags_messages(str(torn))
+            assert total == len(got) == counts[NS + "/poses"]
+            assert [p.step for p in decoded[NS + "/poses"]] == list(range(len(got)))
+
+
+def test_bag_writer_never_overwrites_and_closes_with_a_summary(tmp_path):
+    writer = _write_sample(tmp_path / "run", messages=50)
+    with pytest.raises(FileExistsError):
+        bagmod.BagWriter(str(tmp_path / "run"))
+    writer.close()
+    with open(os.path.join(writer.path, writer.file_name), "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary.statistics.message_count == 50 and summary.chunk_indexes
+    bag = bagmod.Bag(writer.path)
+    assert bag.complete and bag.topics[NS + "/poses"].count == 50
+    assert bag.poses().x.shape == (50, 2)
+
+
+def test_run_recorder_takes_the_messages_of_each_run(tmp_path):
+    """Which messages go into which bag, with publish stamps deciding around start and end."""
+    topics = {"/ns/poses": "robotarium_msgs/msg/RobotPoses", "/ns/status": "robotarium_msgs/msg/TestbedStatus",
+              "/rosout": "rcl_interfaces/msg/Log"}
+    started = []
+    rec = RunRecorder(tmp_path, lambda t: (topics[t], []), on_started=started.append, grace_ns=100, live_after_ns=0)
+    s = 10**9
+    rec.on_message("/ns/poses", b"\x00\x01\x00\x00old", recv_ns=1 * s, pub_ns=1 * s)      # before the run: dropped
+    rec.on_message("/ns/poses", b"\x00\x01\x00\x00step0", recv_ns=5 * s, pub_ns=5 * s)    # overtook the status
+    rec.on_status("/ns/status", b"\x00\x01\x00\x00run", 6 * s, 5 * s, True, "exp_1")
+    rec.on_message("/ns/poses", b"\x00\x01\x00\x00step1", 7 * s, 7 * s)
+    rec.on_status("/ns/status", b"\x00\x01\x00\x00idle", 8 * s, 8 * s, False, "exp_1")
+    rec.on_message("/ns/poses", b"\x00\x01\x00\x00late", 8 * s + 10, 7 * s + 5)             # published before the end
+    rec.on_message("/rosout", b"\x00\x01\x00\x00ended", 8 * s + 20, 8 * s + 15, log_line=True)
+    rec.on_message("/ns/poses", b"\x00\x01\x00\x00after", 8 * s + 30, 8 * s + 25)           # after the end
+    rec.tick(9 * s)
+    assert rec.writer is None and len(started) == 1
+    rec.on_status("/ns/status", b"\x00\x01\x00\x00stale", 9 * s, 6 * s, True, "exp_1")     # a late status: no new run
+    assert rec.writer is None
+    rec.on_status("/ns/status", b"\x00\x01\x00\x00again", 10 * s, 10 * s, True, "exp_1")   # same id, later: a new run
+    rec.close()
+    assert [os.path.basename(p) for p in started] == ["exp_1", "exp_1_1"]
+    first = bagmod.Bag(started[0])
+    assert [m.data[4:] for m in first.messages()] == [b"step0", b"run", b"step1", b"idle", b"late", b"ended"]
+    assert [m.data[4:] for m in bagmod.Bag(started[1]).messages()] == [b"again"]
+
+
+def test_run_recorder_ignores_a_finished_run_handed_over_as_history(tmp_path):
+    """Transient-local history arrives when the recorder matches: a run that ended before the
+    recorder started is not recorded; one still going is, from its first RUNNING status."""
+    started = []
+    rec = RunRecorder(tmp_path, lambda t: ("robotarium_msgs/msg/TestbedStatus", []), on_started=started.append,
+                      live_after_ns=100)
+    rec.on_status("/ns/status", b"\x00\x01\x00\x00a1", 200, 10, True, "old")
+    rec.on_status("/ns/status", b"\x00\x01\x00\x00a2", 200, 20, False, "old")     # ended: never recorded
+    rec.on_status("/ns/status", b"\x00\x01\x00\x00b1", 201, 50, True, "going")
+    rec.on_status("/ns/status", b"\x00\x01\x00\x00b2", 201, 60, True, "going")
+    assert rec.writer is None and not started
+    rec.on_status("/ns/status", b"\x00\x01\x00\x00b3", 300, 150, True, "going")   # live: record from stamp 50
+    rec.close()
+    assert [os.path.basename(p) for p in started] == ["going"]
+    assert [m.data[4:] for m in bagmod.Bag(started[0]).messages()] == [b"b1", b"b2", b"b3"]

@@ -1,0 +1,100 @@
+"""Results of a recorded run from its bag alone: the debug report (equal to the live one), the
+trajectory plot and the video."""
+import math
+import os
+import shutil
+
+import imageio_ffmpeg
+import matplotlib.image
+import numpy as np
+import pytest
+
+from robotarium_sim import results
+from robotarium_sim.bag import Bag
+from rosutil import REPO
+from test_recorder import stack  # noqa: F401  (fixture: simulator + recorder on a private domain)
+
+SAMPLE = os.path.join(REPO, "bags", "sample_consensus")
+
+# Robot 0 drives out of the arena, robots 1 and 2 drive into each other, robot 2 asks for more
+# than its wheels can do: every counter of the debug report is non-zero.
+START = np.array([[1.45, -0.3, -0.1], [0.0, 0.0, 0.0], [0.0, 0.0, math.pi]])
+V = [0.2, 0.1, 0.1]
+W = [0.0, 0.0, 5.0]
+
+
+def test_report_from_the_bag_equals_the_live_report_and_results_are_written(stack, tmp_path):  # noqa: F811
+    steps = 45
+    stack.start(3, START, name="report")
+    for k in range(1, steps + 1):
+        stack.step(k, V, W if k > 30 else [0.0, 0.0, 0.0])
+    ended = stack.end()
+    assert "outside the boundaries" in ended.report and "collided" in ended.report and "actuator" in ended.report
+    stack.wait_closed(ended.recording)
+
+    numbers = results.recompute(ended.recording)
+    assert numbers["report"] == ended.report
+    assert numbers["mismatches"] == [] and numbers["notes"] == []
+    assert (numbers["iterations"], numbers["collisions"], numbers["boundary_violations"],
+            numbers["actuator_limit_iterations"]) == (ended.steps, ended.collisions, ended.boundary_violations,
+                                                      ended.actuator_limit_iterations)
+
+    paths = results.write_results(ended.recording, progress=False, out_dir=str(tmp_path / "out"))
+    with open(paths["report"]) as f:
+        text = f.read()
+    assert text.startswith(ended.report) and "agree with the testbed's counters" in text
+    image = matplotlib.image.imread(paths["trajectories"])
+    assert image.shape[0] > 300 and image.shape[1] > 500 and image[..., :3].std() > 0.01
+    frames, seconds = imageio_ffmpeg.count_frames_and_secs(paths["video"])
+    assert paths["video"].endswith(".mp4") and frames == steps + 1
+
+
+def test_report_command_on_the_sample_run(tmp_path, capsys):
+    bag = tmp_path / "sample"
+    shutil.copytree(SAMPLE, bag)
+    assert results.main([str(bag)]) == 0
+    out, err = capsys.readouterr()
+    assert out.startswith("##### DEBUG OUTPUT #####") and "agree with the testbed's counters" in out
+    assert "rendering run.mp4" in err and "100%" in err                       # progress on stderr
+    steps = len(Bag(str(bag)).poses().steps)
+    assert imageio_ffmpeg.count_frames_and_secs(str(bag / "run.mp4"))[0] == steps
+    assert matplotlib.image.imread(str(bag / "trajectories.png")).size > 0
+    assert results.main([str(tmp_path / "missing")]) == 2
+
+
+def test_gif_when_no_video_encoder(tmp_path):
+    from PIL import Image
+    track = Bag(SAMPLE).poses()
+    path = results.render_video(track, str(tmp_path), "gif", progress=False, fmt="gif")
+    assert path.endswith("run.gif")
+    with Image.open(path) as gif:
+        assert gif.n_frames == math.ceil(len(track.steps) / 2)
+
+
+def test_report_of_a_torn_recording_counts_what_is_there(tmp_path):
+    bag = tmp_path / "torn"
+    shutil.copytree(SAMPLE, bag)
+    mcap = next(f for f in os.listdir(bag) if f.endswith(".mcap"))
+    with open(bag / mcap, "r+b") as f:
+        f.truncate(os.path.getsize(bag / mcap) * 6 // 10)
+    paths = results.write_results(str(bag), progress=False, video=False)
+    with open(paths["report"]) as f:
+        text = f.read()
+    assert "##### DEBUG OUTPUT #####" in text and "not closed" in text
+    numbers = results.recompute(str(bag))
+    assert 0 < numbers["iterations"] < len(Bag(SAMPLE).poses().steps)
+    assert numbers["testbed"] is not None and numbers["testbed"]["iterations"] >= numbers["iterations"] - 1
+
+
+@pytest.mark.parametrize("mode", ["lockstep", "realtime"])
+def test_actuator_limits_are_counted_from_the_commands_in_force(mode):
+    from robotarium_sim.bag import Command
+    over = Command(1, 10, 10, np.array([0, 1]), np.array([0.1, 0.1]), np.array([0.0, 5.0]))
+    fine = Command(2, 40, 40, np.array([1]), np.array([0.1]), np.array([0.0]))
+    bad = Command(3, 50, 50, np.array([5]), np.array([0.1]), np.array([0.0]))     # unknown id: dropped
+    if mode == "lockstep":
+        forced = [v.copy() for v in results._commands_in_force_lockstep([over, bad, fine], 2, 2)]
+    else:
+        forced = [v.copy() for v in results._commands_in_force_realtime([over, bad, fine], 2, [20, 45, 10**9])]
+        assert not forced[2].any()                                  # stopped after the timeout
+    assert np.array_equal(forced[0], [[0.1, 0.1], [0.0, 5.0]]) and np.array_equal(forced[1], [[0.1, 0.1], [0.0, 0.0]])
