@@ -1,0 +1,172 @@
+"""The Robotarium class over a real testbed (simulator + safety node in subprocesses)."""
+import os
+
+import numpy as np
+import pytest
+
+from robotarium_sim import model
+from robotarium_sim.model import RobotariumError
+from rosutil import NodeProcess, unique_domain_id
+
+
+@pytest.fixture(scope="module")
+def testbed(tmp_path_factory):
+    """One testbed for the module, on its own domain; the in-process client joins that domain."""
+    domain = unique_domain_id()
+    logs = tmp_path_factory.mktemp("testbed")
+    nodes = [NodeProcess("robotarium_sim.simulator_node", domain, log_path=logs / "sim.log"),
+             NodeProcess("robotarium_safety.safety_node", domain, log_path=logs / "safety.log")]
+    saved = {k: os.environ.get(k) for k in ("ROS_DOMAIN_ID", "ROBOTARIUM_EMBEDDED", "MPLBACKEND")}
+    os.environ.update(ROS_DOMAIN_ID=str(domain), ROBOTARIUM_EMBEDDED="0", MPLBACKEND="Agg")
+    from robotarium_client.testbed import testbed_answers
+    try:
+        assert testbed_answers(timeout=30), "the simulator did not come up"
+        yield domain
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+        for node in nodes:
+            node.close()
+
+
+def robotarium(**kwargs):
+    import rps.robotarium as rps_robotarium
+    kwargs.setdefault("show_figure", False)
+    kwargs.setdefault("sim_in_real_time", False)
+    return rps_robotarium.Robotarium(**kwargs)
+
+
+LINE = np.array([[-0.6, 0.0, 0.6], [0.2, -0.2, 0.2], [0.0, np.pi / 2, np.pi]])
+
+
+def test_lockstep_steps_follow_the_model_exactly(testbed):
+    r = robotarium(number_of_robots=3, initial_conditions=LINE.copy())
+    assert r.sim_in_real_time is False
+    reference = model.Testbed(LINE)
+    rng = np.random.default_rng(5)
+    for _ in range(40):
+        x = r.get_poses()
+        assert np.array_equal(x, reference.poses)
+        dxu = np.vstack((rng.uniform(0, 0.1, 3), rng.uniform(-1, 1, 3)))  # far apart, slow: the safety node lets it be
+        r.set_velocities(np.arange(3), dxu)
+        r.step()
+        reference.set_commands(range(3), dxu[0], dxu[1])
+        reference.step()
+    r.call_at_scripts_end()
+    assert np.abs(reference.poses - LINE).max() > 0.05
+
+
+def test_call_order_errors_are_those_of_rps(testbed):
+    r = robotarium(number_of_robots=2, initial_conditions=LINE[:, :2].copy())
+    r.get_poses()
+    with pytest.raises(AssertionError, match=r"Can only call get_poses\(\) once per call of step\(\)"):
+        r.get_poses()
+    r.set_velocities(np.arange(2), np.zeros((2, 2)))
+    r.step()
+    with pytest.raises(AssertionError, match=r"Make sure to call get_poses before calling step\(\) again"):
+        r.step()
+    r.call_at_scripts_end()
+
+
+def test_report_and_counts_come_from_the_testbed(testbed, capsys):
+    # One robot driven straight out of the arena: the safety node's boundary certificate stops it,
+    # so the report stays clean; an actuator-limit command is counted.
+    r = robotarium(number_of_robots=1, initial_conditions=np.array([[1.45], [0.0], [0.0]]))
+    for _ in range(60):
+        r.get_poses()
+        r.set_velocities(np.arange(1), np.array([[0.2], [0.5]]))
+        r.step()
+    assert r.get_poses()[0, 0] <= 1.6
+    r.call_at_scripts_end()
+    out = capsys.readouterr().out
+    assert out.startswith("##### DEBUG OUTPUT #####\nYour simulation will take approximately 2 real seconds")
+    assert "outside the boundaries" not in out
+    assert "Simulation had 60 iteration(s) where the actuator limits were exceeded." in out or \
+           "actuator limits were exceeded" in out
+    assert r._errors.get("boundary", 0) == 0
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    (dict(number_of_robots=2.5), "must be an integer"),
+    (dict(number_of_robots=0), "between 1 and 50"),
+    (dict(number_of_robots=51), "between 1 and 50"),
+    (dict(number_of_robots=2, show_figure="yes"), "show_figure"),
+    (dict(number_of_robots=2, sim_in_real_time=1), "sim_in_real_time"),
+    (dict(number_of_robots=2, initial_conditions=[[0, 0, 0]]), "numpy ndarray"),
+    (dict(number_of_robots=2, initial_conditions=np.zeros((3, 3))), "3 x 2"),
+    (dict(number_of_robots=2, initial_conditions=np.zeros((3, 2))), "collision"),
+    (dict(number_of_robots=1, initial_conditions=np.array([[2.0], [0.0], [0.0]])), "outside the arena"),
+])
+def test_constructor_arguments_are_checked(kwargs, words):
+    # refused before any testbed is contacted
+    with pytest.raises(RobotariumError, match=words):
+        robotarium(**kwargs)
+
+
+def test_set_velocities_arguments_are_checked(testbed):
+    r = robotarium(number_of_robots=2, initial_conditions=LINE[:, :2].copy())
+    r.get_poses()
+    with pytest.raises(RobotariumError, match="2 x 2"):
+        r.set_velocities(np.arange(2), np.zeros((2, 3)))
+    with pytest.raises(RobotariumError, match="NaN or inf"):
+        r.set_velocities(np.arange(2), np.array([[0.1, np.nan], [0.0, 0.0]]))
+    with pytest.raises(RobotariumError, match="robot ids from 0 to 1"):
+        r.set_velocities(np.array([0, 5]), np.zeros((2, 2)))
+    with pytest.raises(RobotariumError, match="numpy array"):
+        r.set_velocities(np.arange(2), [[0.1, 0.1], [0.0, 0.0]])
+    r.set_velocities(np.array([1]), np.array([[0.1], [0.0]]))  # a subset of the robots is fine
+    r.step()
+    x = r.get_poses()
+    assert x[0, 0] == LINE[0, 0] and x[0, 1] > LINE[0, 1]
+    r.call_at_scripts_end()
+
+
+def test_headless_figure_takes_the_guides_plotting_calls(testbed, tmp_path):
+    from rps.utilities.misc import determine_font_size, determine_marker_size
+    r = robotarium(number_of_robots=3, initial_conditions=LINE.copy(), show_figure=True)
+    assert r.figure.canvas.get_renderer() is not None  # Agg
+    size = determine_marker_size(r, 0.05)
+    font = determine_font_size(r, 0.1)
+    assert size > 0 and font > 0
+    r.axes.scatter([0.0, 0.5], [0.0, 0.5], s=size, marker="x", zorder=-2)
+    r.axes.text(0.0, 0.0, "goal", fontsize=font)
+    line, = r.axes.plot([-1, 1], [0, 0], "r--")
+    r.axes.arrow(0, 0, 0.1, 0.1)
+    r.axes.imshow(np.zeros((4, 4)), extent=(-1.6, 1.6, -1, 1), zorder=-3)
+    for _ in range(3):
+        r.get_poses()
+        r.set_velocities(np.arange(3), np.full((2, 3), 0.05))
+        r.step()
+    x = r.get_poses()
+    # the chassis patches follow the robots
+    chassis = r._arena_figure.chassis
+    assert np.allclose([p.xy for p in chassis], x[:2].T)
+    r.figure.savefig(tmp_path / "arena.png")
+    assert (tmp_path / "arena.png").stat().st_size > 5000
+    r.call_at_scripts_end()
+
+
+def test_no_testbed_gives_a_clear_error(monkeypatch):
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(unique_domain_id()))
+    monkeypatch.setenv("ROBOTARIUM_EMBEDDED", "0")
+    monkeypatch.setattr("robotarium_client.robotarium.CONNECT_WAIT", 1.0)
+    with pytest.raises(RuntimeError, match="No Robotarium testbed answers.*./robotarium up"):
+        robotarium(number_of_robots=2)
+
+
+def test_without_safety_node_nothing_moves(tmp_path, monkeypatch):
+    domain = unique_domain_id()
+    sim = NodeProcess("robotarium_sim.simulator_node", domain, log_path=tmp_path / "sim.log")
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
+    monkeypatch.setenv("ROBOTARIUM_EMBEDDED", "0")
+    monkeypatch.setattr("robotarium_client.robotarium.STEP_TIMEOUT", 2.0)
+    try:
+        from robotarium_client.testbed import testbed_answers
+        assert testbed_answers(timeout=30)
+        with pytest.raises(RuntimeError, match="safety node"):
+            robotarium(number_of_robots=2, initial_conditions=LINE[:, :2].copy())
+    finally:
+        sim.close()
