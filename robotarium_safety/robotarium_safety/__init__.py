@@ -1,0 +1,1 @@
+"""Barrier certificates (plain numpy + OSQP: barrier_certificates) and the safety node."""
