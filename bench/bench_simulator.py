@@ -24,6 +24,7 @@ from geometry_msgs.msg import Twist  # noqa: E402
 from robotarium_msgs.msg import RobotPoses, TwistArray  # noqa: E402
 from robotarium_msgs.srv import EndExperiment, StartExperiment  # noqa: E402
 from robotarium_sim import model  # noqa: E402
+from robotarium_sim.topics import TESTBED_QOS  # noqa: E402
 
 NS = "/robotarium"
 
@@ -51,7 +52,7 @@ def real_time_jitter(probe, n, seconds):
 
 def lockstep_rate(probe, n, steps):
     poses = probe.collect(RobotPoses, NS + "/poses")
-    publisher = probe.node.create_publisher(TwistArray, NS + "/cmd_safe", 50)
+    publisher = probe.node.create_publisher(TwistArray, NS + "/cmd_safe", TESTBED_QOS)
     start(probe, n, real_time=False)
     probe.spin_until(lambda: publisher.get_subscription_count() > 0, 10)
     msg = TwistArray()

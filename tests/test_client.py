@@ -152,7 +152,7 @@ def test_headless_figure_takes_the_guides_plotting_calls(testbed, tmp_path):
 def test_no_testbed_gives_a_clear_error(monkeypatch):
     monkeypatch.setenv("ROS_DOMAIN_ID", str(unique_domain_id()))
     monkeypatch.setenv("ROBOTARIUM_EMBEDDED", "0")
-    monkeypatch.setattr("robotarium_client.robotarium.CONNECT_WAIT", 1.0)
+    monkeypatch.setattr("robotarium_client.robotarium.STARTUP_WAIT", 1.0)
     with pytest.raises(RuntimeError, match="No Robotarium testbed answers.*./robotarium up"):
         robotarium(number_of_robots=2)
 

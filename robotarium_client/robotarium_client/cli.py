@@ -68,6 +68,26 @@ def _tee(stream, sinks):
             sink.flush()
 
 
+def wait_until_recorded(run_dir, timeout=15.0):
+    """The recorder closes a run's bag shortly after the run ended (it keeps late messages for a
+    moment); results made before that would miss the last chunk. Wait for metadata.yaml to say
+    the bag is complete."""
+    import yaml
+    path = os.path.join(run_dir, "metadata.yaml")
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            with open(path) as f:
+                info = yaml.safe_load(f)["rosbag2_bagfile_information"]
+            if str(info.get("custom_data", {}).get("complete")) == "true":
+                return True
+        except (OSError, KeyError, TypeError, yaml.YAMLError):
+            pass  # not written yet, or being replaced
+        time.sleep(0.1)
+    say("the recorder has not closed %s yet; results are made from what is recorded so far" % run_dir)
+    return False
+
+
 def run_script(script, script_args=(), real_time=None, record=True, bags_dir=None, results=True, video=True):
     """Run an experiment script against the testbed (starting one here if none answers).
 
@@ -79,8 +99,14 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
         return 2, None, None
     ns = namespace()
     testbed = None
-    if testbed_answers(ns, timeout=3.0):
+    embedded_allowed = os.environ.get("ROBOTARIUM_EMBEDDED", "1") not in ("0", "false", "no", "off")
+    # With ROBOTARIUM_EMBEDDED=0 a testbed is known to be up (or coming up): wait for it, never start one.
+    if testbed_answers(ns, timeout=3.0 if embedded_allowed else 60.0):
         say("using the testbed that answers in %s" % ns)
+    elif not embedded_allowed:
+        say("no testbed answers in %s on ROS_DOMAIN_ID %s (ROBOTARIUM_EMBEDDED=0 forbids starting one); "
+            "start it with ./robotarium up" % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
+        return 2, None, None
     else:
         say("no testbed answers in %s: starting one on this machine for this run" % ns)
         testbed = LocalTestbed(record=record, bags_dir=bags_dir).start()
@@ -121,6 +147,10 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
         return code or 1, None, None
 
     run_dir = info.get("recording") or ""
+    if not run_dir:
+        # A very short run can end before the recorder's announcement of its folder arrived.
+        guess = os.path.join(bags_dir or os.path.join(repository_root(), "bags"), info["run_id"])
+        run_dir = guess if os.path.isdir(guess) else ""
     if not run_dir or not os.path.isdir(run_dir):
         # Recorded on another machine (or not at all): keep the local outputs in results/<run id>/.
         run_dir = os.path.join(repository_root(), "results", info["run_id"])
@@ -139,6 +169,7 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
     shutil.rmtree(work, ignore_errors=True)
 
     if results:
+        wait_until_recorded(run_dir)
         from robotarium_sim.results import write_results
         write_results(run_dir, progress=True, video=video)
     say("run %s: outputs in %s" % (info["run_id"], os.path.relpath(run_dir, cwd)))

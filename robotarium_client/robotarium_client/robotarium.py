@@ -216,8 +216,10 @@ class Robotarium:
         self._start_client = self._node.create_client(StartExperiment, START_EXPERIMENT)
         self._end_client = self._node.create_client(EndExperiment, END_EXPERIMENT)
 
-        if not self._start_client.wait_for_service(timeout_sec=CONNECT_WAIT):
-            if _env_flag("ROBOTARIUM_EMBEDDED") is False:
+        embedded_allowed = _env_flag("ROBOTARIUM_EMBEDDED") is not False
+        # Told a testbed is there (./robotarium run found one): give discovery its time.
+        if not self._start_client.wait_for_service(timeout_sec=CONNECT_WAIT if embedded_allowed else STARTUP_WAIT):
+            if not embedded_allowed:
                 self._shutdown()
                 raise RuntimeError(
                     "No Robotarium testbed answers in namespace %s on ROS_DOMAIN_ID %s. Start one with "
@@ -252,12 +254,16 @@ class Robotarium:
         self._run_id = response.run_id
         self._last_step = 0
         self.poses = np.array([response.x, response.y, response.theta])
-        # Do not send commands before the safety node has matched us (they would wait in our history
-        # anyway, but without a safety node nothing can move: say so now rather than at a timeout).
-        if not self._spin_until(lambda: self._command_pub.get_subscription_count() > 0, STEP_TIMEOUT):
+        # Without a safety node nothing can move: say so now rather than at the first step's timeout.
+        # (Commands sent before it matched us wait in our writer's history: the QoS is transient-local.)
+        if not self._spin_until(self._safety_node_listens, STEP_TIMEOUT):
             self._end_quietly()
             raise RuntimeError("No safety node listens on %s/cmd_requested: without it the robots cannot move. "
                                "Is the testbed complete (./robotarium up starts all of it)?" % self._ns)
+
+    def _safety_node_listens(self):
+        topic = self._command_pub.topic_name
+        return any(info.node_name == "safety" for info in self._node.get_subscriptions_info_by_topic(topic))
 
     def _on_poses(self, msg):
         if msg.run_id == self._run_id:

@@ -29,7 +29,7 @@ from rclpy.node import Node
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TwistArray
 from robotarium_safety.barrier_certificates import create_unicycle_barrier_certificate_with_boundary
 from robotarium_sim import model
-from robotarium_sim.topics import COMMAND_QOS, DEFAULT_NAMESPACE, TESTBED_QOS
+from robotarium_sim.topics import DEFAULT_NAMESPACE, TESTBED_QOS, warn_on_incompatible_qos
 
 PARAMETERS = {
     # name: (default, check, what a valid value is). Certificate defaults are the guide's (§4.5.5).
@@ -76,12 +76,12 @@ class SafetyNode(Node):
         self.poses_time = -np.inf    # monotonic receive time
         self.commands = None         # 2 x N, the current requested command of every robot
         self.pending = None          # (msg, received) a numbered command waiting for its poses
-        self.outbox = []             # (safe msg, time) waiting for the simulator's reader to match
         self._logged = set()
 
         self.safe_pub = self.create_publisher(TwistArray, "cmd_safe", TESTBED_QOS)
         self.report_pub = self.create_publisher(SafetyReport, "safety_report", TESTBED_QOS)
-        self.create_subscription(TwistArray, "cmd_requested", self.on_request, COMMAND_QOS)
+        self.create_subscription(TwistArray, "cmd_requested", self.on_request, TESTBED_QOS,
+                                 event_callbacks=warn_on_incompatible_qos(self, "cmd_requested"))
         self.create_subscription(RobotPoses, "poses", self.on_poses, TESTBED_QOS)
         self.create_timer(0.02, self.check_pending)
         self.get_logger().info("safety node ready in namespace %s (safety radius %.3f m, boundary %s)" % (
@@ -115,7 +115,6 @@ class SafetyNode(Node):
         self.filter(msg)
 
     def check_pending(self):
-        self.flush()
         if self.pending is not None and time.monotonic() - self.pending[1] > self.params["lockstep_wait"]:
             msg, _ = self.pending
             self.pending = None
@@ -152,6 +151,12 @@ class SafetyNode(Node):
             safe = np.zeros_like(requested)
         else:
             status = "passthrough" if info["status"] == "passthrough" else "solved"
+            # The certificate bounds speed, not wheel speeds: where it replaced a command, make the
+            # replacement drivable (keeping its arc) so that the debug report's actuator count
+            # judges the script's own commands, never our interventions.
+            changed = np.any(safe != requested, axis=0)
+            if np.any(changed):
+                safe[:, changed] = model.threshold_keeping_arc(safe[:, changed])
         change = np.abs(safe - requested)
         report.status = status
         report.solver_status = info["status"]
@@ -173,26 +178,12 @@ class SafetyNode(Node):
         out.header.frame_id = "arena"
         out.ids = [int(i) for i in ids]
         out.twists = twists_of(np.asarray(v, dtype=float), np.asarray(w, dtype=float))
-        self.outbox.append((out, time.monotonic()))
-        self.flush()
+        self.safe_pub.publish(out)
         report.header = out.header
         report.number_of_robots = len(ids)
         report.solve_time = time.perf_counter() - started
         self.report_pub.publish(report)
 
-
-    def flush(self):
-        """Send what waits in the outbox once the simulator's (volatile) reader has matched our
-        writer: sent earlier, it would be lost. What waited longer than lockstep_wait is dropped."""
-        if not self.outbox:
-            return
-        if self.safe_pub.get_subscription_count() > 0:
-            for out, _ in self.outbox:
-                self.safe_pub.publish(out)
-            self.outbox = []
-            return
-        now = time.monotonic()
-        self.outbox = [(out, t) for out, t in self.outbox if now - t < self.params["lockstep_wait"]]
 
 
 def main(args=None):

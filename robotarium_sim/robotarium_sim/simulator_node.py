@@ -31,7 +31,7 @@ from std_msgs.msg import String
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
 from robotarium_msgs.srv import EndExperiment, StartExperiment
 from robotarium_sim import model
-from robotarium_sim.topics import COMMAND_QOS, DEFAULT_NAMESPACE, TESTBED_QOS
+from robotarium_sim.topics import DEFAULT_NAMESPACE, TESTBED_QOS, warn_on_incompatible_qos
 
 # The recorder announces where it records; a late subscriber still gets the last announcement.
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -81,7 +81,8 @@ class SimulatorNode(Node):
         self.poses_pub = self.create_publisher(RobotPoses, "poses", TESTBED_QOS)
         self.pose_array_pub = self.create_publisher(PoseArray, "pose_array", 10)
         self.status_pub = self.create_publisher(TestbedStatus, "status", TESTBED_QOS)
-        self.create_subscription(TwistArray, "cmd_safe", self.on_command, COMMAND_QOS)
+        self.create_subscription(TwistArray, "cmd_safe", self.on_command, TESTBED_QOS,
+                                 event_callbacks=warn_on_incompatible_qos(self, "cmd_safe"))
         self.create_subscription(SafetyReport, "safety_report", self.on_safety_report, TESTBED_QOS)
         self.create_subscription(String, "recording", self.on_recording, LATCHED)
         self.create_service(StartExperiment, "start_experiment", self.on_start)

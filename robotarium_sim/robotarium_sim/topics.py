@@ -8,21 +8,18 @@ last 50 samples and hands them to a reader as soon as it matches. Nothing a clie
 the safety node or the simulator matched it is lost, and a late viewer or recorder still gets
 the current poses. Subscribers ask for the same QoS to receive that history.
 
-The two command inputs (the safety node's cmd_requested, the simulator's cmd_safe) subscribe
-with COMMAND_QOS instead: reliable but volatile, so that any publisher matches them, a plain
-`rclpy` script or `ros2 topic pub` with default QoS included (a transient-local reader would
-refuse volatile writers). The senders on our side wait until their writer has matched a reader
-before they send.
+Publishers to the testbed must offer this durability too: a transient-local reader does not
+match a volatile writer (DDS's request/offer rule). A plain rclpy script publishes with
+`TESTBED_QOS`; the nodes log a warning naming the topic when an incompatible publisher appears
+(`warn_on_incompatible_qos`).
 """
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 DEFAULT_NAMESPACE = "robotarium"
 
 TESTBED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.VOLATILE)
 
 CMD_REQUESTED = "cmd_requested"   # TwistArray: client -> safety node
 CMD_SAFE = "cmd_safe"             # TwistArray: safety node -> simulator
@@ -33,3 +30,16 @@ SAFETY_REPORT = "safety_report"   # SafetyReport
 RECORDING = "recording"           # std_msgs/String: recorder -> simulator, where the run is recorded
 START_EXPERIMENT = "start_experiment"
 END_EXPERIMENT = "end_experiment"
+
+
+def warn_on_incompatible_qos(node, topic):
+    """Subscription event callbacks that say, once, what to do when a publisher cannot match."""
+    warned = []
+
+    def on_incompatible(info):
+        if not warned:
+            warned.append(True)
+            node.get_logger().warning(
+                "a publisher on %s offers a QoS this testbed cannot accept (last policy: %s); publish "
+                "reliable + transient-local, e.g. robotarium_sim.topics.TESTBED_QOS" % (topic, info.last_policy_kind))
+    return SubscriptionEventCallbacks(incompatible_qos=on_incompatible)

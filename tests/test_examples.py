@@ -1,0 +1,86 @@
+"""End to end: example scripts through ./robotarium run against real nodes (one testbed for all).
+
+Each script runs in its own process through the client, the safety node and the simulator over
+DDS, recorded by the recorder; the test checks the script's own outcome line, the debug report,
+and that the run's bag opens with an independent reader (rosbags) with one poses message per step.
+"""
+import glob
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from robotarium_client.testbed import LocalTestbed, testbed_answers
+from rosutil import REPO, node_env, unique_domain_id
+
+OUR_EXAMPLES = sorted(p for p in glob.glob(os.path.join(REPO, "examples", "*.py")))
+GUIDE_EXAMPLES = sorted(glob.glob(os.path.join(REPO, "examples", "guide", "*.py")))
+
+
+@pytest.fixture(scope="module")
+def testbed(tmp_path_factory):
+    domain = unique_domain_id()
+    bags = tmp_path_factory.mktemp("bags")
+    env = node_env(domain, ROBOTARIUM_EMBEDDED=0)  # the runs use this module's testbed, never their own
+    saved = dict(os.environ)
+    os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    tb = LocalTestbed(log_dir=str(tmp_path_factory.mktemp("logs")), bags_dir=str(bags)).start()
+    try:
+        # up before the first run, or `run` would start a second testbed of its own
+        assert testbed_answers(timeout=60), "the testbed did not come up: %s" % tb.failed()
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
+    try:
+        yield env, bags
+    finally:
+        tb.stop()
+
+
+def run(env, script, *args, timeout=600):
+    completed = subprocess.run([sys.executable, "-m", "robotarium_client.cli", "run", *args, script],
+                               env=env, capture_output=True, text=True, timeout=timeout,
+                               cwd=os.path.dirname(script))
+    return completed
+
+
+def run_folder(bags, output):
+    info = [line for line in output.splitlines() if " recorded in " in line]
+    assert info, "the run was not recorded:\n" + output
+    return info[-1].split(" recorded in ")[-1].strip()
+
+
+def check_bag(folder):
+    """Message counts per topic as the rosbags library (an independent reader) sees the bag."""
+    from rosbags.rosbag2 import Reader
+    with Reader(folder) as reader:
+        return {c.topic: c.msgcount for c in reader.connections}
+
+
+@pytest.mark.parametrize("script", OUR_EXAMPLES, ids=os.path.basename)
+def test_our_examples_reach_their_goal_cleanly(testbed, script):
+    env, bags = testbed
+    completed = run(env, script, "--lockstep", "--no-video")
+    out = completed.stdout + completed.stderr
+    assert completed.returncode == 0, out
+    assert "No errors in your simulation! Acceptance of your experiment is likely!" in out, out
+    assert "goal reached" in out or "done:" in out, out
+    folder = run_folder(bags, out)
+    with open(os.path.join(folder, "run.json")) as f:
+        info = json.load(f)
+    counts = check_bag(folder)
+    assert counts["/robotarium/poses"] == info["steps"] + 1  # step 0 (initial conditions) and every step
+    assert os.path.exists(os.path.join(folder, "report.txt"))
+    assert os.path.exists(os.path.join(folder, "log.txt"))
+
+
+@pytest.mark.parametrize("script", GUIDE_EXAMPLES, ids=os.path.basename)
+def test_guide_scripts_run_unchanged_in_lockstep(testbed, script):
+    env, bags = testbed
+    completed = run(env, script, "--lockstep", "--no-video")
+    out = completed.stdout + completed.stderr
+    assert completed.returncode == 0, out
+    assert "##### DEBUG OUTPUT #####" in out
+    assert "robots collided" not in out and "outside the boundaries" not in out, out
