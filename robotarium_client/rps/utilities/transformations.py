@@ -79,32 +79,24 @@ def create_si_to_uni_dynamics(linear_velocity_gain=1, angular_velocity_limit=np.
 
 
 def create_si_to_uni_dynamics_with_backwards_motion(linear_velocity_gain=1, angular_velocity_limit=np.pi):
-    """Like create_si_to_uni_dynamics, but a robot drives backwards when that needs less rotation.
+    """The same mapping as create_si_to_uni_dynamics, as in rps 0.0.0 (guide 4.3.2).
 
-    Fix: in rps 0.0.0 this was the forward mapping (upstream marks it "TODO: Backwards motion is
-    the same as without backwards motion"). Here, as guide 4.3.2 describes and the Robotarium
-    MATLAB toolbox computes: when dxi points behind the robot (dxi . heading < 0), the robot
-    steers its *rear* towards dxi and v is negative.
-
-    v = linear_velocity_gain * (dxi . heading) (negative when backing up)
-    omega = angular_velocity_limit * psi / (pi/2), psi = arctan2(+-(dxi . left normal), |v|) in
-    [-pi/2, pi/2] (for a gain of 1, the angle from the nearer of heading and reverse heading to
-    dxi), so |omega| <= angular_velocity_limit.
+    rps 0.0.0 ships this as the forward mapping (upstream: "TODO: Backwards motion is the same as
+    without backwards motion"), and the guide's scripts are tuned on that: a version that really
+    backs up (as guide 4.3.2's text and the MATLAB toolbox describe) made the guide's own
+    go-to-point script (§3.1.1) spin about its goals forever, because that script steers the
+    projected point with commands computed for the robot's centre. Scripts must behave here as
+    they do on the Robotarium simulator, so we keep its behaviour.
     """
     where = "create_si_to_uni_dynamics_with_backwards_motion"
-    gain = _check_number(linear_velocity_gain, "linear_velocity_gain", where, low=0, strict=True)
-    limit = _check_number(angular_velocity_limit, "angular_velocity_limit", where, low=0)
+    _check_number(linear_velocity_gain, "linear_velocity_gain", where, low=0, strict=True)
+    _check_number(angular_velocity_limit, "angular_velocity_limit", where, low=0)
+    forward = create_si_to_uni_dynamics(linear_velocity_gain, angular_velocity_limit)
 
     def si_to_uni_dyn(dxi, poses):
         """dxi: 2xN single-integrator velocities; poses: 3xN unicycle poses -> 2xN [v; omega]."""
-        dxi, poses = _inputs(dxi, poses, "si_to_uni_dyn (from create_si_to_uni_dynamics_with_backwards_motion)")
-        along, left = _heading_frame(dxi, poses[2])
-        # Turning the reference heading by pi flips the sign of both components; the angle to dxi
-        # is then measured from the rear (MATLAB: states(3,i) = wrap(states(3,i) + pi)).
-        v = gain * along
-        sign = np.where(along < 0, -1.0, 1.0)
-        omega = limit * np.arctan2(sign * left, sign * v + 0.0) / (np.pi / 2)
-        return np.vstack((v, omega))
+        _inputs(dxi, poses, "si_to_uni_dyn (from create_si_to_uni_dynamics_with_backwards_motion)")
+        return forward(dxi, poses)
 
     return si_to_uni_dyn
 

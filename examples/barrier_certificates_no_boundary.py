@@ -1,0 +1,80 @@
+"""Barrier certificates without the boundary: two teams of four swap sides (guide section 3.5).
+
+Four robots on the left and four on the right drive straight across to the other side, each in
+its own lane; the lanes of the two teams are only 0.1 m apart, so every robot meets an oncoming
+robot almost head on. The single-integrator barrier certificate
+(create_single_integrator_barrier_certificate) changes each commanded velocity as little as it
+can so that no two robots come closer than 0.17 m (centre to centre), and the robots dodge.
+
+This certificate knows nothing about the arena's walls: it keeps robots apart, not inside. That
+is fine here because every start and goal is at least 0.3 m from the edge; for goals near the
+walls use create_single_integrator_barrier_certificate_with_boundary (barrier_certificates.py).
+
+Success: every robot ends within 0.05 m of its goal, with no collisions, no boundary violations
+and no actuator-limit warnings in the debug report. The script stops as soon as all robots are
+there (about 500 iterations; 1500 at most) and prints a final line such as
+"goal reached: all 8 robots within 0.05 m".
+
+Run:  ./robotarium run examples/barrier_certificates_no_boundary.py
+"""
+import rps.robotarium as robotarium
+from rps.utilities.transformations import *
+from rps.utilities.barrier_certificates import *
+from rps.utilities.misc import *
+from rps.utilities.controllers import *
+
+import numpy as np
+
+N = 8
+SHOW_FIGURE = True        # False: no window (r.axes is then unavailable)
+GOAL_TOLERANCE = 0.05     # m
+MAX_ITERATIONS = 1500     # 0.033 s each: about 50 s at most
+
+# Left team (robots 0-3) faces right, right team (robots 4-7) faces left; lanes 0.1 m apart.
+initial_conditions = np.array([[-0.9, -0.9, -0.9, -0.9, 0.9, 0.9, 0.9, 0.9],
+                               [-0.65, -0.25, 0.15, 0.55, -0.55, -0.15, 0.25, 0.65],
+                               [0.0, 0.0, 0.0, 0.0, np.pi, np.pi, np.pi, np.pi]])
+# Goal: straight across, same lane.
+goal_points = np.array([-initial_conditions[0, :], initial_conditions[1, :]])
+
+
+def within_wheel_limits(dxu, wheel_radius=0.016, base_length=0.105, max_wheel_speed=12.5):
+    """Scale each robot's (v, w) down, keeping its turning radius, so neither wheel of the
+    GTernal turns faster than max_wheel_speed rad/s (with a 5% margin)."""
+    rim_speed = np.abs(dxu[0, :]) + base_length / 2 * np.abs(dxu[1, :])  # fastest wheel, m/s
+    limit = 0.95 * max_wheel_speed * wheel_radius
+    return dxu * np.minimum(1.0, limit / np.maximum(rim_speed, 1e-9))
+
+
+r = robotarium.Robotarium(number_of_robots=N, show_figure=SHOW_FIGURE,
+                          initial_conditions=initial_conditions, sim_in_real_time=True)
+
+si_position_controller = create_si_position_controller()
+si_barrier_cert = create_single_integrator_barrier_certificate()   # robots only, no walls
+si_to_uni_dyn = create_si_to_uni_dynamics_with_backwards_motion()
+
+if SHOW_FIGURE:
+    r.axes.scatter(goal_points[0, :], goal_points[1, :], s=determine_marker_size(r, 0.1),
+                   marker='x', color='g', zorder=-1)
+
+for iteration in range(MAX_ITERATIONS):
+    x = r.get_poses()
+
+    distances = np.linalg.norm(x[:2, :] - goal_points, axis=0)
+    if np.all(distances < GOAL_TOLERANCE):
+        break
+
+    dxi = si_position_controller(x[:2, :], goal_points)   # straight at the goal
+    dxi = si_barrier_cert(dxi, x[:2, :])                  # ... unless that is unsafe
+    dxu = si_to_uni_dyn(dxi, x)
+    r.set_velocities(np.arange(N), within_wheel_limits(dxu))
+    r.step()
+
+r.call_at_scripts_end()
+
+if np.all(distances < GOAL_TOLERANCE):
+    print("goal reached: all %d robots within %.2f m (%d iterations, largest error %.3f m)"
+          % (N, GOAL_TOLERANCE, iteration, distances.max()))
+else:
+    print("goal NOT reached: %d of %d robots within %.2f m after %d iterations"
+          % (np.sum(distances < GOAL_TOLERANCE), N, GOAL_TOLERANCE, MAX_ITERATIONS))
