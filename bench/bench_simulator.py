@@ -33,6 +33,7 @@ def start(probe, n, real_time):
     response = probe.call(StartExperiment, NS + "/start_experiment", StartExperiment.Request(
         name="bench", number_of_robots=n, real_time=real_time, seed=1))
     assert response.success, response.message
+    return response.run_id
 
 
 def end(probe):
@@ -51,9 +52,18 @@ def real_time_jitter(probe, n, seconds):
 
 
 def lockstep_rate(probe, n, steps):
-    poses = probe.collect(RobotPoses, NS + "/poses")
+    received = probe.collect(RobotPoses, NS + "/poses")
     publisher = probe.node.create_publisher(TwistArray, NS + "/cmd_safe", TESTBED_QOS)
-    start(probe, n, real_time=False)
+    run_id = start(probe, n, real_time=False)
+    # the subscription also receives the last poses of the earlier run (transient-local history)
+    poses = [None]
+
+    def newest_step():
+        while received:
+            msg = received.pop(0)
+            if msg.run_id == run_id:
+                poses[0] = msg
+        return poses[0].step if poses[0] is not None else -1
     probe.spin_until(lambda: publisher.get_subscription_count() > 0, 10)
     msg = TwistArray()
     msg.ids = list(range(n))
@@ -64,7 +74,7 @@ def lockstep_rate(probe, n, steps):
     for k in range(1, steps + 1):
         msg.step = k
         publisher.publish(msg)
-        if not probe.spin_until(lambda: poses and poses[-1].step >= k, 5):
+        if not probe.spin_until(lambda: newest_step() >= k, 5):
             raise RuntimeError("lockstep stalled at step %d" % k)
     elapsed = time.perf_counter() - t0
     end(probe)
