@@ -22,13 +22,13 @@ import sys
 import time
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import Twist
 from rclpy.node import Node
 
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TwistArray
 from robotarium_safety.barrier_certificates import create_unicycle_barrier_certificate_with_boundary
 from robotarium_sim import model
+from robotarium_sim.node_tools import declare_checked_parameters, run_node
 from robotarium_sim.topics import DEFAULT_NAMESPACE, TESTBED_QOS, warn_on_incompatible_qos
 
 PARAMETERS = {
@@ -57,15 +57,7 @@ def twists_of(v, w):
 class SafetyNode(Node):
     def __init__(self):
         super().__init__("safety", namespace=DEFAULT_NAMESPACE)
-        self.params = {}
-        for name, (default, valid, meaning) in PARAMETERS.items():
-            value = self.declare_parameter(name, default).value
-            value = [float(x) for x in value] if isinstance(value, (list, tuple)) or hasattr(value, "tolist") \
-                else float(value)
-            if not valid(value):
-                raise ValueError("parameter %s=%r is invalid: it must be %s." % (name, value, meaning))
-            self.params[name] = value
-        p = self.params
+        self.params = p = declare_checked_parameters(self, PARAMETERS)
         self.certificate = create_unicycle_barrier_certificate_with_boundary(
             barrier_gain=p["barrier_gain"], safety_radius=p["safety_radius"],
             projection_distance=p["projection_distance"], magnitude_limit=p["magnitude_limit"],
@@ -187,21 +179,7 @@ class SafetyNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    try:
-        node = SafetyNode()
-    except (ValueError, AssertionError) as error:
-        print("safety: %s" % error, file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(SafetyNode, "safety", args)
 
 
 if __name__ == "__main__":

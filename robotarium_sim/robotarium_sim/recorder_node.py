@@ -39,7 +39,6 @@ import sys
 import time
 from collections import deque
 
-import rclpy
 from rclpy.node import Node
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
                        ReliabilityPolicy)
@@ -48,6 +47,7 @@ from rcl_interfaces.msg import Log
 from std_msgs.msg import String
 
 from robotarium_msgs.msg import TestbedStatus
+from robotarium_sim.node_tools import run_node
 from robotarium_sim import bag
 
 DEFAULT_NAMESPACE = "robotarium"
@@ -328,22 +328,8 @@ class RecorderNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    try:
-        node = RecorderNode()
-    except ValueError as error:
-        print("recorder: %s" % error, file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
-    finally:
-        node.close()   # a run in progress is closed properly: summary, final metadata.yaml
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    # a run in progress is closed properly on the way out: summary, final metadata.yaml
+    return run_node(RecorderNode, "recorder", args, before_destroy=lambda node: node.close())
 
 
 if __name__ == "__main__":

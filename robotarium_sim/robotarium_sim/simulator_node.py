@@ -22,7 +22,6 @@ import sys
 import time
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import Pose, PoseArray
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -31,6 +30,7 @@ from std_msgs.msg import String
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
 from robotarium_msgs.srv import EndExperiment, StartExperiment
 from robotarium_sim import model
+from robotarium_sim.node_tools import declare_checked_parameters, run_node
 from robotarium_sim.topics import DEFAULT_NAMESPACE, TESTBED_QOS, warn_on_incompatible_qos
 
 # The recorder announces where it records; a late subscriber still gets the last announcement.
@@ -65,7 +65,7 @@ def to_float_array(values):
 class SimulatorNode(Node):
     def __init__(self):
         super().__init__("simulator", namespace=DEFAULT_NAMESPACE)
-        self.params = self._read_parameters()
+        self.params = declare_checked_parameters(self, PARAMETERS)
         self.testbed = None
         self.real_time = True
         self.experiment = ""
@@ -89,19 +89,6 @@ class SimulatorNode(Node):
         self.create_service(EndExperiment, "end_experiment", self.on_end)
         self.create_timer(1.0, self.publish_status_heartbeat)
         self.get_logger().info("simulator ready in namespace %s" % self.get_namespace())
-
-    def _read_parameters(self):
-        values = {}
-        for name, (default, valid, meaning) in PARAMETERS.items():
-            value = self.declare_parameter(name, default).value
-            if isinstance(value, (list, tuple, array.array)):
-                value = [float(v) for v in value]
-            else:
-                value = float(value)
-            if not valid(value):
-                raise ValueError("parameter %s=%r is invalid: it must be %s." % (name, value, meaning))
-            values[name] = value
-        return values
 
     # -- experiments -------------------------------------------------------------------------
 
@@ -287,21 +274,7 @@ class SimulatorNode(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    try:
-        node = SimulatorNode()
-    except ValueError as error:
-        print("simulator: %s" % error, file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(SimulatorNode, "simulator", args)
 
 
 if __name__ == "__main__":
