@@ -62,6 +62,15 @@ def to_float_array(values):
     return array.array("d", np.ascontiguousarray(values, dtype=np.float64).tobytes())
 
 
+def copy_counters(testbed, target):
+    """The debug report's counters and the sim time, into a status message or an end response."""
+    target.sim_time = testbed.sim_time
+    target.collisions = testbed.collisions
+    target.boundary_violations = testbed.boundary_violations
+    target.actuator_limit_iterations = testbed.actuator_limit_iterations
+    target.command_timeouts = testbed.command_timeouts
+
+
 class SimulatorNode(Node):
     def __init__(self):
         super().__init__("simulator", namespace=DEFAULT_NAMESPACE)
@@ -155,11 +164,7 @@ class SimulatorNode(Node):
         response.success = True
         response.run_id = self.run_id
         response.steps = tb.steps
-        response.sim_time = tb.sim_time
-        response.collisions = tb.collisions
-        response.boundary_violations = tb.boundary_violations
-        response.actuator_limit_iterations = tb.actuator_limit_iterations
-        response.command_timeouts = tb.command_timeouts
+        copy_counters(tb, response)
         response.report = tb.report()
         response.recording = self.recording
         response.message = "ended %s after %d steps" % (self.run_id, tb.steps)
@@ -265,11 +270,7 @@ class SimulatorNode(Node):
             msg.state = TestbedStatus.STATE_RUNNING
             msg.number_of_robots = tb.number_of_robots
             msg.step = tb.steps
-            msg.sim_time = tb.sim_time
-            msg.collisions = tb.collisions
-            msg.boundary_violations = tb.boundary_violations
-            msg.actuator_limit_iterations = tb.actuator_limit_iterations
-            msg.command_timeouts = tb.command_timeouts
+            copy_counters(tb, msg)
         self.status_pub.publish(msg)
 
 
