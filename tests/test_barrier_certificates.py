@@ -384,6 +384,74 @@ def test_a_random_crowd_of_unicycles_never_collides():
     assert closest > 0.11 and inside
 
 
+# ---- the safety node's certificate: the boundary on the centres -----------------------------
+
+CENTRE = "create_unicycle_barrier_certificate_with_centre_boundary"
+
+
+def test_centre_boundary_matches_an_independent_exact_solution():
+    rng = np.random.default_rng(21)
+    f = bc.create_unicycle_barrier_certificate_with_centre_boundary()
+    solved = 0
+    for trial in range(12):
+        n = int(rng.integers(2, 26))
+        # Spread over the whole arena, some robots within centimetres of (or past) the margin.
+        x = np.vstack([spaced_points(rng, n, 0.2, half_width=1.58, half_height=0.98), rng.uniform(-np.pi, np.pi, n)])
+        dxu = np.vstack([rng.uniform(-0.2, 0.2, n), rng.uniform(-2.5, 2.5, n)])
+        answer = f(dxu, x)
+        np.testing.assert_allclose(answer, dense.uni_centre_exact(dxu, x), atol=1e-4, err_msg=f"trial {trial}")
+        assert not f.info["fallback"]
+        solved += f.info["status"] != "passthrough"
+    assert solved >= 6
+
+
+def test_near_the_edge_a_robot_may_finish_where_the_guides_boundary_stops_it():
+    # 3.2.1 with seed 1, step 400: robot 1 is 3 cm from its goal, 13 cm from the bottom edge, and
+    # its pose controller asks for a slow curve. The guide's boundary rows (on the point ahead,
+    # 8.5 cm in) cut that to a standstill, step after step: the script never ended.
+    x = np.array([[0.62], [-0.8735], [-2.1339]])
+    request = np.array([[0.033], [0.393]])
+    guide = bc.create_unicycle_barrier_certificate_with_boundary()(request, x)
+    assert np.all(np.abs(guide) < [[0.005], [0.05]])
+    # On the centre it only slows the approach to what the margin allows; the turn is untouched.
+    centre = bc.create_unicycle_barrier_certificate_with_centre_boundary()(request, x)
+    assert centre[1, 0] == pytest.approx(0.393) and 0.015 < centre[0, 0] < 0.033
+
+
+def test_centres_keep_the_margin_when_a_crowd_drives_at_the_walls():
+    rng = np.random.default_rng(9)
+    n = 20
+    f = bc.create_unicycle_barrier_certificate_with_centre_boundary()
+    x = np.vstack([spaced_points(rng, n, 0.3), np.zeros(n)])
+    x[2] = np.arctan2(x[1], x[0])  # everyone faces the nearest wall and drives at full speed
+    closest = np.inf
+    for _ in range(300):
+        x = unicycle_step(x, f(np.vstack([np.full(n, 0.2), np.zeros(n)]), x))
+        assert not f.info["fallback"]
+        closest = min(closest, min_distance(x[:2]))
+    assert closest > 0.11
+    assert np.all(np.abs(x[0]) <= 1.6 - 0.055 + 1e-9) and np.all(np.abs(x[1]) <= 1.0 - 0.055 + 1e-9)
+    assert np.abs(x[0]).max() > 1.5 or np.abs(x[1]).max() > 0.9  # they did get close
+
+
+def test_a_centre_past_the_margin_may_not_go_further_out_but_may_come_back():
+    f = bc.create_unicycle_barrier_certificate_with_centre_boundary()
+    x = np.array([[1.58], [0.0], [0.0]])  # 2 cm from the edge, facing it
+    out = f(np.array([[0.2], [0.0]]), x)
+    assert out[0, 0] <= 1e-9 and not f.info["fallback"]
+    back = np.array([[-0.2], [0.0]])
+    np.testing.assert_array_equal(f(back, x), back)
+
+
+@pytest.mark.parametrize("kwargs,detail", [({"boundary_margin": -0.01}, "greater than or equal to 0"),
+                                           ({"boundary_margin": 1.0}, "half the arena"),
+                                           ({"boundary_margin": "5 cm"}, "str")])
+def test_centre_boundary_margin_is_checked(kwargs, detail):
+    with pytest.raises(RobotariumError) as error:
+        bc.create_unicycle_barrier_certificate_with_centre_boundary(**kwargs)
+    assert "boundary_margin" in str(error.value) and detail in str(error.value) and CENTRE in str(error.value)
+
+
 # ---- info, set-up reuse ----------------------------------------------------------------------
 
 

@@ -273,8 +273,9 @@ class _SingleIntegratorQP:
         coef = np.hstack([-2 * e, 2 * e])
         return Rows(len(p), pairs, coef, np.full(len(pairs), -np.inf), gain * h ** 3, *boundary)
 
-    def __call__(self, dxi, x):
-        """dxi, x: 2 x N float arrays this object may modify. Returns (answer 2 x N, unchanged)."""
+    def __call__(self, dxi, x, boundary=None):
+        """dxi, x: 2 x N float arrays this object may modify; boundary: robot rows that replace the
+        boundary_points rows (see _centre_boundary_rows). Returns (answer 2 x N, unchanged)."""
         n = dxi.shape[1]
         info = self.info
         reset_info(info, n)
@@ -284,7 +285,8 @@ class _SingleIntegratorQP:
         dxi[:, over] *= self.limit / norms[over]
         z0 = np.ascontiguousarray(dxi.T)
         p = np.ascontiguousarray(x.T)
-        boundary = self._boundary_rows(p)
+        if boundary is None:
+            boundary = self._boundary_rows(p)
 
         bound = self._first_bound
         for widenings in range(_MAX_PRUNED_ROUNDS + 1):
@@ -370,8 +372,29 @@ def _single_integrator_function(where, barrier_gain, unsafe_barrier_gain, safety
 # Unicycle (through the single integrator at a point ahead of the robot)
 
 
+def _centre_boundary_rows(x, c, s, boundary, margin, gain):
+    """Robot rows that keep each unicycle's centre `margin` inside `boundary`, in the variables of
+    the unicycle QP: u, the velocity of the point ahead. The centre moves at v (cos t, sin t) with
+    v = (cos t, sin t).u, so its x velocity is cos t (cos t, sin t).u and its y velocity
+    sin t (cos t, sin t).u; each is bounded as the point rows bound theirs (0.4 g gap^3). Turning
+    in place never moves the centre, so these rows never stop a robot from turning. A centre
+    already beyond the margin may not move further out (the bound is clipped at 0), which keeps
+    u = 0 feasible: the QP always has an answer.
+    """
+    n = x.shape[1]
+    x_min, x_max, y_min, y_max = boundary
+    k = 0.4 * gain
+    heading = np.stack([c, s], axis=1)                                       # N x 2
+    coef = np.empty((2 * n, 2))
+    coef[0::2], coef[1::2] = c[:, None] * heading, s[:, None] * heading
+    centre = x[:2].T
+    lower = np.minimum(-k * (centre - [x_min + margin, y_min + margin]) ** 3, 0.0)
+    upper = np.maximum(k * ([x_max - margin, y_max - margin] - centre) ** 3, 0.0)
+    return np.repeat(np.arange(n, dtype=np.intp), 2), np.arange(2 * n), coef, lower.ravel(), upper.ravel()
+
+
 def _unicycle_function(where, barrier_gain, unsafe_barrier_gain, safety_radius, projection_distance,
-                       magnitude_limit, boundary_points, gain_what="the barrier gain"):
+                       magnitude_limit, boundary_points, gain_what="the barrier gain", centre_margin=None):
     gain = _positive(where, "barrier_gain", gain_what, barrier_gain)
     unsafe = None
     if unsafe_barrier_gain is not None:
@@ -383,7 +406,8 @@ def _unicycle_function(where, barrier_gain, unsafe_barrier_gain, safety_radius, 
     limit = _magnitude_limit(where, magnitude_limit)
     boundary = None if boundary_points is None else _boundary_points(where, boundary_points)
     # rps: the single-integrator certificate with radius safety_radius + projection_distance.
-    core = _SingleIntegratorQP(gain, unsafe, radius + distance, limit, boundary)
+    # With centre_margin the boundary rows are on the centres, not on the points ahead.
+    core = _SingleIntegratorQP(gain, unsafe, radius + distance, limit, None if centre_margin is not None else boundary)
 
     def f(dxu, x):
         start = time.perf_counter()
@@ -393,7 +417,8 @@ def _unicycle_function(where, barrier_gain, unsafe_barrier_gain, safety_radius, 
         c, s = np.cos(x[2]), np.sin(x[2])
         points = x[:2] + distance * np.stack([c, s])
         dxi = np.stack([c * dxu[0] - distance * s * dxu[1], s * dxu[0] + distance * c * dxu[1]])
-        safe, unchanged = core(dxi, points)
+        rows = None if centre_margin is None else _centre_boundary_rows(x, c, s, boundary, centre_margin, gain)
+        safe, unchanged = core(dxi, points, rows)
         if unchanged and np.all(np.abs(dxu[1]) <= ANGULAR_VELOCITY_LIMIT):
             answer = dxu   # the request was safe and within the limits: return it exactly
         else:
@@ -423,6 +448,30 @@ def create_unicycle_barrier_certificate_with_boundary(barrier_gain=100, safety_r
     where = "create_unicycle_barrier_certificate_with_boundary"
     return _unicycle_function(where, barrier_gain, None, safety_radius, projection_distance, magnitude_limit,
                               boundary_points)
+
+
+def create_unicycle_barrier_certificate_with_centre_boundary(barrier_gain=100, safety_radius=0.12,
+                                                             projection_distance=0.05, magnitude_limit=0.2,
+                                                             boundary_points=np.array(_ARENA), boundary_margin=0.055):
+    """The testbed's safety certificate (not in the guide; the safety node's): as
+    create_unicycle_barrier_certificate_with_boundary, but the boundary keeps each robot's centre
+    boundary_margin (m, >= 0; default a robot's radius, so the whole robot) inside boundary_points.
+
+    Why not the guide's boundary rows: they hold the point projection_distance ahead of each robot
+    (safety_radius + projection_distance) / 2 = 8.5 cm inside, so a robot near the edge can neither
+    drive towards it nor turn there. generate_initial_conditions draws goals 10 cm from the edge,
+    and as the always-on layer those rows stalled the guide's own go-to-pose script (3.2.1) a few
+    centimetres from its goals. A turn never moves the centre: these rows leave it free.
+    """
+    where = "create_unicycle_barrier_certificate_with_centre_boundary"
+    margin = _at_least(where, "boundary_margin", "the distance kept from the boundary", boundary_margin, 0)
+    x_min, x_max, y_min, y_max = _boundary_points(where, boundary_points)
+    if 2 * margin >= min(x_max - x_min, y_max - y_min):
+        raise RobotariumError(
+            f"In the function {where}, the distance kept from the boundary (boundary_margin) must be less than "
+            f"half the arena's width and height. Received {margin!r} for boundary_points {boundary_points!r}.")
+    return _unicycle_function(where, barrier_gain, None, safety_radius, projection_distance, magnitude_limit,
+                              boundary_points, centre_margin=margin)
 
 
 def create_unicycle_barrier_certificate2(barrier_gain=500, unsafe_barrier_gain=1e6, safety_radius=0.12,

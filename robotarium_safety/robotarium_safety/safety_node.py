@@ -8,7 +8,8 @@ Topics (relative to the node's namespace, /robotarium by default):
 
 Each requested array is merged into the current command of all robots (robots not named keep
 their last command, as on the simulator) and filtered through the unicycle barrier certificate
-with the arena boundary (robotarium_safety.barrier_certificates, OSQP) at the newest poses. If it
+with the arena boundary on the robots' centres (robotarium_safety.barrier_certificates, OSQP) at
+the newest poses. If it
 has no recent poses, or the input is malformed, or the solver fails, it sends a stop for the
 robots concerned: never the raw command. Without this node nothing reaches the simulator.
 
@@ -26,7 +27,7 @@ from geometry_msgs.msg import Twist
 from rclpy.node import Node
 
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TwistArray
-from robotarium_safety.barrier_certificates import create_unicycle_barrier_certificate_with_boundary
+from robotarium_safety.barrier_certificates import create_unicycle_barrier_certificate_with_centre_boundary
 from robotarium_sim import model
 from robotarium_sim.node_tools import declare_checked_parameters, run_node
 from robotarium_sim.topics import DEFAULT_NAMESPACE, TESTBED_QOS, warn_on_incompatible_qos
@@ -39,6 +40,10 @@ PARAMETERS = {
     "magnitude_limit": (model.MAX_LINEAR_VELOCITY, lambda v: 0 < v <= model.MAX_LINEAR_VELOCITY, "in (0, 0.2] m/s"),
     "boundary": ([model.ARENA_X_MIN, model.ARENA_X_MAX, model.ARENA_Y_MIN, model.ARENA_Y_MAX],
                  lambda v: len(v) == 4 and v[0] < v[1] and v[2] < v[3], "[x_min, x_max, y_min, y_max] with min < max"),
+    # The boundary holds robot centres (not the guide's points ahead): see
+    # create_unicycle_barrier_certificate_with_centre_boundary for why.
+    "boundary_margin": (model.ROBOT_RADIUS, lambda v: 0 <= v < 0.5,
+                        "in [0, 0.5) m: how far each robot's centre stays inside the boundary"),
     "pose_timeout": (0.5, lambda v: v > 0, "seconds, > 0: poses older than this are not trusted"),
     # Long enough for DDS discovery between a freshly started safety node and simulator.
     "lockstep_wait": (3.0, lambda v: v > 0, "seconds a lockstep command waits for its poses"),
@@ -58,10 +63,10 @@ class SafetyNode(Node):
     def __init__(self):
         super().__init__("safety", namespace=DEFAULT_NAMESPACE)
         self.params = p = declare_checked_parameters(self, PARAMETERS)
-        self.certificate = create_unicycle_barrier_certificate_with_boundary(
+        self.certificate = create_unicycle_barrier_certificate_with_centre_boundary(
             barrier_gain=p["barrier_gain"], safety_radius=p["safety_radius"],
             projection_distance=p["projection_distance"], magnitude_limit=p["magnitude_limit"],
-            boundary_points=np.array(p["boundary"]))
+            boundary_points=np.array(p["boundary"]), boundary_margin=p["boundary_margin"])
 
         self.poses = None            # 3 x N, newest
         self.poses_step = -1
@@ -76,8 +81,8 @@ class SafetyNode(Node):
                                  event_callbacks=warn_on_incompatible_qos(self, "cmd_requested"))
         self.create_subscription(RobotPoses, "poses", self.on_poses, TESTBED_QOS)
         self.create_timer(0.02, self.check_pending)
-        self.get_logger().info("safety node ready in namespace %s (safety radius %.3f m, boundary %s)" % (
-            self.get_namespace(), p["safety_radius"], p["boundary"]))
+        self.get_logger().info("safety node ready in namespace %s (safety radius %.3f m, boundary %s, margin %.3f m)" % (
+            self.get_namespace(), p["safety_radius"], p["boundary"], p["boundary_margin"]))
 
     def warn_once(self, kind, text):
         if kind not in self._logged:
