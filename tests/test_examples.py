@@ -113,11 +113,17 @@ def test_a_guide_script_runs_unchanged_in_real_time(testbed):
     """3.1.2 as printed (sim_in_real_time=True, no --lockstep): paced by the simulator's 30 Hz."""
     env, bags = testbed
     script = os.path.join(REPO, "examples", "guide", "3_1_2_go_to_point_unicycle.py")
-    completed = run(env, os.path.join(REPO, "tests", "run_seeded.py"), "--no-video", "--", "1", script, timeout=240)
+    completed = run(dict(env, ROBOTARIUM_PROGRESS="2"), os.path.join(REPO, "tests", "run_seeded.py"), "--no-video",
+                    "--", "1", script, timeout=240)
     out = completed.stdout + completed.stderr
     assert completed.returncode == 0, out
     assert "##### DEBUG OUTPUT #####" in out
     assert "robots collided" not in out and "outside the boundaries" not in out, out
+    # a progress line every 2 s of the run, counting up, at about 30 steps per second
+    progress = [line for line in out.splitlines() if line.startswith("[robotarium] step ")]
+    steps = [int(line.split()[2].rstrip(":")) for line in progress]
+    assert len(progress) >= 3 and steps == sorted(steps), out
+    assert all("real time" in line for line in progress)
     folder = run_folder(bags, out)
     with open(os.path.join(folder, "run.json")) as f:
         info = json.load(f)

@@ -119,6 +119,7 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
                ROBOTARIUM_EXPERIMENT_NAME=os.path.splitext(os.path.basename(script))[0])
     if real_time is not None:
         env["ROBOTARIUM_REAL_TIME"] = "1" if real_time else "0"
+    env.setdefault("ROBOTARIUM_PROGRESS", "10")  # a line every 10 s: long runs show they are alive
     if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
         env.setdefault("MPLBACKEND", "Agg")
 

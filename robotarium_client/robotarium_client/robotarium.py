@@ -10,7 +10,8 @@ a robot stops when its command is older than 0.5 s, as on the real testbed); Fal
 lockstep, one simulator step per step() call, as fast as the nodes allow, deterministically.
 Environment overrides (set by ./robotarium run): ROBOTARIUM_REAL_TIME=0/1 forces a mode,
 ROBOTARIUM_NAMESPACE picks the testbed, ROBOTARIUM_EMBEDDED=0 forbids starting a local testbed,
-ROBOTARIUM_RUN_INFO names a JSON file where the run id, report and recording are written.
+ROBOTARIUM_RUN_INFO names a JSON file where the run id, report and recording are written,
+ROBOTARIUM_PROGRESS=S prints a progress line to stderr every S seconds (./robotarium run: 10).
 """
 import atexit
 import json
@@ -27,6 +28,16 @@ from robotarium_sim.model import RobotariumError
 CONNECT_WAIT = 3.0    # s to wait for an existing testbed to answer before starting one here
 STARTUP_WAIT = 60.0   # s for a testbed started here to come up
 STEP_TIMEOUT = 10.0   # s without poses after a step() before we give up with an explanation
+
+
+def _progress_interval():
+    value = os.environ.get("ROBOTARIUM_PROGRESS", "")
+    try:
+        seconds = float(value) if value else 0.0
+    except ValueError:
+        raise RobotariumError("ROBOTARIUM_PROGRESS must be a number of seconds (0: no progress lines); "
+                              "received %r." % value) from None
+    return seconds if seconds > 0 and np.isfinite(seconds) else 0.0
 
 
 def _env_flag(name):
@@ -97,6 +108,8 @@ class Robotarium:
         self._called_step_already = True
         self._checked_poses_already = False
         self._iterations = 0
+        self._progress_every = _progress_interval()
+        self._started = self._next_progress = None   # set by the first step()
         self._errors = {}
         self._ended = False
         self._embedded = None
@@ -168,6 +181,18 @@ class Robotarium:
         self._wait_for_step(target)
         if self.show_figure:
             self._arena_figure.update(self.poses)
+        if self._progress_every:
+            self._progress(time.monotonic())
+
+    def _progress(self, now):
+        if self._started is None:
+            self._started, self._next_progress = now, now + self._progress_every
+        elif now >= self._next_progress:
+            self._next_progress = now + self._progress_every
+            elapsed = now - self._started
+            print("[robotarium] step %d: %.1f s of testbed time in %.0f s (%.0f steps/s, %s)" % (
+                self._iterations, self._iterations * self.time_step, elapsed, (self._iterations - 1) / elapsed,
+                "real time" if self.sim_in_real_time else "lockstep"), file=sys.stderr, flush=True)
 
     def call_at_scripts_end(self):
         """End the experiment and print the debug report (as rps does), and where it was recorded."""
