@@ -1,5 +1,6 @@
 """The Robotarium class over a real testbed (simulator + safety node in subprocesses)."""
 import os
+import re
 
 import numpy as np
 import pytest
@@ -72,21 +73,23 @@ def test_call_order_errors_are_those_of_rps(testbed):
 
 
 def test_report_and_counts_come_from_the_testbed(testbed, capsys):
-    # One robot driven straight out of the arena: the safety node's boundary certificate stops it,
-    # so the report stays clean; an actuator-limit command is counted.
-    r = robotarium(number_of_robots=1, initial_conditions=np.array([[1.45], [0.0], [0.0]]))
-    for _ in range(60):
-        r.get_poses()
-        r.set_velocities(np.arange(1), np.array([[0.2], [0.5]]))
+    # One robot on a circle of radius 0.32 m that would take it to x = 1.62 in these 120 steps: the
+    # safety node holds its centre a robot radius inside the arena, so the report has no boundary
+    # violation. The command is over the wheel limits (13.8 rad/s), and counted while the safety
+    # node lets it pass (its point ahead moves at 0.19 m/s, under the certificate's 0.2).
+    r = robotarium(number_of_robots=1, initial_conditions=np.array([[1.3], [0.0], [0.0]]))
+    furthest = 0.0
+    for _ in range(120):
+        furthest = max(furthest, r.get_poses()[0, 0])
+        r.set_velocities(np.arange(1), np.array([[0.19], [0.6]]))
         r.step()
-    assert r.get_poses()[0, 0] <= 1.6
+    assert 1.45 < furthest <= 1.6 - 0.055 + 1e-9
     r.call_at_scripts_end()
     out = capsys.readouterr().out
-    assert out.startswith("##### DEBUG OUTPUT #####\nYour simulation will take approximately 2 real seconds")
-    assert "outside the boundaries" not in out
-    assert "Simulation had 60 iteration(s) where the actuator limits were exceeded." in out or \
-           "actuator limits were exceeded" in out
-    assert r._errors.get("boundary", 0) == 0
+    assert out.startswith("##### DEBUG OUTPUT #####\nYour simulation will take approximately 4 real seconds")
+    assert "outside the boundaries" not in out and r._errors.get("boundary", 0) == 0
+    counted = int(re.search(r"had (\d+) iteration\(s\) where the actuator limits were exceeded", out).group(1))
+    assert 30 <= counted <= 120 and r._errors["actuator"] == counted
 
 
 @pytest.mark.parametrize("kwargs, words", [
