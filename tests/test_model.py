@@ -86,6 +86,20 @@ def test_actuator_limit_counted_like_rps():
     assert tb.actuator_limit_iterations == 1
 
 
+def test_actuator_count_takes_the_safety_nodes_word_on_the_request():
+    # The safety node replaced an over-limit request with a drivable command: rps would have
+    # judged the request, so the iteration counts; once the command times out nothing was asked.
+    tb = one_robot()
+    tb.set_commands([0], [0.1], [0.0], now=10.0, requested_exceeds_limits=True)
+    tb.step()
+    assert tb.actuator_limit_iterations == 1
+    tb.expire_commands(10.6)
+    tb.step()
+    tb.set_commands([0], [0.1], [0.0], now=11.0)
+    tb.step()
+    assert tb.actuator_limit_iterations == 1
+
+
 def test_collision_counting_per_pair_and_step():
     poses = np.array([[0.0, 0.10, 0.20, 1.0], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]])
     # pairs within 0.11: (0,1) 0.10, (1,2) 0.10; (0,2) is 0.20 apart.

@@ -85,6 +85,7 @@ def test_safe_command_passes_unchanged(stack):
     assert [t.linear.x for t in safe[-1].twists] == [0.05, 0.05]
     assert [t.angular.z for t in safe[-1].twists] == [0.3, -0.2]
     assert reports[-1].status == "passthrough" and reports[-1].max_change == 0.0
+    assert safe[-1].requested_exceeds_limits is False   # 0.05 m/s, 0.3 rad/s: far within the wheel limits
 
 
 def test_bad_request_becomes_a_stop(stack):

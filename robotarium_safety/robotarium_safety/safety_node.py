@@ -140,6 +140,7 @@ class SafetyNode(Node):
         self.commands[0, ids] = v
         self.commands[1, ids] = w
         requested = self.commands.copy()
+        over_limits = model.exceeds_actuator_limits(requested)
         safe = self.certificate(requested, self.poses)
         info = self.certificate.info
         if info["fallback"]:
@@ -149,8 +150,8 @@ class SafetyNode(Node):
         else:
             status = "passthrough" if info["status"] == "passthrough" else "solved"
             # The certificate bounds speed, not wheel speeds: where it replaced a command, make the
-            # replacement drivable (keeping its arc) so that the debug report's actuator count
-            # judges the script's own commands, never our interventions.
+            # replacement drivable (keeping its arc); the debug report's actuator count judges the
+            # script's own commands (requested_exceeds_limits), never our interventions.
             changed = np.any(safe != requested, axis=0)
             if np.any(changed):
                 safe[:, changed] = model.threshold_keeping_arc(safe[:, changed])
@@ -159,7 +160,7 @@ class SafetyNode(Node):
         report.solver_status = info["status"]
         report.max_change = float(change.max()) if n else 0.0
         report.robots_changed = int(np.count_nonzero(change.max(axis=0) > 1e-6))
-        self.publish(msg, np.arange(n), safe[0], safe[1], report, started)
+        self.publish(msg, np.arange(n), safe[0], safe[1], report, started, over_limits)
 
     def send_stop(self, msg, ids, report, status, started):
         if self.poses is not None:
@@ -169,8 +170,8 @@ class SafetyNode(Node):
         report.solver_status = ""
         self.publish(msg, ids, np.zeros(len(ids)), np.zeros(len(ids)), report, started)
 
-    def publish(self, request, ids, v, w, report, started):
-        out = TwistArray(step=request.step)
+    def publish(self, request, ids, v, w, report, started, requested_exceeds_limits=False):
+        out = TwistArray(step=request.step, requested_exceeds_limits=bool(requested_exceeds_limits))
         out.header.stamp = self.get_clock().now().to_msg()
         out.header.frame_id = "arena"
         out.ids = [int(i) for i in ids]

@@ -502,7 +502,8 @@ class Bag:
             out.append(Command(int(msg.step), msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec,
                                message.log_time, np.asarray(msg.ids, dtype=np.int64),
                                np.array([t.linear.x for t in msg.twists], dtype=float),
-                               np.array([t.angular.z for t in msg.twists], dtype=float)))
+                               np.array([t.angular.z for t in msg.twists], dtype=float),
+                               bool(getattr(msg, "requested_exceeds_limits", False))))
         return out
 
     def statuses(self):
@@ -512,7 +513,8 @@ class Bag:
 
 
 PoseTrack = namedtuple("PoseTrack", "steps sim_time stamp_ns log_ns ids x y theta")
-Command = namedtuple("Command", "step stamp_ns log_ns ids v omega")
+# requested_exceeds_limits: False in bags recorded before the field existed.
+Command = namedtuple("Command", "step stamp_ns log_ns ids v omega requested_exceeds_limits", defaults=(False,))
 
 
 def recover_bag(path):

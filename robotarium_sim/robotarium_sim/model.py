@@ -239,15 +239,22 @@ class Testbed:
                            wheel_radius=wheel_radius, base_length=base_length)
         self.velocities = np.zeros((2, self.number_of_robots))   # commands as set, before thresholding
         self.command_times = np.full(self.number_of_robots, -np.inf)
+        # The safety node's word that the script's own commands behind these exceed the limits.
+        self.requested_exceeds_limits = False
         self.steps = 0
         self.collisions = 0
         self.boundary_violations = 0
         self.actuator_limit_iterations = 0
         self.command_timeouts = 0
 
-    def set_commands(self, ids, v, w, now=0.0):
-        """Set (v, omega) for the robots `ids` (already checked with check_commands)."""
+    def set_commands(self, ids, v, w, now=0.0, requested_exceeds_limits=False):
+        """Set (v, omega) for the robots `ids` (already checked with check_commands).
+
+        requested_exceeds_limits: these commands were filtered from ones that exceed the actuator
+        limits (the safety node says so); the iterations they are in force count as rps counts.
+        """
         ids = np.asarray(ids, dtype=int)
+        self.requested_exceeds_limits = bool(requested_exceeds_limits)
         self.velocities[0, ids] = v
         self.velocities[1, ids] = w
         self.command_times[ids] = now
@@ -257,6 +264,7 @@ class Testbed:
         stale = (now - self.command_times > timeout) & np.any(self.velocities != 0, axis=0)
         if np.any(stale):
             self.velocities[:, stale] = 0.0
+            self.requested_exceeds_limits = False  # what is in force is no longer what was asked
             self.command_timeouts += int(np.count_nonzero(stale))
         return stale
 
@@ -264,7 +272,7 @@ class Testbed:
         """Advance one time step, as rps.Robotarium.step(): count, threshold, integrate."""
         self.boundary_violations += int(np.count_nonzero(outside_arena(self.poses, self.arena)))
         self.collisions += count_collisions(self.poses, self.robot_diameter)
-        if exceeds_actuator_limits(self.velocities, **self.limits):
+        if self.requested_exceeds_limits or exceeds_actuator_limits(self.velocities, **self.limits):
             self.actuator_limit_iterations += 1
         v, w = threshold_keeping_arc(self.velocities, **self.limits)
         # Same expression order as rps so that runs agree bit for bit.

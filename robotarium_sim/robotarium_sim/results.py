@@ -47,7 +47,8 @@ def _run_settings(bag):
 
 
 def _commands_in_force_lockstep(commands, n, steps):
-    """Velocities (2 x N) in force at each step 1..steps: the k-th valid array sets them."""
+    """(velocities 2 x N, requested_exceeds_limits) in force at each step 1..steps: the k-th
+    valid array sets them."""
     velocities = np.zeros((2, n))
     applied = 0
     for cmd in commands:
@@ -58,14 +59,16 @@ def _commands_in_force_lockstep(commands, n, steps):
         velocities[0, cmd.ids] = cmd.v
         velocities[1, cmd.ids] = cmd.omega
         applied += 1
-        yield velocities
+        yield velocities, cmd.requested_exceeds_limits
     return applied
 
 
 def _commands_in_force_realtime(commands, n, tick_ns, timeout=model.COMMAND_TIMEOUT):
-    """Velocities in force at each tick (stamps of the poses it produced)."""
+    """(velocities, requested_exceeds_limits) in force at each tick (stamps of the poses it
+    produced), with the simulator's 0.5 s command timeout."""
     velocities = np.zeros((2, n))
     since = np.full(n, -np.inf)
+    flag = False
     valid = [c for c in commands if model.check_commands(c.ids, c.v, c.omega, n) is None]
     valid.sort(key=lambda c: c.stamp_ns or c.log_ns)
     k = 0
@@ -74,9 +77,13 @@ def _commands_in_force_realtime(commands, n, tick_ns, timeout=model.COMMAND_TIME
             c = valid[k]
             velocities[0, c.ids], velocities[1, c.ids] = c.v, c.omega
             since[c.ids] = (c.stamp_ns or c.log_ns) * 1e-9
+            flag = c.requested_exceeds_limits
             k += 1
-        velocities[:, t * 1e-9 - since > timeout] = 0.0
-        yield velocities
+        stale = (t * 1e-9 - since > timeout) & np.any(velocities != 0, axis=0)
+        if stale.any():
+            velocities[:, stale] = 0.0
+            flag = False
+        yield velocities, flag
 
 
 def recompute(bag):
@@ -107,12 +114,12 @@ def recompute(bag):
     actuator = 0
     if settings["mode"] == "realtime":
         ticks = [int(track.stamp_ns[by_step[s]]) for s in range(1, steps + 1) if s in by_step]
-        for velocities in _commands_in_force_realtime(commands, n, ticks):
-            actuator += model.exceeds_actuator_limits(velocities)
+        for velocities, requested_over in _commands_in_force_realtime(commands, n, ticks):
+            actuator += requested_over or model.exceeds_actuator_limits(velocities)
     else:
         applied = 0
-        for velocities in _commands_in_force_lockstep(commands, n, steps):
-            actuator += model.exceeds_actuator_limits(velocities)
+        for velocities, requested_over in _commands_in_force_lockstep(commands, n, steps):
+            actuator += requested_over or model.exceeds_actuator_limits(velocities)
             applied += 1
         if applied != steps:
             notes.append("%d valid command arrays on cmd_safe for %d steps: the bag is missing commands "

@@ -196,7 +196,7 @@ class SimulatorNode(Node):
             self.publish_status()
             return
         self.commands_accepted += 1
-        tb.set_commands(ids, v, w, now=time.monotonic())
+        tb.set_commands(ids, v, w, now=time.monotonic(), requested_exceeds_limits=msg.requested_exceeds_limits)
         if not self.real_time:
             tb.step()
             self.publish_state()
