@@ -13,7 +13,8 @@ import sys
 
 import pytest
 
-from robotarium_client.testbed import LocalTestbed, testbed_answers
+# imported under another name: pytest would collect a module-level test_* function as a test
+from robotarium_client.testbed import LocalTestbed, testbed_answers as answers_in_namespace
 from rosutil import REPO, node_env, unique_domain_id
 
 OUR_EXAMPLES = sorted(p for p in glob.glob(os.path.join(REPO, "examples", "*.py")))
@@ -33,7 +34,7 @@ def testbed(tmp_path_factory):
     tb = LocalTestbed(log_dir=str(tmp_path_factory.mktemp("logs")), bags_dir=str(bags)).start()
     try:
         # up before the first run, or `run` would start a second testbed of its own
-        assert testbed_answers(timeout=60), "the testbed did not come up: %s" % tb.failed()
+        assert answers_in_namespace(timeout=60), "the testbed did not come up: %s" % tb.failed()
     finally:
         os.environ.clear()
         os.environ.update(saved)
