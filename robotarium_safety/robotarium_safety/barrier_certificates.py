@@ -31,6 +31,12 @@ create_robust_barriers (Emam et al. 2022, robust to wheel-speed disturbances):
                     (M_i D)_x . w_i <= 0.4 g (x_max - r/2 - p_x)^3,  >= -0.4 g (p_x - x_min - r/2)^3, same for y
         wheels:     |w| <= wheel_vel_limit.
 
+The safety node's certificate, create_unicycle_barrier_certificate_with_centre_boundary (not in
+the guide), is the unicycle one whose boundary rows hold each robot's centre instead of its
+point ahead: the centre moves at v (cos t, sin t) = n n'u, so with n = (cos t, sin t)
+        cos t n.u <= 0.4 g (x_max - m - x)^3,   -cos t n.u <= 0.4 g (x - x_min - m)^3,   same for y,
+each bound clipped at 0 (m = boundary_margin); see its docstring for why.
+
 Where we differ from rps, on purpose: the caller's arrays are never modified (rps scales dxi in
 place); inputs are validated with a RobotariumError that names the parameter; the unicycle
 certificates honour magnitude_limit (rps ignores it and always uses 0.2, the default, so default
