@@ -101,5 +101,5 @@ def test_actuator_limits_are_counted_from_the_commands_in_force(mode):
         assert not forced[2][0].any() and forced[2][1] is False     # stopped after the timeout: nothing asked
     assert np.array_equal(forced[0][0], [[0.1, 0.1], [0.0, 5.0]]) and forced[0][1] is False
     assert np.array_equal(forced[1][0], [[0.1, 0.1], [0.0, 0.0]]) and forced[1][1] is True
-    counted = [f or model.exceeds_actuator_limits(v) for v, f in forced]
+    counted = [model.is_actuator_limit_iteration(v, f) for v, f in forced]
     assert counted[:2] == [True, True]

@@ -9,9 +9,8 @@ Topics (relative to the node's namespace, /robotarium by default):
 Each requested array is merged into the current command of all robots (robots not named keep
 their last command, as on the simulator) and filtered through the unicycle barrier certificate
 with the arena boundary on the robots' centres (robotarium_safety.barrier_certificates, OSQP) at
-the newest poses. If it
-has no recent poses, or the input is malformed, or the solver fails, it sends a stop for the
-robots concerned: never the raw command. Without this node nothing reaches the simulator.
+the newest poses. If it has no recent poses, or the input is malformed, or the solver fails, it
+sends a stop for the robots concerned: never the raw command. Without this node nothing reaches the simulator.
 
 In lockstep the client numbers its command arrays: step k is sent right after the client saw the
 poses of step k - 1. Those poses may reach this node a moment after the command (two topics, no

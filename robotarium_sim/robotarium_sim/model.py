@@ -90,6 +90,13 @@ def exceeds_actuator_limits(dxu, max_linear=MAX_LINEAR_VELOCITY, max_angular=MAX
     return bool(np.any(fastest_wheel(v, w, wheel_radius, base_length) > max_wheel))
 
 
+def is_actuator_limit_iteration(dxu, requested_exceeds_limits=False, **limits):
+    """Whether a step with the commands dxu in force counts in the debug report: they exceed the
+    limits (exceeds_actuator_limits), or the safety node says the script's own commands behind
+    them did (rps judges what the script set, before any filtering)."""
+    return bool(requested_exceeds_limits) or exceeds_actuator_limits(dxu, **limits)
+
+
 def threshold_keeping_arc(dxu, max_linear=MAX_LINEAR_VELOCITY, max_angular=MAX_ANGULAR_VELOCITY,
                           max_wheel=MAX_WHEEL_VELOCITY, wheel_radius=WHEEL_RADIUS, base_length=BASE_LENGTH):
     """Scale each robot's (v, omega) by one factor alpha <= 1 so that both wheels stay within
@@ -272,7 +279,7 @@ class Testbed:
         """Advance one time step, as rps.Robotarium.step(): count, threshold, integrate."""
         self.boundary_violations += int(np.count_nonzero(outside_arena(self.poses, self.arena)))
         self.collisions += count_collisions(self.poses, self.robot_diameter)
-        if self.requested_exceeds_limits or exceeds_actuator_limits(self.velocities, **self.limits):
+        if is_actuator_limit_iteration(self.velocities, self.requested_exceeds_limits, **self.limits):
             self.actuator_limit_iterations += 1
         v, w = threshold_keeping_arc(self.velocities, **self.limits)
         # Same expression order as rps so that runs agree bit for bit.

@@ -115,11 +115,11 @@ def recompute(bag):
     if settings["mode"] == "realtime":
         ticks = [int(track.stamp_ns[by_step[s]]) for s in range(1, steps + 1) if s in by_step]
         for velocities, requested_over in _commands_in_force_realtime(commands, n, ticks):
-            actuator += requested_over or model.exceeds_actuator_limits(velocities)
+            actuator += model.is_actuator_limit_iteration(velocities, requested_over)
     else:
         applied = 0
         for velocities, requested_over in _commands_in_force_lockstep(commands, n, steps):
-            actuator += requested_over or model.exceeds_actuator_limits(velocities)
+            actuator += model.is_actuator_limit_iteration(velocities, requested_over)
             applied += 1
         if applied != steps:
             notes.append("%d valid command arrays on cmd_safe for %d steps: the bag is missing commands "
