@@ -21,11 +21,9 @@ import time
 import numpy as np
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-for path in ("robotarium_sim", "robotarium_safety", "tests"):
-    sys.path.insert(0, os.path.join(REPO, path))
 
 from robotarium_safety import barrier_certificates as bc  # noqa: E402
-from reference import reference_available, run_reference  # noqa: E402
+from devtools.reference import reference_available, run_reference  # noqa: E402
 import test_barrier_dense_qp as dense  # noqa: E402
 
 DT = 0.033

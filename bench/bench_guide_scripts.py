@@ -30,10 +30,9 @@ import time
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 GUIDE = os.path.join(REPO, "examples", "guide")
-RUN_SEEDED = os.path.join(REPO, "tests", "run_seeded.py")
-sys.path.insert(0, os.path.join(REPO, "tests"))
-from reference import REFERENCE_PYTHON, _reference_env  # noqa: E402
-from rosutil import node_env, unique_domain_id  # noqa: E402
+RUN_SEEDED = os.path.join(REPO, "devtools", "run_seeded.py")
+from devtools.reference import REFERENCE_PYTHON, _reference_env  # noqa: E402
+from devtools.rosutil import node_env, unique_domain_id  # noqa: E402
 
 
 REFERENCE_COMPAT = """
@@ -90,7 +89,7 @@ def run_stack(script, seed, env, real_time, timeout):
     mode = "--real-time" if real_time else "--lockstep"
     start = time.perf_counter()
     try:
-        out = subprocess.run([sys.executable, "-m", "robotarium_client.cli", "run", mode, "--no-video",
+        out = subprocess.run([sys.executable, "-m", "robotarium_client.cli", "run", "--no-local-testbed", mode, "--no-video",
                               RUN_SEEDED, str(seed), script], env=env, capture_output=True, text=True,
                              cwd=os.path.dirname(script), timeout=timeout)
     except subprocess.TimeoutExpired:
@@ -117,7 +116,7 @@ def main():
 
     from robotarium_client.testbed import LocalTestbed, testbed_answers
     domain = unique_domain_id()
-    env = node_env(domain, ROBOTARIUM_EMBEDDED="0")
+    env = node_env(domain)
     saved = dict(os.environ)
     os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     bags = tempfile.mkdtemp(prefix="bench-guide-")

@@ -15,18 +15,15 @@ Run: ./robotarium bench recorder [--seconds 60] [--robots 50]
 import argparse
 import os
 import platform
-import sys
 import tempfile
 import time
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tests"))
-import conftest  # noqa: E402,F401  (puts the package sources on sys.path)
-from rosutil import NodeProcess, RosProbe, unique_domain_id  # noqa: E402
+from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id  # noqa: E402
 from geometry_msgs.msg import Twist  # noqa: E402
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray  # noqa: E402
 from robotarium_msgs.srv import EndExperiment, StartExperiment  # noqa: E402
-from robotarium_sim.bag import Bag  # noqa: E402
-from robotarium_sim.topics import TESTBED_QOS  # noqa: E402
+from robotarium_recording.bag import Bag  # noqa: E402
+from robotarium_core.topics import TESTBED_QOS  # noqa: E402
 
 NS = "/robotarium"
 
@@ -42,7 +39,7 @@ def run(n, seconds, work):
     domain = unique_domain_id()
     bags = os.path.join(work, "bags_%d" % n)
     sim = NodeProcess("robotarium_sim.simulator_node", domain, log_path=os.path.join(work, "simulator_%d.log" % n))
-    recorder = NodeProcess("robotarium_sim.recorder_node", domain, ros_args=["-p", "bags_dir:=%s" % bags],
+    recorder = NodeProcess("robotarium_recording.recorder_node", domain, ros_args=["-p", "bags_dir:=%s" % bags],
                            log_path=os.path.join(work, "recorder_%d.log" % n))
     probe = RosProbe(domain, name="bench_recorder")
     try:
@@ -119,8 +116,10 @@ def main():
                 lost_total += max(lost, 0)
                 print("  %-15s %10d %10d %6d" % (name, count, r["recorded"][name], lost))
             print("  %-15s %10d %10d %6d" % ("all", sum(r["published"].values()), sum(r["recorded"].values()), lost_total))
-            print("  recorder CPU share      %6.1f %%  (%.2f s CPU in %.1f s)" % (100 * r["cpu"] / r["wall"], r["cpu"], r["wall"]))
-            print("  bag size                %6.2f MB  (%s, closed: %s)" % (r["size"] / 1e6, os.path.basename(r["path"]), r["complete"]))
+            print("  recorder CPU share      %6.1f %%  (%.2f s CPU in %.1f s)"
+                  % (100 * r["cpu"] / r["wall"], r["cpu"], r["wall"]))
+            print("  bag size                %6.2f MB  (%s, closed: %s)"
+                  % (r["size"] / 1e6, os.path.basename(r["path"]), r["complete"]))
             print("  bytes per robot-second  %6.0f" % (r["size"] / (n * r["wall"])))
             print("  goal: 0 lost  ->  %s" % ("met" if lost_total == 0 else "NOT met"))
 

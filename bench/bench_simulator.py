@@ -12,19 +12,16 @@ Run: ./robotarium bench simulator [--seconds S] [--steps K]
 import argparse
 import os
 import platform
-import sys
 import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tests"))
-import conftest  # noqa: E402,F401  (puts the package sources on sys.path)
-from rosutil import NodeProcess, RosProbe, unique_domain_id  # noqa: E402
+from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id  # noqa: E402
 from geometry_msgs.msg import Twist  # noqa: E402
 from robotarium_msgs.msg import RobotPoses, TwistArray  # noqa: E402
 from robotarium_msgs.srv import EndExperiment, StartExperiment  # noqa: E402
-from robotarium_sim import model  # noqa: E402
-from robotarium_sim.topics import TESTBED_QOS  # noqa: E402
+from robotarium_core import model  # noqa: E402
+from robotarium_core.topics import TESTBED_QOS  # noqa: E402
 
 NS = "/robotarium"
 

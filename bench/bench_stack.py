@@ -18,9 +18,8 @@ import time
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCRIPT = os.path.join(REPO, "bench", "stack_script.py")
-sys.path.insert(0, os.path.join(REPO, "tests"))
-from reference import REFERENCE_PYTHON, _reference_env  # noqa: E402
-from rosutil import node_env, unique_domain_id  # noqa: E402
+from devtools.reference import REFERENCE_PYTHON, _reference_env  # noqa: E402
+from devtools.rosutil import node_env, unique_domain_id  # noqa: E402
 
 
 def steps_per_second(output):

@@ -1,14 +1,13 @@
 """Make bags/sample_consensus/: a short recorded run through the real nodes, for replay and report tests.
 
-It starts the simulator and the recorder (and the safety node when robotarium_safety has one) on a
-private DDS domain, runs 6 robots in real time (30 Hz) for about 4 s under a consensus controller
-on a cycle graph (each robot drives towards the mean of its two neighbours; they start on a wide
-circle, so they never get near each other in that time), ends the experiment and moves the
-recorded run folder to bags/sample_consensus/ (replacing an older one).
+It starts the simulator, the safety node and the recorder on a private DDS domain, runs 6 robots
+in real time (30 Hz) for about 4 s under a consensus controller on a cycle graph (each robot
+drives towards the mean of its two neighbours; they start on a wide circle, so they never get
+near each other in that time), ends the experiment and moves the recorded run folder to
+bags/sample_consensus/ (replacing an older one).
 
-Commands: with a safety node, the script publishes on <ns>/cmd_requested as the client would and
-the safety node filters them onto cmd_safe; without one it publishes directly on <ns>/cmd_safe
-(the only topic the simulator listens to) and says so.
+Commands: the script publishes on <ns>/cmd_requested as the client would and the safety node
+filters them onto cmd_safe.
 
 Run (after ./robotarium setup):  ./robotarium shell, then  python scripts/make_sample_bag.py
 """
@@ -16,22 +15,18 @@ import argparse
 import math
 import os
 import shutil
-import sys
 import tempfile
 import time
 
 import numpy as np
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(REPO, "tests"))
-import conftest  # noqa: E402,F401  (package sources on sys.path)
-from rosutil import NodeProcess, RosProbe, unique_domain_id  # noqa: E402
+from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id  # noqa: E402
 from geometry_msgs.msg import Twist  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 from robotarium_msgs.msg import RobotPoses, TwistArray  # noqa: E402
 from robotarium_msgs.srv import EndExperiment, StartExperiment  # noqa: E402
-from robotarium_sim.recorder_node import LATCHED  # noqa: E402
-from robotarium_sim.topics import TESTBED_QOS  # noqa: E402
+from robotarium_core.topics import LATCHED, TESTBED_QOS  # noqa: E402
 
 NS = "/robotarium"
 N = 6
@@ -56,21 +51,19 @@ def main():
     parser.add_argument("--out", default=os.path.join(REPO, "bags", "sample_consensus"))
     args = parser.parse_args()
 
-    with_safety = os.path.exists(os.path.join(REPO, "robotarium_safety", "robotarium_safety", "safety_node.py"))
     domain = unique_domain_id() + 100
     work = tempfile.mkdtemp(prefix="sample_bag_")
     nodes = [NodeProcess("robotarium_sim.simulator_node", domain, log_path=os.path.join(work, "simulator.log")),
-             NodeProcess("robotarium_sim.recorder_node", domain, ros_args=["-p", "bags_dir:=%s" % work],
-                         log_path=os.path.join(work, "recorder.log"))]
-    if with_safety:
-        nodes.append(NodeProcess("robotarium_safety.safety_node", domain, log_path=os.path.join(work, "safety.log")))
+             NodeProcess("robotarium_recording.recorder_node", domain, ros_args=["-p", "bags_dir:=%s" % work],
+                         log_path=os.path.join(work, "recorder.log")),
+             NodeProcess("robotarium_safety.safety_node", domain, log_path=os.path.join(work, "safety.log"))]
     probe = RosProbe(domain, name="sample_consensus")
     try:
         poses = probe.collect(RobotPoses, NS + "/poses")
         recording = probe.collect(String, NS + "/recording", LATCHED)
-        topic = NS + ("/cmd_requested" if with_safety else "/cmd_safe")
+        topic = NS + "/cmd_requested"
         publisher = probe.node.create_publisher(TwistArray, topic, TESTBED_QOS)
-        ready = lambda: (publisher.get_subscription_count() >= (2 if with_safety else 2)  # noqa: E731
+        ready = lambda: (publisher.get_subscription_count() >= 2  # the safety node and the recorder  # noqa: E731
                          and probe.node.count_subscribers(NS + "/pose_array") >= 1)
         if not probe.spin_until(ready, 30):
             raise RuntimeError("the nodes did not come up; logs in %s" % work)
@@ -112,8 +105,7 @@ def main():
         shutil.rmtree(args.out)
     shutil.move(run_dir, args.out)
     size = sum(os.path.getsize(os.path.join(args.out, f)) for f in os.listdir(args.out))
-    print("sample run in %s (%d bytes); commands were published on %s%s" % (
-        args.out, size, topic, "" if with_safety else " (no safety node yet: regenerate once it exists)"))
+    print("sample run in %s (%d bytes); commands were published on %s" % (args.out, size, topic))
 
 
 if __name__ == "__main__":

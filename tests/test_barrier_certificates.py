@@ -13,9 +13,9 @@ import pytest
 
 from robotarium_safety import barrier_certificates as bc
 from robotarium_safety import barrier_qp
-from robotarium_sim.model import RobotariumError, TIME_STEP
+from robotarium_core.model import RobotariumError, TIME_STEP
 import test_barrier_dense_qp as dense
-from reference import reference_available, run_reference
+from devtools.reference import reference_available, run_reference
 
 L = 0.05  # projection distance (rps default)
 WHEEL_R, BASE, WHEEL_LIMIT = 0.016, 0.105, 12.5

@@ -5,9 +5,10 @@ import re
 import numpy as np
 import pytest
 
-from robotarium_sim import model
-from robotarium_sim.model import RobotariumError
-from rosutil import NodeProcess, unique_domain_id
+from robotarium_core import model
+from robotarium_client.session import RunOptions
+from robotarium_core.model import RobotariumError
+from devtools.rosutil import NodeProcess, unique_domain_id
 
 
 @pytest.fixture(scope="module")
@@ -17,13 +18,16 @@ def testbed(tmp_path_factory):
     logs = tmp_path_factory.mktemp("testbed")
     nodes = [NodeProcess("robotarium_sim.simulator_node", domain, log_path=logs / "sim.log"),
              NodeProcess("robotarium_safety.safety_node", domain, log_path=logs / "safety.log")]
-    saved = {k: os.environ.get(k) for k in ("ROS_DOMAIN_ID", "ROBOTARIUM_EMBEDDED", "MPLBACKEND")}
-    os.environ.update(ROS_DOMAIN_ID=str(domain), ROBOTARIUM_EMBEDDED="0", MPLBACKEND="Agg")
+    saved = {k: os.environ.get(k) for k in ("ROS_DOMAIN_ID", "MPLBACKEND")}
+    os.environ.update(ROS_DOMAIN_ID=str(domain), MPLBACKEND="Agg")
+    from robotarium_client import session
     from robotarium_client.testbed import testbed_answers
+    saved_options, session.options = session.options, session.RunOptions(local_testbed=False)
     try:
         assert testbed_answers(timeout=30), "the simulator did not come up"
         yield domain
     finally:
+        session.options = saved_options
         for k, v in saved.items():
             if v is None:
                 os.environ.pop(k, None)
@@ -154,7 +158,7 @@ def test_headless_figure_takes_the_guides_plotting_calls(testbed, tmp_path):
 
 def test_no_testbed_gives_a_clear_error(monkeypatch):
     monkeypatch.setenv("ROS_DOMAIN_ID", str(unique_domain_id()))
-    monkeypatch.setenv("ROBOTARIUM_EMBEDDED", "0")
+    monkeypatch.setattr("robotarium_client.session.options", RunOptions(local_testbed=False))
     monkeypatch.setattr("robotarium_client.robotarium.STARTUP_WAIT", 1.0)
     with pytest.raises(RuntimeError, match="No Robotarium testbed answers.*./robotarium up"):
         robotarium(number_of_robots=2)
@@ -164,7 +168,7 @@ def test_without_safety_node_nothing_moves(tmp_path, monkeypatch):
     domain = unique_domain_id()
     sim = NodeProcess("robotarium_sim.simulator_node", domain, log_path=tmp_path / "sim.log")
     monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
-    monkeypatch.setenv("ROBOTARIUM_EMBEDDED", "0")
+    monkeypatch.setattr("robotarium_client.session.options", RunOptions(local_testbed=False))
     monkeypatch.setattr("robotarium_client.robotarium.STEP_TIMEOUT", 2.0)
     try:
         from robotarium_client.testbed import testbed_answers

@@ -15,7 +15,7 @@ import pytest
 
 # imported under another name: pytest would collect a module-level test_* function as a test
 from robotarium_client.testbed import LocalTestbed, testbed_answers as answers_in_namespace
-from rosutil import REPO, node_env, unique_domain_id
+from devtools.rosutil import REPO, node_env, unique_domain_id
 
 OUR_EXAMPLES = sorted(p for p in glob.glob(os.path.join(REPO, "examples", "*.py")))
 # The guide's scripts as printed (examples/guide/, repairs of the PDF text listed in each header).
@@ -28,7 +28,7 @@ GUIDE_EXAMPLES = sorted(glob.glob(os.path.join(REPO, "examples", "guide", "*.py"
 def testbed(tmp_path_factory):
     domain = unique_domain_id()
     bags = tmp_path_factory.mktemp("bags")
-    env = node_env(domain, ROBOTARIUM_EMBEDDED=0)  # the runs use this module's testbed, never their own
+    env = node_env(domain)
     saved = dict(os.environ)
     os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     tb = LocalTestbed(log_dir=str(tmp_path_factory.mktemp("logs")), bags_dir=str(bags)).start()
@@ -45,8 +45,10 @@ def testbed(tmp_path_factory):
 
 
 def run(env, script, *args, timeout=600):
-    """./robotarium run [flags] SCRIPT [script args] (flags before "--", script args after it)."""
+    """./robotarium run [flags] SCRIPT [script args] (flags before "--", script args after it); the
+    runs use this module's testbed, never one of their own (--no-local-testbed)."""
     flags, script_args = (args[:args.index("--")], args[args.index("--") + 1:]) if "--" in args else (args, ())
+    flags = ("--no-local-testbed", *flags)
     cwd = os.path.dirname(script_args[-1] if script_args else script)
     process = subprocess.Popen([sys.executable, "-m", "robotarium_client.cli", "run", *flags, script, *script_args],
                                env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd,
@@ -102,7 +104,7 @@ def test_our_examples_reach_their_goal_cleanly(testbed, script):
 def test_guide_scripts_run_unchanged_in_lockstep(testbed, script):
     env, bags = testbed
     # numpy seeded from outside (the scripts draw random goals unseeded): reproducible, unchanged
-    completed = run(env, os.path.join(REPO, "tests", "run_seeded.py"), "--lockstep", "--no-video", "--", "1",
+    completed = run(env, os.path.join(REPO, "devtools", "run_seeded.py"), "--lockstep", "--no-video", "--", "1",
                     script, timeout=240)
     out = completed.stdout + completed.stderr
     assert completed.returncode == 0, out
@@ -114,7 +116,7 @@ def test_a_guide_script_runs_unchanged_in_real_time(testbed):
     """3.1.2 as printed (sim_in_real_time=True, no --lockstep): paced by the simulator's 30 Hz."""
     env, bags = testbed
     script = os.path.join(REPO, "examples", "guide", "3_1_2_go_to_point_unicycle.py")
-    completed = run(dict(env, ROBOTARIUM_PROGRESS="2"), os.path.join(REPO, "tests", "run_seeded.py"), "--no-video",
+    completed = run(dict(env, ROBOTARIUM_PROGRESS="2"), os.path.join(REPO, "devtools", "run_seeded.py"), "--no-video",
                     "--", "1", script, timeout=240)
     out = completed.stdout + completed.stderr
     assert completed.returncode == 0, out
@@ -131,6 +133,6 @@ def test_a_guide_script_runs_unchanged_in_real_time(testbed):
     assert info["real_time"] is True and info["steps"] > 100
     # Paced, not as fast as possible: the simulator's steps took at least their simulated time on
     # the wall clock (lockstep runs this script about ten times faster).
-    from robotarium_sim.bag import Bag
+    from robotarium_recording.bag import Bag
     poses = Bag(folder).poses()
     assert (poses.log_ns[-1] - poses.log_ns[0]) / 1e9 >= 0.95 * (poses.sim_time[-1] - poses.sim_time[0]) > 5

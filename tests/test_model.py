@@ -4,11 +4,11 @@ import math
 import numpy as np
 import pytest
 
-from robotarium_sim import model
-from robotarium_sim.model import RobotariumError
+from robotarium_core import model
+from robotarium_core.model import RobotariumError
 
 
-from reference import reference_available, run_reference
+from devtools.reference import reference_available, run_reference
 
 
 def one_robot(x=0.0, y=0.0, theta=0.0):

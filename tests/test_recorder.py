@@ -19,10 +19,11 @@ from std_msgs.msg import String
 
 from robotarium_msgs.msg import RobotPoses, TwistArray
 from robotarium_msgs.srv import EndExperiment, StartExperiment
-from robotarium_sim import bag as bagmod
-from robotarium_sim.recorder_node import LATCHED, RunRecorder
-from robotarium_sim.topics import TESTBED_QOS
-from rosutil import NodeProcess, RosProbe, unique_domain_id
+from robotarium_recording import bag as bagmod
+from robotarium_core.topics import LATCHED
+from robotarium_recording.recorder_node import RunRecorder
+from robotarium_core.topics import TESTBED_QOS
+from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id
 
 NS = "/robotarium"
 
@@ -47,7 +48,7 @@ class Stack:
             self.start_recorder()
 
     def start_recorder(self):
-        self.recorder = NodeProcess("robotarium_sim.recorder_node", self.domain, log_path=self.tmp_path / "recorder.log",
+        self.recorder = NodeProcess("robotarium_recording.recorder_node", self.domain, log_path=self.tmp_path / "recorder.log",
                                     ros_args=["-p", "bags_dir:=%s" % self.bags_dir])
         node = self.probe.node
         ready = lambda: (self.cmd.get_subscription_count() >= 2 and node.count_subscribers(NS + "/pose_array") >= 1  # noqa: E731
@@ -204,7 +205,8 @@ def test_run_through_the_stack_is_recorded_completely(stack):
     meta_counts = {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]}
     assert all(meta_counts[t] == c for t, c in expected.items())
     assert info["message_count"] == total and info["custom_data"]["run_id"] == started.run_id
-    poses_meta = next(t["topic_metadata"] for t in info["topics_with_message_count"] if t["topic_metadata"]["name"] == NS + "/poses")
+    poses_meta = next(t["topic_metadata"] for t in info["topics_with_message_count"]
+                      if t["topic_metadata"]["name"] == NS + "/poses")
     assert poses_meta["type"] == "robotarium_msgs/msg/RobotPoses" and poses_meta["type_description_hash"].startswith("RIHS01_")
     assert poses_meta["offered_qos_profiles"][0]["reliability"] == "reliable"
 

@@ -12,9 +12,9 @@ import pytest
 from std_srvs.srv import SetBool
 
 from robotarium_msgs.msg import RobotPoses, TestbedStatus
-from robotarium_sim.bag import Bag
-from robotarium_sim.replay_node import ReplayClock, publisher_qos
-from rosutil import REPO, NodeProcess, RosProbe, unique_domain_id
+from robotarium_recording.bag import Bag
+from robotarium_recording.replay_node import ReplayClock, publisher_qos
+from devtools.rosutil import REPO, NodeProcess, RosProbe, unique_domain_id
 
 NS = "/robotarium"
 SAMPLE = os.path.join(REPO, "bags", "sample_consensus")
@@ -34,7 +34,7 @@ def replay(tmp_path, bag, *args):
     received = []
     probe.node.create_subscription(RobotPoses, NS + "/poses", lambda m: received.append((time.monotonic(), m)), 200)
     statuses = probe.collect(TestbedStatus, NS + "/status", 200)
-    process = NodeProcess("robotarium_sim.replay_node", domain, args=[bag, "--delay", str(DELAY), *args],
+    process = NodeProcess("robotarium_recording.replay_node", domain, args=[bag, "--delay", str(DELAY), *args],
                           log_path=tmp_path / "replay.log")
     return probe, process, received, statuses
 

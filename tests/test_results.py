@@ -9,9 +9,10 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from robotarium_sim import model, results
-from robotarium_sim.bag import Bag
-from rosutil import REPO
+from robotarium_core import model
+from robotarium_recording import results
+from robotarium_recording.bag import Bag
+from devtools.rosutil import REPO
 from test_recorder import stack  # noqa: F401  (fixture: simulator + recorder on a private domain)
 
 SAMPLE = os.path.join(REPO, "bags", "sample_consensus")
@@ -88,7 +89,7 @@ def test_report_of_a_torn_recording_counts_what_is_there(tmp_path):
 
 @pytest.mark.parametrize("mode", ["lockstep", "realtime"])
 def test_actuator_limits_are_counted_from_the_commands_in_force(mode):
-    from robotarium_sim.bag import Command
+    from robotarium_recording.bag import Command
     over = Command(1, 10, 10, np.array([0, 1]), np.array([0.1, 0.1]), np.array([0.0, 5.0]))
     # within the limits as applied, but the safety node says the script asked for more
     replaced = Command(2, 40, 40, np.array([1]), np.array([0.1]), np.array([0.0]), True)
@@ -97,7 +98,7 @@ def test_actuator_limits_are_counted_from_the_commands_in_force(mode):
         forced = [(v.copy(), f) for v, f in results._commands_in_force_lockstep([over, bad, replaced], 2, 2)]
     else:
         forced = [(v.copy(), f) for v, f in results._commands_in_force_realtime([over, bad, replaced], 2,
-                                                                                 [20, 45, 10**9])]
+                                                                                 [20, 45, 10**9], model.COMMAND_TIMEOUT)]
         assert not forced[2][0].any() and forced[2][1] is False     # stopped after the timeout: nothing asked
     assert np.array_equal(forced[0][0], [[0.1, 0.1], [0.0, 5.0]]) and forced[0][1] is False
     assert np.array_equal(forced[1][0], [[0.1, 0.1], [0.0, 0.0]]) and forced[1][1] is True

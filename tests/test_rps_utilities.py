@@ -13,9 +13,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from reference import reference_available, run_reference  # noqa: E402
-from robotarium_sim.model import RobotariumError  # noqa: E402
-from rps.utilities import controllers, graph, misc, transformations  # noqa: E402
+from devtools.reference import reference_available, run_reference  # noqa: E402
+from robotarium_core.model import RobotariumError  # noqa: E402
 from rps.utilities.controllers import (  # noqa: E402
     create_clf_unicycle_pose_controller, create_clf_unicycle_position_controller,
     create_hybrid_unicycle_pose_controller, create_si_position_controller)

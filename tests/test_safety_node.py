@@ -4,9 +4,9 @@ import pytest
 
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
 from robotarium_msgs.srv import EndExperiment, StartExperiment
-from robotarium_sim import model
-from rosutil import NodeProcess, RosProbe, unique_domain_id
-from robotarium_sim.topics import TESTBED_QOS
+from robotarium_core import model
+from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id
+from robotarium_core.topics import TESTBED_QOS
 from test_simulator_node import as_array, command, lockstep
 
 NS = "/robotarium"
@@ -59,7 +59,7 @@ def test_head_on_command_comes_out_changed_and_safe(stack):
     end = probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request())
     assert end.collisions == 0 and end.boundary_violations == 0
     assert closest > model.ROBOT_DIAMETER
-    assert any(r.status == "solved" and r.max_change > 0.05 for r in reports)
+    assert any(r.status == SafetyReport.STATUS_SOLVED and r.max_change > 0.05 for r in reports)
     changed = [s for s in safe if abs(s.twists[0].linear.x - 0.15) > 1e-3]
     assert changed, "the safety node never changed the head-on command"
     # and without it they would have collided: the same commands straight into the model
@@ -84,7 +84,7 @@ def test_safe_command_passes_unchanged(stack):
     assert probe.spin_until(lambda: safe and reports, 10)
     assert [t.linear.x for t in safe[-1].twists] == [0.05, 0.05]
     assert [t.angular.z for t in safe[-1].twists] == [0.3, -0.2]
-    assert reports[-1].status == "passthrough" and reports[-1].max_change == 0.0
+    assert reports[-1].status == SafetyReport.STATUS_PASSTHROUGH and reports[-1].max_change == 0.0
     assert safe[-1].requested_exceeds_limits is False   # 0.05 m/s, 0.3 rad/s: far within the wheel limits
 
 
@@ -100,7 +100,7 @@ def test_bad_request_becomes_a_stop(stack):
     lockstep(probe, requests, command([0, 1], [0.1, 0.1], [0.0, 0.0], step=1), poses)
     lockstep(probe, requests, command([0, 1], [0.1, float("nan")], [0.0, 0.0], step=2), poses)
     assert probe.spin_until(lambda: reports and reports[-1].step == 2 and safe and safe[-1].step == 2, 10)
-    assert reports[-1].status == "stop_bad_input"
+    assert reports[-1].status == SafetyReport.STATUS_STOP_BAD_INPUT
     assert [t.linear.x for t in safe[-1].twists] == [0.0, 0.0]
     # the stop held the robots where they were
     assert np.array_equal(as_array(poses[-1])[:2], as_array(poses[-2])[:2])
@@ -118,7 +118,7 @@ def test_no_poses_means_stop(tmp_path):
         connected(probe, requests)
         requests.publish(command([0, 1, 2], [0.2, 0.2, 0.2], [1.0, 0.0, -1.0]))
         assert probe.spin_until(lambda: safe and reports, 10)
-        assert reports[-1].status == "stop_no_poses"
+        assert reports[-1].status == SafetyReport.STATUS_STOP_NO_POSES
         assert list(safe[-1].ids) == [0, 1, 2]
         assert all(t.linear.x == 0.0 and t.angular.z == 0.0 for t in safe[-1].twists)
     finally:

@@ -9,8 +9,8 @@ from geometry_msgs.msg import Twist
 
 from robotarium_msgs.msg import RobotPoses, TestbedStatus, TwistArray
 from robotarium_msgs.srv import EndExperiment, StartExperiment
-from rosutil import REPO, NodeProcess, RosProbe, node_env, unique_domain_id
-from robotarium_sim.topics import TESTBED_QOS
+from devtools.rosutil import REPO, NodeProcess, RosProbe, node_env, unique_domain_id
+from robotarium_core.topics import TESTBED_QOS
 
 NS = "/robotarium"
 
@@ -205,7 +205,8 @@ def test_safety_interventions_are_counted(testbed):
     assert start(probe, n=2, poses=LINE[:, :2]).success
     publisher = probe.node.create_publisher(SafetyReport, NS + "/safety_report", TESTBED_QOS)
     assert probe.spin_until(lambda: publisher.get_subscription_count() > 0, 10)
-    for state in ("passthrough", "solved", "stop_no_poses", "passthrough"):
+    for state in (SafetyReport.STATUS_PASSTHROUGH, SafetyReport.STATUS_SOLVED, SafetyReport.STATUS_STOP_NO_POSES,
+                  SafetyReport.STATUS_PASSTHROUGH):
         publisher.publish(SafetyReport(status=state))
     assert probe.spin_until(lambda: status and status[-1].safety_interventions == 2, 5)
 
@@ -222,5 +223,5 @@ def test_installed_for_ros2_run():
     """`ros2 run robotarium_sim simulator` finds lib/robotarium_sim/simulator in the install tree."""
     script = os.path.join(REPO, "install", "lib", "robotarium_sim", "simulator")
     assert os.access(script, os.X_OK)
-    config = os.path.join(REPO, "install", "share", "robotarium_sim", "config", "simulator.yaml")
+    config = os.path.join(REPO, "install", "share", "robotarium_core", "config", "testbed.yaml")
     assert os.path.exists(config)

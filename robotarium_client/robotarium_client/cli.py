@@ -13,6 +13,7 @@ import tempfile
 import threading
 import time
 
+from robotarium_client import session
 from robotarium_client.testbed import LocalTestbed, namespace, repository_root, testbed_answers
 
 DEMO_SCRIPT = os.path.join("examples", "barrier_certificates.py")  # 8 robots swap places through the middle
@@ -31,7 +32,8 @@ def cmd_up(args):
         say("a testbed already answers in %s on ROS_DOMAIN_ID %s; not starting a second one"
             % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
         return 1
-    testbed = LocalTestbed(record=not args.no_record, quiet=False, bags_dir=args.bags_dir).start()
+    testbed = LocalTestbed(record=not args.no_record, quiet=False, bags_dir=args.bags_dir,
+                           config_file=args.config).start()
     say("testbed up in namespace %s on ROS_DOMAIN_ID %s (simulator, safety%s). Ctrl-C stops it."
         % (ns, os.environ.get("ROS_DOMAIN_ID", "0"), "" if args.no_record else ", recorder"))
     stop = threading.Event()
@@ -88,8 +90,10 @@ def wait_until_recorded(run_dir, timeout=15.0):
     return False
 
 
-def run_script(script, script_args=(), real_time=None, record=True, bags_dir=None, results=True, video=True):
-    """Run an experiment script against the testbed (starting one here if none answers).
+def run_script(script, script_args=(), real_time=None, record=True, bags_dir=None, results=True, video=True,
+               local_testbed=True, config_file=None):
+    """Run an experiment script against the testbed (starting one here if none answers and
+    `local_testbed` allows it).
 
     Returns (exit code, run info dict or None, run folder or None).
     """
@@ -99,35 +103,34 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
         return 2, None, None
     ns = namespace()
     testbed = None
-    embedded_allowed = os.environ.get("ROBOTARIUM_EMBEDDED", "1") not in ("0", "false", "no", "off")
-    # With ROBOTARIUM_EMBEDDED=0 a testbed is known to be up (or coming up): wait for it, never start one.
-    if testbed_answers(ns, timeout=3.0 if embedded_allowed else 60.0):
+    # Without local_testbed a testbed is known to be up (or coming up): wait for it, never start one.
+    if testbed_answers(ns, timeout=3.0 if local_testbed else 60.0):
         say("using the testbed that answers in %s" % ns)
-    elif not embedded_allowed:
-        say("no testbed answers in %s on ROS_DOMAIN_ID %s (ROBOTARIUM_EMBEDDED=0 forbids starting one); "
+    elif not local_testbed:
+        say("no testbed answers in %s on ROS_DOMAIN_ID %s (--no-local-testbed forbids starting one); "
             "start it with ./robotarium up" % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
         return 2, None, None
     else:
         say("no testbed answers in %s: starting one on this machine for this run" % ns)
-        testbed = LocalTestbed(record=record, bags_dir=bags_dir).start()
+        testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file).start()
 
     work = tempfile.mkdtemp(prefix="robotarium-run-")
     info_path = os.path.join(work, "run.json")
     log_path = os.path.join(work, "log.txt")
-    env = dict(os.environ)
-    env.update(ROBOTARIUM_EMBEDDED="0", ROBOTARIUM_RUN_INFO=info_path, PYTHONUNBUFFERED="1",
-               ROBOTARIUM_EXPERIMENT_NAME=os.path.splitext(os.path.basename(script))[0])
-    if real_time is not None:
-        env["ROBOTARIUM_REAL_TIME"] = "1" if real_time else "0"
-    env.setdefault("ROBOTARIUM_PROGRESS", "10")  # a line every 10 s: long runs show they are alive
+    # The testbed is up (found or started above): the script waits for it, never starts another.
+    options = session.RunOptions(real_time=real_time, local_testbed=False, namespace=ns,
+                                 experiment_name=session.experiment_name_of(script),
+                                 progress_interval=session.progress_from_environment(10.0))
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
     if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
         env.setdefault("MPLBACKEND", "Agg")
+    command = [sys.executable, "-m", "robotarium_client.runner", options.to_json(), info_path, script, *script_args]
 
     cwd = os.getcwd()
     before = _snapshot(cwd)
     started = time.time()
     with open(log_path, "wb") as log:
-        process = subprocess.Popen([sys.executable, script, *script_args], cwd=cwd, env=env,
+        process = subprocess.Popen(command, cwd=cwd, env=env,
                                    stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
         try:
             _tee(process.stdout, [sys.stdout.buffer, log])
@@ -171,7 +174,7 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
 
     if results:
         wait_until_recorded(run_dir)
-        from robotarium_sim.results import write_results
+        from robotarium_recording.results import write_results
         write_results(run_dir, progress=True, video=video)
     say("run %s: outputs in %s" % (info["run_id"], os.path.relpath(run_dir, cwd)))
     for name in sorted(os.listdir(run_dir)):
@@ -182,7 +185,8 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
 def cmd_run(args):
     real_time = {"lockstep": False, "real-time": True}.get(args.mode)
     code, _, _ = run_script(args.script, args.script_args, real_time=real_time, record=not args.no_record,
-                            bags_dir=args.bags_dir, video=not args.no_video)
+                            bags_dir=args.bags_dir, video=not args.no_video,
+                            local_testbed=not args.no_local_testbed, config_file=args.config)
     return code
 
 
@@ -196,12 +200,12 @@ def cmd_demo(args):
 
 
 def cmd_replay(args):
-    from robotarium_sim.replay_node import main as replay_main
+    from robotarium_recording.replay_node import main as replay_main
     return replay_main(args.rest)
 
 
 def cmd_report(args):
-    from robotarium_sim.results import main as report_main
+    from robotarium_recording.results import main as report_main
     return report_main(args.rest)
 
 
@@ -212,6 +216,7 @@ def main(argv=None):
     up = sub.add_parser("up", help="start the testbed nodes until Ctrl-C")
     up.add_argument("--no-record", action="store_true", help="do not start the recorder")
     up.add_argument("--bags-dir", help="where runs are recorded (default: bags/)")
+    up.add_argument("--config", help="the testbed configuration file (default: robotarium_core's testbed.yaml)")
     up.set_defaults(func=cmd_up)
 
     run = sub.add_parser("run", help="run a Robotarium script against the testbed")
@@ -225,6 +230,10 @@ def main(argv=None):
     run.add_argument("--no-record", action="store_true", help="(local testbed only) do not record the run")
     run.add_argument("--no-video", action="store_true", help="skip rendering the video of the run")
     run.add_argument("--bags-dir", help="(local testbed only) where runs are recorded (default: bags/)")
+    run.add_argument("--config", help="(local testbed only) the testbed configuration file "
+                                      "(default: robotarium_core's testbed.yaml)")
+    run.add_argument("--no-local-testbed", action="store_true",
+                     help="never start a testbed here: wait up to 60 s for one to answer (./robotarium up)")
     run.set_defaults(func=cmd_run)
 
     demo = sub.add_parser("demo", help="run a bundled multi-robot example headless, recorded")
@@ -241,7 +250,8 @@ def main(argv=None):
     if args.command == "run":
         # `./robotarium run script.py --lockstep` works too: our own flags may follow the script.
         own = {"--lockstep": ("mode", "lockstep"), "--real-time": ("mode", "real-time"),
-               "--no-record": ("no_record", True), "--no-video": ("no_video", True)}
+               "--no-record": ("no_record", True), "--no-video": ("no_video", True),
+               "--no-local-testbed": ("no_local_testbed", True)}
         rest = []
         for arg in args.script_args:
             if arg in own:

@@ -10,13 +10,14 @@ import subprocess
 import sys
 import time
 
-from robotarium_sim.topics import DEFAULT_NAMESPACE
+from robotarium_core.config import DEFAULT_FILE
+from robotarium_core.topics import DEFAULT_NAMESPACE
 
 NODES = {
-    # name: (module, package whose config/<name>.yaml holds its parameters)
-    "simulator": ("robotarium_sim.simulator_node", "robotarium_sim"),
-    "safety": ("robotarium_safety.safety_node", "robotarium_safety"),
-    "recorder": ("robotarium_sim.recorder_node", "robotarium_sim"),
+    # name: (module, whether it reads the testbed configuration)
+    "simulator": ("robotarium_sim.simulator_node", True),
+    "safety": ("robotarium_safety.safety_node", True),
+    "recorder": ("robotarium_recording.recorder_node", False),
 }
 
 
@@ -30,33 +31,22 @@ def namespace():
     return "/" + ns
 
 
-def config_file(package, name):
-    """The node's YAML from the install tree (ament index), else from the source tree."""
-    try:
-        from ament_index_python.packages import get_package_share_directory
-        path = os.path.join(get_package_share_directory(package), "config", name + ".yaml")
-        if os.path.exists(path):
-            return path
-    except Exception:  # package not in the ament index: running from the source tree
-        pass
-    path = os.path.join(repository_root(), package, "config", name + ".yaml")
-    return path if os.path.exists(path) else None
-
-
-def node_command(name, ns=None, extra_ros_args=()):
-    module, package = NODES[name]
+def node_command(name, ns=None, extra_ros_args=(), config_file=DEFAULT_FILE):
+    """The command line of one testbed node; the simulator and the safety node read the same
+    testbed configuration file (the packaged testbed.yaml unless another is given)."""
+    module, configured = NODES[name]
     cmd = [sys.executable, "-m", module, "--ros-args", "-r", "__ns:=%s" % (ns or namespace())]
-    config = config_file(package, name)
-    if config:
-        cmd += ["--params-file", config]
+    if configured:
+        cmd += ["--params-file", config_file or DEFAULT_FILE]
     return cmd + list(extra_ros_args)
 
 
 class LocalTestbed:
     """Simulator, safety node and recorder in subprocesses, stopped together."""
 
-    def __init__(self, log_dir=None, record=True, ns=None, bags_dir=None, quiet=True):
+    def __init__(self, log_dir=None, record=True, ns=None, bags_dir=None, quiet=True, config_file=None):
         self.ns = ns or namespace()
+        self.config_file = config_file
         self.log_dir = log_dir or os.path.join(repository_root(), "log", "testbed")
         self.names = ["simulator", "safety"] + (["recorder"] if record else [])
         self.bags_dir = bags_dir
@@ -69,7 +59,7 @@ class LocalTestbed:
             extra = ["-p", "bags_dir:=%s" % self.bags_dir] if name == "recorder" and self.bags_dir else []
             log = open(os.path.join(self.log_dir, name + ".log"), "wb") if self.quiet else None
             self.processes[name] = (subprocess.Popen(
-                node_command(name, self.ns, extra), stdout=log, stderr=subprocess.STDOUT if log else None,
+                node_command(name, self.ns, extra, self.config_file), stdout=log, stderr=subprocess.STDOUT if log else None,
                 start_new_session=True), log)
         return self
 

@@ -60,7 +60,7 @@ import time
 
 import numpy as np
 
-from robotarium_sim.model import (
+from robotarium_core.model import (
     ARENA_X_MAX, ARENA_X_MIN, ARENA_Y_MAX, ARENA_Y_MIN, BASE_LENGTH, MAX_LINEAR_VELOCITY,
     MAX_WHEEL_VELOCITY, WHEEL_RADIUS, RobotariumError)
 

@@ -27,27 +27,10 @@ from rclpy.node import Node
 
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TwistArray
 from robotarium_safety.barrier_certificates import create_unicycle_barrier_certificate_with_centre_boundary
-from robotarium_sim import model
-from robotarium_sim.node_tools import declare_checked_parameters, run_node
-from robotarium_sim.topics import DEFAULT_NAMESPACE, TESTBED_QOS, warn_on_incompatible_qos
-
-PARAMETERS = {
-    # name: (default, check, what a valid value is). Certificate defaults are the guide's (§4.5.5).
-    "barrier_gain": (100.0, lambda v: v > 0, "> 0"),
-    "safety_radius": (0.12, lambda v: v >= 0.12, ">= 0.12 m (a robot diameter and some margin)"),
-    "projection_distance": (0.05, lambda v: v > 0, "> 0 m"),
-    "magnitude_limit": (model.MAX_LINEAR_VELOCITY, lambda v: 0 < v <= model.MAX_LINEAR_VELOCITY, "in (0, 0.2] m/s"),
-    "boundary": ([model.ARENA_X_MIN, model.ARENA_X_MAX, model.ARENA_Y_MIN, model.ARENA_Y_MAX],
-                 lambda v: len(v) == 4 and v[0] < v[1] and v[2] < v[3], "[x_min, x_max, y_min, y_max] with min < max"),
-    # The boundary holds robot centres (not the guide's points ahead): see
-    # create_unicycle_barrier_certificate_with_centre_boundary for why.
-    "boundary_margin": (model.ROBOT_RADIUS, lambda v: 0 <= v < 0.5,
-                        "in [0, 0.5) m: how far each robot's centre stays inside the boundary"),
-    "pose_timeout": (0.5, lambda v: v > 0, "seconds, > 0: poses older than this are not trusted"),
-    # Long enough for DDS discovery between a freshly started safety node and simulator.
-    "lockstep_wait": (3.0, lambda v: v > 0, "seconds a lockstep command waits for its poses"),
-}
-
+from robotarium_core import model
+from robotarium_core.node_tools import declare_config, run_node
+from robotarium_core.topics import (CMD_REQUESTED, CMD_SAFE, DEFAULT_NAMESPACE, POSES, SAFETY_REPORT, TESTBED_QOS,
+                                    warn_on_incompatible_qos)
 
 def twists_of(v, w):
     out = []
@@ -61,11 +44,11 @@ def twists_of(v, w):
 class SafetyNode(Node):
     def __init__(self):
         super().__init__("safety", namespace=DEFAULT_NAMESPACE)
-        self.params = p = declare_checked_parameters(self, PARAMETERS)
+        self.config = c = declare_config(self, "safety")
         self.certificate = create_unicycle_barrier_certificate_with_centre_boundary(
-            barrier_gain=p["barrier_gain"], safety_radius=p["safety_radius"],
-            projection_distance=p["projection_distance"], magnitude_limit=p["magnitude_limit"],
-            boundary_points=np.array(p["boundary"]), boundary_margin=p["boundary_margin"])
+            barrier_gain=c.barrier_gain, safety_radius=c.safety_radius,
+            projection_distance=c.projection_distance, magnitude_limit=c.magnitude_limit,
+            boundary_points=np.array(c.arena), boundary_margin=c.boundary_margin)
 
         self.poses = None            # 3 x N, newest
         self.poses_step = -1
@@ -74,14 +57,14 @@ class SafetyNode(Node):
         self.pending = None          # (msg, received) a numbered command waiting for its poses
         self._logged = set()
 
-        self.safe_pub = self.create_publisher(TwistArray, "cmd_safe", TESTBED_QOS)
-        self.report_pub = self.create_publisher(SafetyReport, "safety_report", TESTBED_QOS)
-        self.create_subscription(TwistArray, "cmd_requested", self.on_request, TESTBED_QOS,
-                                 event_callbacks=warn_on_incompatible_qos(self, "cmd_requested"))
-        self.create_subscription(RobotPoses, "poses", self.on_poses, TESTBED_QOS)
+        self.safe_pub = self.create_publisher(TwistArray, CMD_SAFE, TESTBED_QOS)
+        self.report_pub = self.create_publisher(SafetyReport, SAFETY_REPORT, TESTBED_QOS)
+        self.create_subscription(TwistArray, CMD_REQUESTED, self.on_request, TESTBED_QOS,
+                                 event_callbacks=warn_on_incompatible_qos(self, CMD_REQUESTED))
+        self.create_subscription(RobotPoses, POSES, self.on_poses, TESTBED_QOS)
         self.create_timer(0.02, self.check_pending)
-        self.get_logger().info("safety node ready in namespace %s (safety radius %.3f m, boundary %s, margin %.3f m)" % (
-            self.get_namespace(), p["safety_radius"], p["boundary"], p["boundary_margin"]))
+        self.get_logger().info("safety node ready in namespace %s (safety radius %.3f m, arena %s, margin %.3f m)" % (
+            self.get_namespace(), c.safety_radius, list(c.arena), c.boundary_margin))
 
     def warn_once(self, kind, text):
         if kind not in self._logged:
@@ -111,7 +94,7 @@ class SafetyNode(Node):
         self.filter(msg)
 
     def check_pending(self):
-        if self.pending is not None and time.monotonic() - self.pending[1] > self.params["lockstep_wait"]:
+        if self.pending is not None and time.monotonic() - self.pending[1] > self.config.lockstep_wait:
             msg, _ = self.pending
             self.pending = None
             self.warn_once("late_poses", "poses for step %d did not come in time; filtering with step %d"
@@ -126,34 +109,35 @@ class SafetyNode(Node):
         report = SafetyReport(step=msg.step)
 
         # In lockstep (numbered commands) time stands still between steps: only real-time poses age.
-        stale = msg.step == 0 and time.monotonic() - self.poses_time > self.params["pose_timeout"]
+        stale = msg.step == 0 and time.monotonic() - self.poses_time > self.config.pose_timeout
         if self.poses is None or stale:
             self.warn_once("no_poses", "no recent poses from the simulator: sending stop")
-            return self.send_stop(msg, ids, report, "stop_no_poses", started)
+            return self.send_stop(msg, ids, report, SafetyReport.STATUS_STOP_NO_POSES, started)
         n = self.poses.shape[1]
         problem = model.check_commands(ids, v, w, n)
         if problem is not None:
             self.warn_once(problem, "malformed command array (%s): sending stop" % problem)
-            return self.send_stop(msg, ids, report, "stop_bad_input", started)
+            return self.send_stop(msg, ids, report, SafetyReport.STATUS_STOP_BAD_INPUT, started)
 
         self.commands[0, ids] = v
         self.commands[1, ids] = w
         requested = self.commands.copy()
-        over_limits = model.exceeds_actuator_limits(requested)
+        over_limits = model.exceeds_actuator_limits(requested, **self.config.limits)
         safe = self.certificate(requested, self.poses)
         info = self.certificate.info
         if info["fallback"]:
             self.warn_once("solver", "barrier certificate failed (%s): sending stop" % info["reason"])
-            status = "stop_solver_failed"
+            status = SafetyReport.STATUS_STOP_SOLVER_FAILED
             safe = np.zeros_like(requested)
         else:
-            status = "passthrough" if info["status"] == "passthrough" else "solved"
+            status = (SafetyReport.STATUS_PASSTHROUGH if info["status"] == "passthrough"
+                      else SafetyReport.STATUS_SOLVED)
             # The certificate bounds speed, not wheel speeds: where it replaced a command, make the
             # replacement drivable (keeping its arc); the debug report's actuator count judges the
             # script's own commands (requested_exceeds_limits), never our interventions.
             changed = np.any(safe != requested, axis=0)
             if np.any(changed):
-                safe[:, changed] = model.threshold_keeping_arc(safe[:, changed])
+                safe[:, changed] = model.threshold_keeping_arc(safe[:, changed], **self.config.limits)
         change = np.abs(safe - requested)
         report.status = status
         report.solver_status = info["status"]

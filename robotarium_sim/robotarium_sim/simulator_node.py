@@ -1,4 +1,4 @@
-"""The Robotarium simulator node: a thin ROS 2 shell around robotarium_sim.model.Testbed.
+"""The Robotarium simulator node: a thin ROS 2 shell around robotarium_core.model.Testbed.
 
 Topics (relative to the node's namespace, /robotarium by default):
   cmd_safe        robotarium_msgs/TwistArray   in:  the safety node's commands (the only command input)
@@ -24,31 +24,15 @@ import time
 import numpy as np
 from geometry_msgs.msg import Pose, PoseArray
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
 from robotarium_msgs.srv import EndExperiment, StartExperiment
-from robotarium_sim import model
-from robotarium_sim.node_tools import declare_checked_parameters, run_node
-from robotarium_sim.topics import DEFAULT_NAMESPACE, TESTBED_QOS, warn_on_incompatible_qos
-
-# The recorder announces where it records; a late subscriber still gets the last announcement.
-LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-PARAMETERS = {
-    # name: (default, check, what a valid value is)
-    "rate": (30.0, lambda v: 0 < v <= 1000, "a tick rate in Hz, 0 < rate <= 1000"),
-    "command_timeout": (model.COMMAND_TIMEOUT, lambda v: v > 0, "seconds, > 0"),
-    "time_step": (model.TIME_STEP, lambda v: 0 < v <= 1, "seconds per step, 0 < time_step <= 1"),
-    "arena": ([model.ARENA_X_MIN, model.ARENA_X_MAX, model.ARENA_Y_MIN, model.ARENA_Y_MAX], lambda v: len(v) == 4 and v[0] < v[1] and v[2] < v[3], "[x_min, x_max, y_min, y_max] with min < max"),
-    "robot_diameter": (model.ROBOT_DIAMETER, lambda v: v > 0, "metres, > 0"),
-    "wheel_radius": (model.WHEEL_RADIUS, lambda v: v > 0, "metres, > 0"),
-    "base_length": (model.BASE_LENGTH, lambda v: v > 0, "metres, > 0"),
-    "max_linear_velocity": (model.MAX_LINEAR_VELOCITY, lambda v: v > 0, "m/s, > 0"),
-    "max_angular_velocity": (model.MAX_ANGULAR_VELOCITY, lambda v: v > 0, "rad/s, > 0"),
-    "max_wheel_velocity": (model.MAX_WHEEL_VELOCITY, lambda v: v > 0, "rad/s, > 0"),
-}
+from robotarium_core import model
+from robotarium_core.node_tools import declare_config, run_node
+from robotarium_core.topics import (CMD_SAFE, CONFIG, DEFAULT_NAMESPACE, END_EXPERIMENT, LATCHED, POSE_ARRAY, POSES,
+                                    RECORDING, SAFETY_REPORT, START_EXPERIMENT, STATUS, TESTBED_QOS,
+                                    warn_on_incompatible_qos)
 
 DROP_REASONS = {
     "nonfinite": "NaN or inf in a velocity",
@@ -74,7 +58,7 @@ def copy_counters(testbed, target):
 class SimulatorNode(Node):
     def __init__(self):
         super().__init__("simulator", namespace=DEFAULT_NAMESPACE)
-        self.params = declare_checked_parameters(self, PARAMETERS)
+        self.config = declare_config(self)
         self.testbed = None
         self.real_time = True
         self.experiment = ""
@@ -87,16 +71,19 @@ class SimulatorNode(Node):
         self._clock_start = 0.0
         self._tick_timer = None
 
-        self.poses_pub = self.create_publisher(RobotPoses, "poses", TESTBED_QOS)
-        self.pose_array_pub = self.create_publisher(PoseArray, "pose_array", 10)
-        self.status_pub = self.create_publisher(TestbedStatus, "status", TESTBED_QOS)
-        self.create_subscription(TwistArray, "cmd_safe", self.on_command, TESTBED_QOS,
-                                 event_callbacks=warn_on_incompatible_qos(self, "cmd_safe"))
-        self.create_subscription(SafetyReport, "safety_report", self.on_safety_report, TESTBED_QOS)
-        self.create_subscription(String, "recording", self.on_recording, LATCHED)
-        self.create_service(StartExperiment, "start_experiment", self.on_start)
-        self.create_service(EndExperiment, "end_experiment", self.on_end)
+        self.poses_pub = self.create_publisher(RobotPoses, POSES, TESTBED_QOS)
+        self.pose_array_pub = self.create_publisher(PoseArray, POSE_ARRAY, 10)
+        self.status_pub = self.create_publisher(TestbedStatus, STATUS, TESTBED_QOS)
+        # The configuration of the running experiment, for the recorder and the report.
+        self.config_pub = self.create_publisher(String, CONFIG, LATCHED)
+        self.create_subscription(TwistArray, CMD_SAFE, self.on_command, TESTBED_QOS,
+                                 event_callbacks=warn_on_incompatible_qos(self, CMD_SAFE))
+        self.create_subscription(SafetyReport, SAFETY_REPORT, self.on_safety_report, TESTBED_QOS)
+        self.create_subscription(String, RECORDING, self.on_recording, LATCHED)
+        self.create_service(StartExperiment, START_EXPERIMENT, self.on_start)
+        self.create_service(EndExperiment, END_EXPERIMENT, self.on_end)
         self.create_timer(1.0, self.publish_status_heartbeat)
+        self.config_pub.publish(String(data=self.config.to_yaml()))
         self.get_logger().info("simulator ready in namespace %s" % self.get_namespace())
 
     # -- experiments -------------------------------------------------------------------------
@@ -111,9 +98,9 @@ class SimulatorNode(Node):
         if not re.fullmatch(r"[A-Za-z0-9_-]{1,64}", name):
             response.message = "name %r must be 1 to 64 letters, digits, '-' or '_'." % name
             return response
-        p = self.params
+        c = self.config
         try:
-            model.validate_number_of_robots(int(request.number_of_robots))
+            model.validate_number_of_robots(int(request.number_of_robots), c.max_robots)
             n = int(request.number_of_robots)
             given = (len(request.x), len(request.y), len(request.theta))
             if given == (0, 0, 0):
@@ -125,10 +112,7 @@ class SimulatorNode(Node):
                 raise model.RobotariumError(
                     "initial conditions need x, y and theta of length %d each, or all empty for random ones; "
                     "received lengths %s." % (n, given))
-            self.testbed = model.Testbed(
-                poses, time_step=p["time_step"], robot_diameter=p["robot_diameter"], arena=p["arena"],
-                max_linear=p["max_linear_velocity"], max_angular=p["max_angular_velocity"],
-                max_wheel=p["max_wheel_velocity"], wheel_radius=p["wheel_radius"], base_length=p["base_length"])
+            self.testbed = model.Testbed(poses, c)
         except model.RobotariumError as error:
             response.message = str(error)
             return response
@@ -142,13 +126,14 @@ class SimulatorNode(Node):
         self._logged_drops = set()
         self._clock_start = time.monotonic()
         if self.real_time:
-            self._tick_timer = self.create_timer(1.0 / p["rate"], self.tick)
+            self._tick_timer = self.create_timer(1.0 / c.rate, self.tick)
         self.publish_state()
+        self.config_pub.publish(String(data=c.to_yaml()))
         response.success = True
         response.run_id = self.run_id
         response.x, response.y, response.theta = (to_float_array(row) for row in self.testbed.poses)
         response.message = "started %s: %d robots, %s" % (
-            self.run_id, n, "real time at %g Hz" % p["rate"] if self.real_time else "lockstep")
+            self.run_id, n, "real time at %g Hz" % c.rate if self.real_time else "lockstep")
         self.get_logger().info(response.message)
         return response
 
@@ -202,7 +187,7 @@ class SimulatorNode(Node):
             self.publish_state()
 
     def on_safety_report(self, msg):
-        if self.testbed is not None and msg.status not in ("passthrough",):
+        if self.testbed is not None and msg.status != SafetyReport.STATUS_PASSTHROUGH:
             self.safety_interventions += 1
 
     def on_recording(self, msg):
@@ -214,7 +199,7 @@ class SimulatorNode(Node):
         tb = self.testbed
         if tb is None:
             return
-        tb.expire_commands(time.monotonic(), self.params["command_timeout"])
+        tb.expire_commands(time.monotonic(), self.config.command_timeout)
         tb.step()
         self.publish_state()
 

@@ -20,7 +20,7 @@ import numbers
 
 import numpy as np
 
-from robotarium_sim.model import RobotariumError
+from robotarium_core.model import RobotariumError
 
 
 def _describe(value):

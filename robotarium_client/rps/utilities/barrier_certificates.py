@@ -6,7 +6,6 @@ too; this module only re-exports them under rps's names, so that
 `from rps.utilities.barrier_certificates import *` works as in the guide's scripts. Like rps's
 module, it also brings `np` and the transformations (rps star-imports them there).
 """
-import numpy as np
 
 from rps.utilities.transformations import *  # noqa: F401,F403 (rps's module brings them too)
 from rps.utilities.transformations import __all__ as _transformations_all

@@ -12,7 +12,7 @@ Differences from rps 0.0.0, each marked "Fix:" in the code:
 import matplotlib.pyplot as plt
 import numpy as np
 
-from robotarium_sim.model import MAX_ROBOTS, MIN_ROBOTS
+from robotarium_core.model import MAX_ROBOTS, MIN_ROBOTS
 from rps.utilities import RobotariumError, _check_array, _check_number, _describe
 
 __all__ = [

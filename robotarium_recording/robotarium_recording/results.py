@@ -3,7 +3,7 @@
 The Robotarium's results page (guide §1.3.2) gives back the experiment settings, a video of the
 run, the printed output and data files. From a bag folder this makes, beside the bag:
   report.txt        the debug report of rps.Robotarium.call_at_scripts_end(), recomputed from the
-                    recorded poses and safe commands with robotarium_sim.model's own counting
+                    recorded poses and safe commands with robotarium_core.model's own counting
                     functions, then the run's settings and a cross-check against the counters the
                     testbed published (status topic);
   trajectories.png  the arena with every robot's path, start (open circle) and end (robot drawn
@@ -11,7 +11,7 @@ run, the printed output and data files. From a bag folder this makes, beside the
   run.mp4           the run replayed at 30 frames a second of simulated time (ffmpeg from the
                     imageio-ffmpeg wheel), or run.gif with Pillow when no encoder is found.
 
-How the report is recomputed, as the simulator counts (robotarium_sim.model.Testbed.step): step
+How the report is recomputed, as the simulator counts (robotarium_core.model.Testbed.step): step
 k+1 counts collisions and robots outside the arena on the poses of step k (before the move) and
 an actuator-limit iteration when the commands in force exceed the wheel limits. In lockstep mode
 the k-th valid command array on cmd_safe is exactly the one applied at step k; in real-time mode
@@ -27,8 +27,8 @@ import sys
 
 import numpy as np
 
-from robotarium_sim import model
-from robotarium_sim.bag import Bag
+from robotarium_core import model
+from robotarium_recording.bag import Bag
 
 FPS = 30
 ROBOT_COLORS = "tab10"
@@ -63,7 +63,7 @@ def _commands_in_force_lockstep(commands, n, steps):
     return applied
 
 
-def _commands_in_force_realtime(commands, n, tick_ns, timeout=model.COMMAND_TIMEOUT):
+def _commands_in_force_realtime(commands, n, tick_ns, timeout):
     """(velocities, requested_exceeds_limits) in force at each tick (stamps of the poses it
     produced), with the simulator's 0.5 s command timeout."""
     velocities = np.zeros((2, n))
@@ -93,6 +93,7 @@ def recompute(bag):
     if not isinstance(bag, Bag):
         bag = Bag(bag)
     settings = _run_settings(bag)
+    config = bag.config()   # the numbers the run was made with, not today's defaults
     track = bag.poses()
     notes = []
     n = track.x.shape[1] if track.x.size else settings["number_of_robots"]
@@ -107,19 +108,19 @@ def recompute(bag):
         if s in by_step:
             i = by_step[s]
             poses = np.vstack((track.x[i], track.y[i], track.theta[i]))
-            collisions += model.count_collisions(poses)
-            boundary += int(np.count_nonzero(model.outside_arena(poses)))
+            collisions += model.count_collisions(poses, config.robot_diameter)
+            boundary += int(np.count_nonzero(model.outside_arena(poses, config.arena)))
 
     commands = bag.commands("cmd_safe")
     actuator = 0
     if settings["mode"] == "realtime":
         ticks = [int(track.stamp_ns[by_step[s]]) for s in range(1, steps + 1) if s in by_step]
-        for velocities, requested_over in _commands_in_force_realtime(commands, n, ticks):
-            actuator += model.is_actuator_limit_iteration(velocities, requested_over)
+        for velocities, requested_over in _commands_in_force_realtime(commands, n, ticks, config.command_timeout):
+            actuator += model.is_actuator_limit_iteration(velocities, requested_over, **config.limits)
     else:
         applied = 0
         for velocities, requested_over in _commands_in_force_lockstep(commands, n, steps):
-            actuator += model.is_actuator_limit_iteration(velocities, requested_over)
+            actuator += model.is_actuator_limit_iteration(velocities, requested_over, **config.limits)
             applied += 1
         if applied != steps:
             notes.append("%d valid command arrays on cmd_safe for %d steps: the bag is missing commands "
@@ -127,7 +128,8 @@ def recompute(bag):
 
     result = {"iterations": steps, "collisions": collisions, "boundary_violations": boundary,
               "actuator_limit_iterations": actuator, "number_of_robots": n, "settings": settings,
-              "report": model.debug_report(steps, boundary, collisions, actuator), "notes": notes,
+              "report": model.debug_report(steps, boundary, collisions, actuator, config.time_step), "notes": notes,
+              "config": config,
               "mismatches": [], "testbed": None}
     final = settings["final"]
     if final is not None:
@@ -157,7 +159,11 @@ def report_text(bag, numbers):
              "experiment:   %s   run id: %s   mode: %s" % (s["experiment"] or "?", s["run_id"] or "?", s["mode"] or "?"),
              "robots:       %d" % numbers["number_of_robots"],
              "steps:        %d (%.2f s of simulated time; the recording spans %.2f s of wall time)"
-             % (numbers["iterations"], numbers["iterations"] * model.TIME_STEP, bag.duration_ns * 1e-9)]
+             % (numbers["iterations"], numbers["iterations"] * numbers["config"].time_step, bag.duration_ns * 1e-9),
+             "config:       arena %s, command timeout %g s, time step %g s, robot diameter %g m%s" % (
+                 list(numbers["config"].arena), numbers["config"].command_timeout, numbers["config"].time_step,
+                 numbers["config"].robot_diameter, "" if bag.topic("config", required=False) in bag.topics
+                 else " (defaults: this bag predates recorded configurations)")]
     t = numbers["testbed"]
     if t is not None:
         lines.append("cross-check:  %s" % ("collisions, boundary violations, actuator-limit iterations and steps "

@@ -21,6 +21,9 @@ DEFAULT_NAMESPACE = "robotarium"
 TESTBED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
+# A topic that keeps only its last message for late subscribers (announcements, the run's configuration).
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
 CMD_REQUESTED = "cmd_requested"   # TwistArray: client -> safety node
 CMD_SAFE = "cmd_safe"             # TwistArray: safety node -> simulator
 POSES = "poses"                   # RobotPoses: simulator -> everyone
@@ -28,6 +31,7 @@ POSE_ARRAY = "pose_array"         # geometry_msgs/PoseArray for viewers
 STATUS = "status"                 # TestbedStatus
 SAFETY_REPORT = "safety_report"   # SafetyReport
 RECORDING = "recording"           # std_msgs/String: recorder -> simulator, where the run is recorded
+CONFIG = "config"                 # std_msgs/String, latched: the running experiment's TestbedConfig as YAML
 START_EXPERIMENT = "start_experiment"
 END_EXPERIMENT = "end_experiment"
 
@@ -41,5 +45,5 @@ def warn_on_incompatible_qos(node, topic):
             warned.append(True)
             node.get_logger().warning(
                 "a publisher on %s offers a QoS this testbed cannot accept (last policy: %s); publish "
-                "reliable + transient-local, e.g. robotarium_sim.topics.TESTBED_QOS" % (topic, info.last_policy_kind))
+                "reliable + transient-local, e.g. robotarium_core.topics.TESTBED_QOS" % (topic, info.last_policy_kind))
     return SubscriptionEventCallbacks(incompatible_qos=on_incompatible)

@@ -5,14 +5,14 @@ cmd_requested, cmd_safe, safety_report, status, and any other that appears there
 /rosout entries of that namespace's nodes, all taken serialized (no decode/encode round trip).
 An experiment begins when <ns>/status says RUNNING with a run id not seen before and ends with
 the IDLE status that follows (the simulator publishes a last RUNNING status with the final
-counters first). Each run goes to <bags_dir>/<run_id>/ (see robotarium_sim.bag for the format and
+counters first). Each run goes to <bags_dir>/<run_id>/ (see robotarium_recording.bag for the format and
 why a killed recorder still leaves a readable bag); its absolute path is announced on
 <ns>/recording (std_msgs/String, reliable + transient local), which the simulator hands back in
 end_experiment's `recording`, and an empty string is announced when the run is closed.
 
 Subscriptions follow rosbag2's rule: a topic is subscribed once it has publishers, reliable unless
 one of them is best effort, transient local when all of them are (the testbed's topics are: see
-robotarium_sim.topics), so the history a publisher keeps is handed over on matching and nothing
+robotarium_core.topics), so the history a publisher keeps is handed over on matching and nothing
 published before discovery completed is lost. /rosout is taken live only (volatile).
 
 Which messages belong to a run (RunRecorder below, no ROS in it): messages from different
@@ -31,7 +31,7 @@ header stamp (or the Log stamp), else the receive time.
 Parameters: bags_dir (default $ROBOTARIUM_ROOT/bags, else ./bags), chunk_seconds (0.8: a chunk
 is closed and put on disk this long after the previous one at the latest, checked on every
 message and five times a second, so no received message waits more than a second).
-Run: ros2 run robotarium_sim recorder [--ros-args -r __ns:=/other -p bags_dir:=/data/bags]
+Run: ros2 run robotarium_recording recorder [--ros-args -r __ns:=/other -p bags_dir:=/data/bags]
 """
 import importlib
 import os
@@ -47,27 +47,16 @@ from rcl_interfaces.msg import Log
 from std_msgs.msg import String
 
 from robotarium_msgs.msg import TestbedStatus
-from robotarium_sim.node_tools import run_node
-from robotarium_sim import bag
+from robotarium_core.node_tools import declare_parameter, run_node
+from robotarium_core.topics import DEFAULT_NAMESPACE, LATCHED, RECORDING
+from robotarium_recording import bag
 
-DEFAULT_NAMESPACE = "robotarium"
-
-# The testbed's topics (any other topic that appears in the namespace is recorded too).
-KNOWN_TOPICS = {
-    "poses": "robotarium_msgs/msg/RobotPoses",
-    "pose_array": "geometry_msgs/msg/PoseArray",
-    "cmd_requested": "robotarium_msgs/msg/TwistArray",
-    "cmd_safe": "robotarium_msgs/msg/TwistArray",
-    "safety_report": "robotarium_msgs/msg/SafetyReport",
-    "status": "robotarium_msgs/msg/TestbedStatus",
-}
 # Our own announcement is not part of a run.
-EXCLUDED_TOPICS = {"recording"}
+EXCLUDED_TOPICS = {RECORDING}
 
 # Deep queues: at N = 50 and 30 Hz a topic carries 30 messages a second; nothing may be dropped
 # while a chunk is compressed.
 SUBSCRIPTION_DEPTH = 1000
-LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def default_bags_dir():
@@ -172,7 +161,7 @@ class RunRecorder:
             path = os.path.join(self.bags_dir, run_id if suffix == 0 else "%s_%d" % (run_id, suffix))
             try:
                 self.writer = bag.BagWriter(path, chunk_seconds=self.chunk_seconds, custom_data={
-                    "run_id": run_id, "namespace": self.namespace, "recorder": "robotarium_sim recorder"})
+                    "run_id": run_id, "namespace": self.namespace, "recorder": "robotarium_recording recorder"})
                 break
             except FileExistsError:
                 continue
@@ -227,8 +216,10 @@ def offered_qos(endpoints):
 class RecorderNode(Node):
     def __init__(self):
         super().__init__("recorder", namespace=DEFAULT_NAMESPACE)
-        bags_dir = self.declare_parameter("bags_dir", default_bags_dir()).value or default_bags_dir()
-        chunk_seconds = float(self.declare_parameter("chunk_seconds", 0.8).value)
+        bags_dir = declare_parameter(self, "bags_dir", "", "folder the runs are recorded in (empty: "
+                                     "$ROBOTARIUM_ROOT/bags, else ./bags)") or default_bags_dir()
+        chunk_seconds = declare_parameter(self, "chunk_seconds", 0.8, "s; a chunk is written to disk at least this "
+                                          "often, so a killed recorder loses less", low=0.05, high=60.0)
         if not 0 < chunk_seconds <= 60:
             raise ValueError("parameter chunk_seconds=%r must be in (0, 60] seconds." % chunk_seconds)
         self.ns = self.get_namespace().rstrip("/")
@@ -238,7 +229,7 @@ class RecorderNode(Node):
         self.session = RunRecorder(bags_dir, self.describe, self.announce_start, self.announce_end,
                                    self.get_logger().info, chunk_seconds=chunk_seconds)
         self.session.namespace = self.ns or "/"
-        self.recording_pub = self.create_publisher(String, "recording", LATCHED)
+        self.recording_pub = self.create_publisher(String, RECORDING, LATCHED)
         self.status_topic = self.ns + "/status"
         self.subscribe("/rosout", "rcl_interfaces/msg/Log", QoSProfile(depth=SUBSCRIPTION_DEPTH))
         self._sim_missing_since = None

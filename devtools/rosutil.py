@@ -1,18 +1,18 @@
 """Helpers for node-level tests: real nodes in subprocesses, each test on its own DDS domain.
 
-- `unique_domain_id()` hands out a ROS_DOMAIN_ID no other test of this run (or of another pytest
-  run on this machine, by pid offset) uses; discovery is localhost-only, so tests cannot hear
-  each other or the network.
+- `unique_domain_id()` hands out a ROS_DOMAIN_ID no other process on this machine holds (a file
+  lock); discovery is localhost-only, so tests cannot hear each other or the network.
 - `NodeProcess` starts `python -m MODULE` from the source tree in its own process group and always
   kills the whole group on close (SIGINT, then SIGKILL).
 - `RosProbe` is an rclpy node in a private context on a given domain, with small synchronous
   helpers (call a service, wait for messages).
 """
-import itertools
+import fcntl
 import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 
 import rclpy
@@ -20,18 +20,36 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
-from robotarium_sim.topics import TESTBED_QOS
+from devtools import PACKAGE_SOURCES, REPO
+from robotarium_core.topics import TESTBED_QOS
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-SOURCE_PATHS = [os.path.join(REPO, p) for p in ("robotarium_sim", "robotarium_safety", "robotarium_client")]
-
-# Domain ids 0..232 are valid with Fast DDS; spread pytest runs by pid so concurrent runs differ.
-_domain_ids = itertools.count()
-_DOMAIN_BASE = 1 + (os.getpid() % 23) * 10
+# Domain ids 1..232 are valid with Fast DDS. Each one handed out is held with an exclusive lock
+# on a file until this process exits, so no two processes on this machine (two pytest runs, a
+# benchmark, another checkout's tests) ever share a domain, and no test of this process gets a
+# domain an earlier test used (a module's testbed may still be running on it).
+_DOMAIN_LOCKS = os.path.join(tempfile.gettempdir(), "robotarium-domains")
+_MAX_DOMAIN_ID = 232
+_held = []        # lock file descriptors, closed (released) when the process exits
+_cursor = [None]  # where the next search starts: after the last domain handed out
 
 
 def unique_domain_id():
-    return 1 + (_DOMAIN_BASE - 1 + next(_domain_ids)) % 230
+    """A ROS_DOMAIN_ID that no other process on this machine holds, locked for this process."""
+    os.makedirs(_DOMAIN_LOCKS, exist_ok=True)
+    if _cursor[0] is None:
+        _cursor[0] = os.getpid() % _MAX_DOMAIN_ID   # spread concurrent processes
+    for k in range(_MAX_DOMAIN_ID):
+        candidate = 1 + (_cursor[0] + k) % _MAX_DOMAIN_ID
+        fd = os.open(os.path.join(_DOMAIN_LOCKS, "%d.lock" % candidate), os.O_CREAT | os.O_RDWR, 0o666)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:   # held by another process, or by this one already
+            os.close(fd)
+            continue
+        _held.append(fd)
+        _cursor[0] = candidate   # 1 + candidate % N is the next one tried
+        return candidate
+    raise RuntimeError("every ROS_DOMAIN_ID 1..%d is held by a process on this machine" % _MAX_DOMAIN_ID)
 
 
 def node_env(domain_id, **extra):
@@ -39,7 +57,7 @@ def node_env(domain_id, **extra):
     env["ROS_DOMAIN_ID"] = str(domain_id)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env.pop("ROS_LOCALHOST_ONLY", None)
-    env["PYTHONPATH"] = os.pathsep.join(SOURCE_PATHS + [env.get("PYTHONPATH", "")])
+    env["PYTHONPATH"] = os.pathsep.join(PACKAGE_SOURCES + [REPO, env.get("PYTHONPATH", "")])
     env["PYTHONUNBUFFERED"] = "1"
     env["MPLBACKEND"] = "Agg"
     env.update({k: str(v) for k, v in extra.items()})

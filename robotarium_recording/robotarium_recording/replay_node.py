@@ -1,7 +1,7 @@
 """Replay a recorded run: republish its topics with the original timing, so any subscriber sees it again.
 
     ./robotarium replay BAG [--rate R] [--loop] [--figure] [--namespace NS]
-    ros2 run robotarium_sim replay BAG ...
+    ros2 run robotarium_recording replay BAG ...
 
 Every recorded topic except /rosout (the log lines stay in the bag: republishing them would mix
 them with live logs) is published again, serialized bytes as recorded, at the recorded receive
@@ -24,8 +24,8 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.utilities import remove_ros_args
 from std_srvs.srv import SetBool
 
-from robotarium_sim.bag import Bag
-from robotarium_sim.recorder_node import message_class
+from robotarium_recording.bag import Bag
+from robotarium_recording.recorder_node import message_class
 
 SKIPPED_TOPICS = {"/rosout"}
 FIGURE_HZ = 15
@@ -157,7 +157,7 @@ class Figure:
     def update(self, data, type_name):
         msg = self.bag.typestore.deserialize_cdr(data, type_name)
         if self.view is None:
-            from robotarium_sim.results import ArenaView
+            from robotarium_recording.results import ArenaView
             self.view = ArenaView(len(msg.x), "replay of %s" % self.bag.name, plt=self.plt)
             if self.interactive:
                 self.view.fig.show()

@@ -506,6 +506,16 @@ class Bag:
                                bool(getattr(msg, "requested_exceeds_limits", False))))
         return out
 
+    def config(self):
+        """The TestbedConfig the run was made with (the simulator's `config` topic); the packaged
+        default for a bag recorded before the configuration travelled with runs."""
+        from robotarium_core.config import DEFAULT, TestbedConfig
+        name = self.topic("config", required=False)
+        if name not in self.topics:
+            return DEFAULT
+        texts = [msg.data for _, msg in self.decoded([name])]
+        return TestbedConfig.from_yaml(texts[-1]) if texts else DEFAULT
+
     def statuses(self):
         """Decoded TestbedStatus messages in recorded order."""
         name = self.topic("status", required=False)

@@ -20,29 +20,23 @@ import functools
 
 import numpy as np
 
-# Arena: 3.2 m x 2 m (guide §2.7.2); rps: boundaries = [-1.6, -1, 3.2, 2] (lower left, width, height).
-ARENA_X_MIN, ARENA_X_MAX = -1.6, 1.6
-ARENA_Y_MIN, ARENA_Y_MAX = -1.0, 1.0
-BOUNDARIES = [ARENA_X_MIN, ARENA_Y_MIN, ARENA_X_MAX - ARENA_X_MIN, ARENA_Y_MAX - ARENA_Y_MIN]
+from robotarium_core.config import DEFAULT
 
-# Time step 0.033 s (guide §2.7.6, §4.2.4; rps time_step).
-TIME_STEP = 0.033
-
-# GTernal (rps robotarium_abc.py constants; guide §2.7.1, §2.7.4).
-ROBOT_DIAMETER = 0.11
-ROBOT_RADIUS = ROBOT_DIAMETER / 2
-WHEEL_RADIUS = 0.016
-BASE_LENGTH = 0.105
-MAX_LINEAR_VELOCITY = 0.2                                   # m/s, |v| <= 0.2 (guide §2.7.1)
-MAX_WHEEL_VELOCITY = MAX_LINEAR_VELOCITY / WHEEL_RADIUS     # 12.5 rad/s (guide §2.7.1)
-# rps: 2*(wheel_radius/robot_diameter)*(max_linear_velocity/wheel_radius), about 3.64 rad/s (guide §2.7.1 "about 3.6").
-MAX_ANGULAR_VELOCITY = 2 * (WHEEL_RADIUS / ROBOT_DIAMETER) * (MAX_LINEAR_VELOCITY / WHEEL_RADIUS)
-
-# Number of robots: 1 to 50 in simulation (guide §2.7.3).
-MIN_ROBOTS, MAX_ROBOTS = 1, 50
-
-# Commands older than this stop the robot until a new one arrives (guide §2.7.6).
-COMMAND_TIMEOUT = 0.5
+# The Robotarium's numbers, as module constants for the rps API and the defaults of the functions
+# below. They are written once, in the testbed configuration (robotarium_core/testbed.yaml).
+ARENA_X_MIN, ARENA_X_MAX, ARENA_Y_MIN, ARENA_Y_MAX = DEFAULT.arena   # 3.2 m x 2 m (guide §2.7.2)
+ARENA = DEFAULT.arena
+BOUNDARIES = DEFAULT.boundaries            # rps: [x_min, y_min, width, height]
+TIME_STEP = DEFAULT.time_step              # 0.033 s (guide §2.7.6, §4.2.4; rps time_step)
+ROBOT_DIAMETER = DEFAULT.robot_diameter    # GTernal (rps robotarium_abc.py; guide §2.7.1, §2.7.4)
+ROBOT_RADIUS = DEFAULT.robot_radius
+WHEEL_RADIUS = DEFAULT.wheel_radius
+BASE_LENGTH = DEFAULT.base_length
+MAX_LINEAR_VELOCITY = DEFAULT.max_linear_velocity     # |v| <= 0.2 m/s (guide §2.7.1)
+MAX_WHEEL_VELOCITY = DEFAULT.max_wheel_velocity       # 12.5 rad/s (guide §2.7.1)
+MAX_ANGULAR_VELOCITY = DEFAULT.max_angular_velocity   # about 3.64 rad/s (guide §2.7.1 "about 3.6")
+MIN_ROBOTS, MAX_ROBOTS = 1, DEFAULT.max_robots        # 1 to 50 in simulation (guide §2.7.3)
+COMMAND_TIMEOUT = DEFAULT.command_timeout             # 0.5 s (guide §2.7.6)
 
 
 class RobotariumError(ValueError, AssertionError):
@@ -63,12 +57,6 @@ def unicycle_to_wheels(dxu, wheel_radius=WHEEL_RADIUS, base_length=BASE_LENGTH):
     v, w = dxu[0], dxu[1]
     return np.vstack(((2 * v - base_length * w) / (2 * wheel_radius),
                       (2 * v + base_length * w) / (2 * wheel_radius)))
-
-
-def wheels_to_unicycle(dxdd, wheel_radius=WHEEL_RADIUS, base_length=BASE_LENGTH):
-    """2xN (left, right) wheel speeds -> 2xN (v, omega) (rps _diff_to_uni, guide §2.5.1)."""
-    left, right = dxdd[0], dxdd[1]
-    return np.vstack((wheel_radius / 2 * (left + right), wheel_radius / base_length * (right - left)))
 
 
 def fastest_wheel(v, w, wheel_radius=WHEEL_RADIUS, base_length=BASE_LENGTH):
@@ -129,25 +117,27 @@ def count_collisions(poses, robot_diameter=ROBOT_DIAMETER):
     return int(np.count_nonzero(np.sqrt(dx * dx + dy * dy) <= robot_diameter))  # as np.linalg.norm in rps
 
 
-def outside_arena(poses, arena=(ARENA_X_MIN, ARENA_X_MAX, ARENA_Y_MIN, ARENA_Y_MAX)):
+def outside_arena(poses, arena=ARENA):
     """Boolean mask of robots whose centre is outside the arena (rps _validate)."""
     x, y = poses[0], poses[1]
     return (x < arena[0]) | (x > arena[1]) | (y < arena[2]) | (y > arena[3])
 
 
-def validate_number_of_robots(number_of_robots):
+def validate_number_of_robots(number_of_robots, max_robots=MAX_ROBOTS):
+    """The one check of a robot count (client, simulator, utilities), with rps's wording."""
     if isinstance(number_of_robots, bool) or not isinstance(number_of_robots, (int, np.integer)):
         raise RobotariumError(
-            "number_of_robots must be an integer from %d to %d; received %r of type %s."
-            % (MIN_ROBOTS, MAX_ROBOTS, number_of_robots, type(number_of_robots).__name__))
-    if not MIN_ROBOTS <= number_of_robots <= MAX_ROBOTS:
+            "The number of robots (number_of_robots) must be an integer between %d and %d; received %r of "
+            "type %s." % (MIN_ROBOTS, max_robots, number_of_robots, type(number_of_robots).__name__))
+    if not MIN_ROBOTS <= number_of_robots <= max_robots:
         raise RobotariumError(
-            "number_of_robots must be from %d to %d (the simulator's range; the real testbed takes up to 20); "
-            "received %d." % (MIN_ROBOTS, MAX_ROBOTS, number_of_robots))
+            "Requested %d robots: number_of_robots must be between %d and %d (the simulator's range; the real "
+            "Robotarium deploys up to %d): pass number_of_robots=N." % (
+                number_of_robots, MIN_ROBOTS, max_robots, DEFAULT.real_testbed_max_robots))
 
 
 def validate_initial_conditions(poses, number_of_robots, robot_diameter=ROBOT_DIAMETER,
-                                arena=(ARENA_X_MIN, ARENA_X_MAX, ARENA_Y_MIN, ARENA_Y_MAX)):
+                                arena=ARENA):
     """Raise RobotariumError unless `poses` is a finite 3xN array of robots inside the arena, no
     two of them closer than a robot diameter (they would start in collision)."""
     poses = np.asarray(poses, dtype=float)
@@ -182,7 +172,6 @@ def random_initial_conditions(number_of_robots, rng, spacing=0.2, width=2.5, hei
     RobotariumABC with spacing=0.2, width=2.5, height=1.5), drawn from `rng` (a
     numpy.random.Generator or RandomState) so that a seed reproduces them.
     """
-    validate_number_of_robots(number_of_robots)
     x_range, y_range = int(np.floor(width / spacing)), int(np.floor(height / spacing))
     choices = rng.choice(x_range * y_range, number_of_robots, replace=False) + 1
     x_cell, y_cell = np.divmod(choices, y_range)
@@ -205,11 +194,11 @@ def check_commands(ids, v, w, number_of_robots):
     return None
 
 
-def debug_report(iterations, boundary_violations, collisions, actuator_limit_iterations):
+def debug_report(iterations, boundary_violations, collisions, actuator_limit_iterations, time_step=TIME_STEP):
     """The text rps.Robotarium.call_at_scripts_end() prints, character for character."""
     lines = ["##### DEBUG OUTPUT #####\n",
              "Your simulation will take approximately {0} real seconds when deployed on the Robotarium. \n\n"
-             .format(int(np.ceil(iterations * 0.033)))]
+             .format(int(np.ceil(iterations * time_step)))]
     if boundary_violations or collisions or actuator_limit_iterations:
         if boundary_violations:
             lines.append("\t Simulation had {0} iteration(s) robots were outside the boundaries.\n\n"
@@ -231,19 +220,16 @@ class Testbed:
     and passes wall-clock times for the command timeout.
     """
 
-    def __init__(self, initial_poses, time_step=TIME_STEP, robot_diameter=ROBOT_DIAMETER,
-                 arena=(ARENA_X_MIN, ARENA_X_MAX, ARENA_Y_MIN, ARENA_Y_MAX),
-                 max_linear=MAX_LINEAR_VELOCITY, max_angular=MAX_ANGULAR_VELOCITY,
-                 max_wheel=MAX_WHEEL_VELOCITY, wheel_radius=WHEEL_RADIUS, base_length=BASE_LENGTH):
+    def __init__(self, initial_poses, config=DEFAULT):
         self.poses = np.array(initial_poses, dtype=float)
         self.number_of_robots = self.poses.shape[1]
-        validate_number_of_robots(self.number_of_robots)
-        validate_initial_conditions(self.poses, self.number_of_robots, robot_diameter, arena)
-        self.time_step = time_step
-        self.robot_diameter = robot_diameter
-        self.arena = tuple(arena)
-        self.limits = dict(max_linear=max_linear, max_angular=max_angular, max_wheel=max_wheel,
-                           wheel_radius=wheel_radius, base_length=base_length)
+        validate_number_of_robots(self.number_of_robots, config.max_robots)
+        validate_initial_conditions(self.poses, self.number_of_robots, config.robot_diameter, config.arena)
+        self.config = config
+        self.time_step = config.time_step
+        self.robot_diameter = config.robot_diameter
+        self.arena = config.arena
+        self.limits = config.limits
         self.velocities = np.zeros((2, self.number_of_robots))   # commands as set, before thresholding
         self.command_times = np.full(self.number_of_robots, -np.inf)
         # The safety node's word that the script's own commands behind these exceed the limits.
@@ -294,4 +280,5 @@ class Testbed:
         return self.steps * self.time_step
 
     def report(self):
-        return debug_report(self.steps, self.boundary_violations, self.collisions, self.actuator_limit_iterations)
+        return debug_report(self.steps, self.boundary_violations, self.collisions, self.actuator_limit_iterations,
+                            self.time_step)

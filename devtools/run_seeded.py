@@ -9,9 +9,11 @@ import sys
 
 import numpy as np
 
+from robotarium_client import session
+
 seed, script = int(sys.argv[1]), os.path.abspath(sys.argv[2])
 sys.argv = [script] + sys.argv[3:]
-os.environ["ROBOTARIUM_EXPERIMENT_NAME"] = os.path.splitext(os.path.basename(script))[0]
+session.options.experiment_name = session.experiment_name_of(script)
 sys.path.insert(0, os.path.dirname(script))
 np.random.seed(seed)
 runpy.run_path(script, run_name="__main__")

@@ -1,0 +1,162 @@
+"""The Robotarium API's contract, apart from any backend (as rps's robotarium_abc.py is).
+
+`RobotariumABC` holds what every Robotarium must do the same way: the constructor's argument
+checks and defaults, the constants scripts read (`r.time_step`, `r.boundaries`, ...), the initial
+conditions, the figure, and the call-order rules of get_poses() / set_velocities() / step(). A
+backend subclass supplies the testbed: `_start`, `_advance` and `_end` (robotarium.Robotarium
+talks to the ROS 2 testbed over DDS).
+"""
+import abc
+
+import numpy as np
+
+from robotarium_core import model
+from robotarium_core.config import DEFAULT
+from robotarium_core.model import RobotariumError
+
+
+class RobotariumABC(abc.ABC):
+    """Same constructor, defaults, attributes and call-order rules as rps.robotarium.Robotarium."""
+
+    def __init__(self, number_of_robots=-1, show_figure=True, sim_in_real_time=True,
+                 initial_conditions=np.array([]), config=DEFAULT):
+        # Argument checks of rps (RobotariumABC), with messages that say what to do.
+        model.validate_number_of_robots(number_of_robots, config.max_robots)
+        if not isinstance(initial_conditions, np.ndarray):
+            raise RobotariumError(
+                "The initial conditions array argument (initial_conditions) provided to create the Robotarium "
+                "object must be a numpy ndarray. Received type %s." % type(initial_conditions).__name__)
+        if not isinstance(show_figure, bool):
+            raise RobotariumError(
+                "The display figure window argument (show_figure) provided to create the Robotarium object must "
+                "be boolean type. Received type %s." % type(show_figure).__name__)
+        if not isinstance(sim_in_real_time, bool):
+            raise RobotariumError(
+                "The simulation running at 0.033s per loop (sim_in_real_time) provided to create the Robotarium "
+                "object must be boolean type. Received type %s." % type(sim_in_real_time).__name__)
+        if initial_conditions.size > 0 and initial_conditions.shape != (3, number_of_robots):
+            raise RobotariumError(
+                "Initial conditions provided when creating the Robotarium object must of size 3xN, where N is the "
+                "number of robots used. Expected a 3 x %d array but received a %s array."
+                % (number_of_robots, " x ".join(map(str, initial_conditions.shape))))
+
+        self.number_of_robots = int(number_of_robots)
+        self.show_figure = show_figure
+        self.sim_in_real_time = sim_in_real_time
+
+        self._use_config(config)
+        self.file_path = None
+        self.current_file_size = 0
+
+        if initial_conditions.size == 0:
+            # rps draws these in the script's process from numpy's global generator, so a script
+            # that seeds numpy gets the same start as on the Robotarium simulator.
+            from rps.utilities.misc import generate_initial_conditions
+            initial_conditions = generate_initial_conditions(self.number_of_robots, spacing=0.2, width=2.5,
+                                                             height=1.5)
+        self.initial_conditions = model.validate_initial_conditions(
+            initial_conditions, self.number_of_robots, config.robot_diameter, config.arena)
+        self.velocities = np.zeros((2, self.number_of_robots))
+        self.poses = self.initial_conditions.copy()
+
+        self._called_step_already = True
+        self._checked_poses_already = False
+        self._iterations = 0
+        self._ended = False
+        self._errors = {}   # as rps: {"boundary": n, "collision": n, "actuator": n}, filled at the end
+        self.figure, self.axes = [], []
+
+    def _use_config(self, config):
+        """The constants of rps, from the testbed configuration (a backend passes the testbed's own)."""
+        self.config = config
+        self.boundaries = list(config.boundaries)
+        self.time_step = config.time_step
+        self.robot_diameter = config.robot_diameter
+        self.robot_radius = config.robot_radius
+        self.wheel_radius = config.wheel_radius
+        self.base_length = config.base_length
+        self.max_linear_velocity = config.max_linear_velocity
+        self.max_angular_velocity = config.max_angular_velocity
+        self.max_wheel_velocity = config.max_wheel_velocity
+
+    def _make_figure(self):
+        """The arena figure (r.figure, r.axes) when show_figure is True; call once the poses are known."""
+        if self.show_figure:
+            from robotarium_client.figure import ArenaFigure
+            self._arena_figure = ArenaFigure(self.boundaries, self.robot_radius, self.poses)
+            self.figure, self.axes = self._arena_figure.figure, self._arena_figure.axes
+
+    # -- the rps API ---------------------------------------------------------------------------
+
+    def get_poses(self):
+        """Returns the states of the agents: a 3xN numpy array (x, y, theta of each robot)."""
+        if self._checked_poses_already:
+            raise RobotariumError("Can only call get_poses() once per call of step().")
+        self._called_step_already = False
+        self._checked_poses_already = True
+        return self.poses.copy()
+
+    def set_velocities(self, ids, velocities):
+        """Set unicycle commands: velocities is 2 x len(ids) (v in m/s, omega in rad/s).
+
+        The testbed thresholds them to the wheel limits keeping the commanded arc, and the
+        safety node filters them through the barrier certificate before they reach the robots.
+        """
+        ids = np.asarray(ids).reshape(-1)
+        if not isinstance(velocities, np.ndarray):
+            raise RobotariumError("set_velocities: velocities must be a 2 x N numpy array; received %s."
+                                  % type(velocities).__name__)
+        velocities = np.asarray(velocities, dtype=float)
+        if velocities.ndim != 2 or velocities.shape[0] != 2 or velocities.shape[1] != ids.size:
+            raise RobotariumError(
+                "set_velocities: velocities must be 2 x %d (one column per id in ids); received shape %s."
+                % (ids.size, velocities.shape))
+        if ids.size and (not np.issubdtype(ids.dtype, np.integer) and not np.all(ids == np.round(ids))):
+            raise RobotariumError("set_velocities: ids must be integers 0..%d; received %s."
+                                  % (self.number_of_robots - 1, ids.tolist()))
+        ids = ids.astype(int)
+        if ids.size and (ids.min() < 0 or ids.max() >= self.number_of_robots or len(np.unique(ids)) != ids.size):
+            raise RobotariumError("set_velocities: ids must be distinct robot ids from 0 to %d; received %s."
+                                  % (self.number_of_robots - 1, ids.tolist()))
+        if not np.all(np.isfinite(velocities)):
+            bad = ids[~np.all(np.isfinite(velocities), axis=0)]
+            raise RobotariumError("set_velocities: velocities of robots %s are NaN or inf; compute finite "
+                                  "commands (the testbed would refuse them)." % bad.tolist())
+        self.velocities[:, ids] = velocities
+
+    def step(self):
+        """Send the commands and advance one step (0.033 s) of the testbed."""
+        if self._called_step_already:
+            raise RobotariumError("Make sure to call get_poses before calling step() again.")
+        if self._ended:
+            raise RobotariumError("The experiment has ended (call_at_scripts_end was called); start a new "
+                                  "Robotarium to run another.")
+        self._called_step_already = True
+        self._checked_poses_already = False
+        self._iterations += 1
+        self.poses = self._advance(self.velocities)
+        if self.show_figure:
+            self._arena_figure.update(self.poses)
+
+    def call_at_scripts_end(self):
+        """End the experiment and print the debug report, as rps does (again if called again)."""
+        if self._ended:
+            print(self._report, end="")
+            return
+        self._ended = True
+        self._report = self._end()
+        print(self._report, end="")
+        self._after_report()
+
+    # -- what a backend supplies ---------------------------------------------------------------------
+
+    @abc.abstractmethod
+    def _advance(self, velocities):
+        """Apply `velocities` (2 x N) for one step and return the poses (3 x N) that follow."""
+
+    @abc.abstractmethod
+    def _end(self):
+        """End the experiment; return the debug report text."""
+
+    def _after_report(self):
+        """What a backend prints after the debug report (e.g. where the run was recorded)."""

@@ -1,0 +1,62 @@
+"""How a script's Robotarium is to run: the choices of `./robotarium run`, passed explicitly.
+
+`./robotarium run` starts the script through `robotarium_client.runner`, which sets `options`
+before the script's first line; a script started any other way (`python my_script.py`) gets the
+defaults below. Two user-facing environment variables are read here and nowhere else:
+ROBOTARIUM_NAMESPACE (which testbed: /robotarium by default) and ROBOTARIUM_PROGRESS (seconds
+between progress lines; 0: none).
+"""
+import dataclasses
+import json
+import os
+import re
+import sys
+
+from robotarium_core.model import RobotariumError
+from robotarium_core.topics import DEFAULT_NAMESPACE
+
+
+def namespace_from_environment():
+    return "/" + os.environ.get("ROBOTARIUM_NAMESPACE", DEFAULT_NAMESPACE).strip("/")
+
+
+def progress_from_environment(default):
+    value = os.environ.get("ROBOTARIUM_PROGRESS", "")
+    try:
+        seconds = float(value) if value else default
+    except ValueError:
+        raise RobotariumError("ROBOTARIUM_PROGRESS must be a number of seconds (0: no progress lines); "
+                              "received %r." % value) from None
+    return seconds if seconds > 0 and seconds != float("inf") else 0.0
+
+
+def experiment_name_of(path):
+    """A run name from a script's file name: letters, digits, '-' and '_' (the simulator's rule)."""
+    name = os.path.splitext(os.path.basename(path or "experiment"))[0]
+    return re.sub(r"[^A-Za-z0-9_-]", "_", name)[:64] or "experiment"
+
+
+@dataclasses.dataclass
+class RunOptions:
+    # True/False forces real time / lockstep whatever the script says; None: as the script says.
+    real_time: object = None
+    # Start a testbed on this machine when none answers (False: one is up, or coming up: wait for it).
+    local_testbed: bool = True
+    # Seconds to wait for a testbed to answer before starting one here (or, without local_testbed, giving up).
+    connect_wait: float = 3.0
+    namespace: str = dataclasses.field(default_factory=namespace_from_environment)
+    experiment_name: str = dataclasses.field(default_factory=lambda: experiment_name_of(sys.argv[0] if sys.argv else ""))
+    progress_interval: float = dataclasses.field(default_factory=lambda: progress_from_environment(0.0))
+
+    def to_json(self):
+        return json.dumps(dataclasses.asdict(self))
+
+    @classmethod
+    def from_json(cls, text):
+        return cls(**json.loads(text))
+
+
+options = RunOptions()
+
+# The Robotarium objects the script made, newest last (the runner reads how each run ended).
+robotaria = []

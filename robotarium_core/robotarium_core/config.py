@@ -1,0 +1,180 @@
+"""The one testbed configuration: a typed object loaded from a single YAML file. Plain Python.
+
+Every default lives once, in `testbed.yaml` beside this module (a ROS 2 parameters file, so the
+nodes take it with --params-file as it is). This module says what each value means and what a
+valid one is; `TestbedConfig.load()` reads a file, `DEFAULT` is the packaged one. The simulator
+publishes the configuration of a run when it starts (`to_yaml`), the recorder keeps it in the bag,
+and the report is recomputed with it (`from_yaml`), so a run made with an edited file gets a report
+made with the same numbers.
+"""
+import dataclasses
+import math
+import os
+
+import yaml
+
+DEFAULT_FILE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "testbed.yaml")
+
+SIMULATOR, SAFETY = "simulator", "safety"
+
+
+@dataclasses.dataclass(frozen=True)
+class Field:
+    """What one configuration value means, its unit and valid range, and which nodes read it."""
+    description: str
+    low: float = -math.inf
+    high: float = math.inf
+    low_open: bool = True     # low itself is not allowed (> low) unless False (>= low)
+    used_by: tuple = (SIMULATOR, SAFETY)
+    integer: bool = False
+
+
+# name -> Field; the order is the YAML file's.
+FIELDS = {
+    "arena": Field("arena [x_min, x_max, y_min, y_max] in metres; robots outside count as boundary violations"),
+    "robot_diameter": Field("m; robot centres this close count as a collision", 0.0),
+    "wheel_radius": Field("m, GTernal wheel radius", 0.0),
+    "base_length": Field("m between the wheels", 0.0),
+    "max_linear_velocity": Field("m/s, largest forward speed", 0.0),
+    "max_angular_velocity": Field("rad/s, largest turn rate", 0.0),
+    "max_wheel_velocity": Field("rad/s, largest wheel speed", 0.0),
+    "max_robots": Field("robots the simulator accepts in one experiment", 1, 1000, low_open=False,
+                        used_by=(SIMULATOR,), integer=True),
+    "real_testbed_max_robots": Field("robots the real Robotarium deploys; the report says when a run uses more",
+                                     1, 1000, low_open=False, used_by=(SIMULATOR,), integer=True),
+    "time_step": Field("s of simulated time per step", 0.0, 1.0, used_by=(SIMULATOR,)),
+    "rate": Field("Hz of the real-time loop (one step per tick)", 0.0, 1000.0, used_by=(SIMULATOR,)),
+    "command_timeout": Field("s; a robot whose last command is older stops until a new one arrives", 0.0,
+                             used_by=(SIMULATOR,)),
+    "barrier_gain": Field("how fast robots may approach each other and the boundary", 0.0, used_by=(SAFETY,)),
+    "safety_radius": Field("m kept between the points ahead of the robots", 0.0, used_by=(SAFETY,)),
+    "projection_distance": Field("m ahead of the axle where the single-integrator point sits", 0.0,
+                                 used_by=(SAFETY,)),
+    "magnitude_limit": Field("m/s, speed bound inside the barrier QP", 0.0, used_by=(SAFETY,)),
+    "boundary_margin": Field("m each robot's centre keeps from the arena edge", 0.0, 0.5, low_open=False,
+                             used_by=(SAFETY,)),
+    "pose_timeout": Field("s; commands filtered with poses older than this become a stop", 0.0, used_by=(SAFETY,)),
+    "lockstep_wait": Field("s a lockstep command waits for the poses it was computed from", 0.0, used_by=(SAFETY,)),
+}
+
+
+class ConfigError(ValueError):
+    """A configuration value that is missing, of the wrong kind or out of range."""
+
+
+def _check(name, value):
+    field = FIELDS[name]
+    if name == "arena":
+        if (not isinstance(value, (list, tuple)) or len(value) != 4
+                or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in value)
+                or not (value[0] < value[1] and value[2] < value[3])):
+            raise ConfigError("%s must be [x_min, x_max, y_min, y_max] with min < max; received %r." % (name, value))
+        return tuple(float(v) for v in value)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ConfigError("%s must be a finite number (%s); received %r." % (name, field.description, value))
+    if field.integer and value != int(value):
+        raise ConfigError("%s must be a whole number; received %r." % (name, value))
+    low_ok = value > field.low if field.low_open else value >= field.low
+    if not (low_ok and value <= field.high):
+        raise ConfigError("%s must be in %s%g, %g]; received %r." % (
+            name, "(" if field.low_open else "[", field.low, field.high, value))
+    return int(value) if field.integer else float(value)
+
+
+@dataclasses.dataclass(frozen=True)
+class TestbedConfig:
+    """The testbed's numbers (see testbed.yaml for each one's meaning and source)."""
+    __test__ = False  # not a pytest class
+
+    arena: tuple
+    robot_diameter: float
+    wheel_radius: float
+    base_length: float
+    max_linear_velocity: float
+    max_angular_velocity: float
+    max_wheel_velocity: float
+    max_robots: int
+    real_testbed_max_robots: int
+    time_step: float
+    rate: float
+    command_timeout: float
+    barrier_gain: float
+    safety_radius: float
+    projection_distance: float
+    magnitude_limit: float
+    boundary_margin: float
+    pose_timeout: float
+    lockstep_wait: float
+
+    def __post_init__(self):
+        for name in FIELDS:
+            object.__setattr__(self, name, _check(name, getattr(self, name)))
+
+    # -- derived values (never configured separately, so they cannot disagree) ---------------------
+
+    @property
+    def robot_radius(self):
+        return self.robot_diameter / 2
+
+    @property
+    def boundaries(self):
+        """rps's [x_min, y_min, width, height]."""
+        x_min, x_max, y_min, y_max = self.arena
+        return [x_min, y_min, x_max - x_min, y_max - y_min]
+
+    @property
+    def limits(self):
+        """Keyword arguments of the model's thresholding and limit checks."""
+        return dict(max_linear=self.max_linear_velocity, max_angular=self.max_angular_velocity,
+                    max_wheel=self.max_wheel_velocity, wheel_radius=self.wheel_radius,
+                    base_length=self.base_length)
+
+    # -- reading and writing -------------------------------------------------------------------------
+
+    @classmethod
+    def from_dict(cls, values, base=None):
+        """A configuration from {name: value}; names not given are taken from `base` (or an error)."""
+        unknown = sorted(set(values) - set(FIELDS))
+        if unknown:
+            raise ConfigError("unknown configuration values %s; known: %s." % (unknown, ", ".join(FIELDS)))
+        merged = dataclasses.asdict(base) if base is not None else {}
+        merged.update(values)
+        missing = [name for name in FIELDS if name not in merged]
+        if missing:
+            raise ConfigError("the configuration lacks %s." % ", ".join(missing))
+        return cls(**{name: merged[name] for name in FIELDS})
+
+    @classmethod
+    def load(cls, path=DEFAULT_FILE, base=None):
+        """Read a ROS 2 parameters file (`/**: ros__parameters: {...}`) or a plain mapping."""
+        with open(path) as f:
+            document = yaml.safe_load(f) or {}
+        values = document
+        if isinstance(document, dict) and len(document) == 1:
+            (only,) = document.values()
+            if isinstance(only, dict) and "ros__parameters" in only:
+                values = only["ros__parameters"]
+        if not isinstance(values, dict):
+            raise ConfigError("%s holds no configuration mapping." % path)
+        try:
+            return cls.from_dict(values, base)
+        except ConfigError as error:
+            raise ConfigError("%s: %s" % (path, error)) from None
+
+    def to_dict(self):
+        values = dataclasses.asdict(self)
+        values["arena"] = list(values["arena"])
+        return values
+
+    def to_yaml(self):
+        return yaml.safe_dump(self.to_dict(), sort_keys=False)
+
+    @classmethod
+    def from_yaml(cls, text, base=None):
+        """The configuration a run published; values it lacks (an older run) come from `base`."""
+        values = yaml.safe_load(text) or {}
+        known = {k: v for k, v in values.items() if k in FIELDS}
+        return cls.from_dict(known, base if base is not None else DEFAULT)
+
+
+DEFAULT = TestbedConfig.load()
