@@ -33,11 +33,12 @@ NS = "/robotarium"
 class Stack:
     """Simulator + recorder on a private domain, and a probe that drives them."""
 
-    def __init__(self, tmp_path, recorder=True):
+    def __init__(self, tmp_path, recorder=True, config_file=None):
         self.domain = unique_domain_id()
         self.tmp_path = tmp_path
         self.bags_dir = tmp_path / "bags"
-        self.sim = NodeProcess("robotarium_sim.simulator_node", self.domain, log_path=tmp_path / "simulator.log")
+        self.sim = NodeProcess("robotarium_sim.simulator_node", self.domain, log_path=tmp_path / "simulator.log",
+                               ros_args=["--params-file", str(config_file)] if config_file else ())
         self.recorder = None
         self.probe = RosProbe(self.domain)
         self.poses = self.probe.collect(RobotPoses, NS + "/poses")
@@ -68,6 +69,11 @@ class Stack:
 
     def step(self, k, v, w):
         """One lockstep step: publish commands for every robot, wait for the poses of step k."""
+        self.command(k, v, w)
+        assert self.probe.spin_until(lambda: self.poses and self.poses[-1].step >= k, 10), "lockstep stalled at %d" % k
+
+    def command(self, k, v, w):
+        """Publish commands for every robot with step number k (0: unnumbered, real time)."""
         msg = TwistArray(step=k, ids=list(range(len(v))))
         msg.header.stamp = self.probe.node.get_clock().now().to_msg()
         msg.header.frame_id = "arena"
@@ -76,7 +82,6 @@ class Stack:
             t.linear.x, t.angular.z = float(vi), float(wi)
             msg.twists.append(t)
         self.cmd.publish(msg)
-        assert self.probe.spin_until(lambda: self.poses and self.poses[-1].step >= k, 10), "lockstep stalled at %d" % k
 
     def end(self):
         if self.recorder is not None and self.recorder.alive():
