@@ -1,0 +1,227 @@
+"""The testbed's hot messages as CDR bytes, read and written with numpy: no rclpy, no Python
+object per robot.
+
+Why: rclpy turns a `geometry_msgs/Twist[20]` into 20 Twist and 40 Vector3 Python objects, about
+0.1 ms to publish and 0.25 ms to take at every hop of every step; a PoseArray of 20 costs as
+much. A subscription made with `raw=True` hands over the serialized bytes instead and a publisher
+publishes `bytes` as they are (both a few microseconds), so the nodes and the client read and
+write these bytes here. The bytes are exactly what rclpy would send (tests/test_cdr.py compares
+them with rclpy's serialize_message, byte for byte apart from the padding, which we zero), so a
+recorder, `ros2 topic echo` and any bag reader see ordinary messages.
+
+The wire format (OMG CDR, XCDR1, as rmw_fastrtps writes it): a 4-byte encapsulation header
+(00 01 00 00: plain CDR, little endian, what every x86 and ARM publisher sends), then the fields in order, each
+aligned to its own size (at most 8) counted from the end of that header; a string is a uint32
+length (with the terminating NUL), its bytes and a NUL; a sequence is a uint32 count, then its
+elements (a struct element is aligned to its largest member; nothing is aligned for an empty
+sequence).
+
+Each message is a `Layout`: its fields in order (the header's stamp and frame_id flattened to
+`sec`, `nanosec`, `frame_id`). `parse` checks every length against the bytes it was given and
+against `max_elements` before reading anything, so a truncated, garbled or oversized array is a
+`CdrError` (a ValueError), never a crash and never a large allocation; `build` returns the bytes.
+A new field in a .msg file is one line in its layout here (tests/test_cdr.py fails until it is).
+"""
+import struct
+from collections import namedtuple
+
+import numpy as np
+
+ENCAPSULATION = b"\x00\x01\x00\x00"     # plain CDR, little endian
+
+
+_COUNT = struct.Struct("<I")   # string lengths and sequence counts
+
+
+class CdrError(ValueError):
+    """Bytes that are not a valid serialized message of the expected layout."""
+
+
+class _Scalar:
+    def __init__(self, fmt, default=0):
+        self.size = self.align = struct.calcsize(fmt)
+        self.fmt = fmt
+        self.default = default
+        self.struct = struct.Struct("<" + fmt)
+
+    def read(self, reader):
+        pos = reader.align(self.align)
+        reader.need(pos, self.size)
+        reader.pos = pos + self.size
+        return self.struct.unpack_from(reader.data, pos)[0]
+
+    def write(self, writer, value):
+        writer.align(self.align)
+        writer.put(self.struct.pack(value))
+
+
+class _String:
+    default = ""
+
+    def read(self, reader):
+        pos = reader.align(4)
+        reader.need(pos, 4)
+        length = _COUNT.unpack_from(reader.data, pos)[0]
+        if length > reader.max_string:
+            raise CdrError("a string of %d bytes at offset %d (at most %d accepted)" % (length, pos, reader.max_string))
+        reader.need(pos + 4, length)
+        reader.pos = pos + 4 + length
+        # The length counts the terminating NUL (some writers send 0 for an empty string).
+        return bytes(reader.data[pos + 4:pos + 3 + length]).decode("utf-8", errors="replace") if length else ""
+
+    def write(self, writer, value):
+        encoded = value.encode("utf-8") + b"\x00"
+        writer.align(4)
+        writer.put(_COUNT.pack(len(encoded)))
+        writer.put(encoded)
+
+
+class _Sequence:
+    """A sequence of one primitive type, or of structs of `width` float64 members (Twist: 6,
+    Pose: 7), as a numpy array (shape (count,) or (count, width))."""
+
+    def __init__(self, dtype, width=None):
+        self.dtype = np.dtype(dtype).newbyteorder("<")
+        self.width = width
+        self.element = self.dtype.itemsize * (width or 1)
+        self.align = self.dtype.itemsize
+        self.default = np.zeros((0, width) if width else 0, dtype=self.dtype)
+
+    def read(self, reader):
+        pos = reader.align(4)
+        reader.need(pos, 4)
+        count = _COUNT.unpack_from(reader.data, pos)[0]
+        reader.pos = pos + 4
+        if reader.max_elements is not None and count > reader.max_elements:
+            raise CdrError("a sequence of %d elements at offset %d (at most %d accepted)"
+                           % (count, pos, reader.max_elements))
+        if count == 0:
+            return self.default
+        start = reader.align(self.align)
+        reader.need(start, count * self.element)
+        values = np.frombuffer(reader.data, dtype=self.dtype, count=count * (self.width or 1), offset=start)
+        reader.pos = start + count * self.element
+        return values.reshape(count, self.width) if self.width else values
+
+    def write(self, writer, value):
+        values = np.ascontiguousarray(value, dtype=self.dtype)
+        count = values.shape[0] if values.ndim else 0
+        if self.width and values.shape[1:] != (self.width,):
+            raise ValueError("expected an array of shape (count, %d), got %s" % (self.width, values.shape))
+        writer.align(4)
+        writer.put(_COUNT.pack(count))
+        if count:
+            writer.align(self.align)
+            writer.put(values.tobytes())
+
+
+INT32, UINT32, UINT64, FLOAT64 = _Scalar("i"), _Scalar("I"), _Scalar("Q"), _Scalar("d", 0.0)
+BOOL = _Scalar("?", False)
+STRING = _String()
+HEADER = (("sec", INT32), ("nanosec", UINT32), ("frame_id", STRING))   # std_msgs/Header
+
+
+class _Reader:
+    def __init__(self, data, max_elements, max_string):
+        if len(data) < 4:
+            raise CdrError("%d bytes: too short for a serialized message" % len(data))
+        if data[0] != 0 or data[1] != 1:
+            raise CdrError("encapsulation %s is not little-endian plain CDR (00 01)" % bytes(data[:2]).hex())
+        self.data = memoryview(data)[4:]
+        self.pos = 0
+        self.max_elements = max_elements
+        self.max_string = max_string
+
+    def align(self, size):
+        return self.pos + (-self.pos) % size
+
+    def need(self, pos, size):
+        if pos + size > len(self.data):
+            raise CdrError("truncated: %d bytes needed at offset %d of %d" % (size, pos, len(self.data)))
+
+
+class _Writer:
+    def __init__(self):
+        self.parts = [ENCAPSULATION]
+        self.length = 0
+        self.padding = []   # (offset, size) of each padding run, counted from the encapsulation header's end
+
+    def align(self, size):
+        pad = (-self.length) % size
+        if pad:
+            self.padding.append((self.length, pad))
+            self.put(b"\x00" * pad)
+
+    def put(self, data):
+        self.parts.append(data)
+        self.length += len(data)
+
+
+class Layout:
+    """One message type's fields in wire order: parse(bytes) -> namedtuple, build(**fields) -> bytes."""
+
+    def __init__(self, type_name, fields):
+        self.type_name = type_name
+        self.fields = tuple(fields)
+        self.Message = namedtuple(type_name.rsplit("/", 1)[-1], [name for name, _ in self.fields])
+
+    def parse(self, data, max_elements=None, max_string=4096):
+        """The fields of a serialized message (numpy arrays are read-only views of `data`).
+        Raises CdrError when the bytes do not hold this layout, or when a sequence is longer
+        than max_elements or a string longer than max_string."""
+        reader = _Reader(data, max_elements, max_string)
+        return self.Message(*[kind.read(reader) for _, kind in self.fields])
+
+    def build(self, **values):
+        """Serialized bytes; fields not given are zero or empty."""
+        return b"".join(self._writer(values).parts)
+
+    def _writer(self, values):
+        unknown = set(values) - set(self.Message._fields)
+        if unknown:
+            raise TypeError("%s has no field %s" % (self.type_name, ", ".join(sorted(unknown))))
+        writer = _Writer()
+        for name, kind in self.fields:
+            kind.write(writer, values.get(name, kind.default))
+        return writer
+
+
+TWIST_ARRAY = Layout("robotarium_msgs/msg/TwistArray", HEADER + (
+    ("step", UINT64),
+    ("ids", _Sequence(np.uint32)),
+    ("twists", _Sequence(np.float64, 6)),     # linear x, y, z, angular x, y, z per robot
+    ("requested_exceeds_limits", BOOL),
+))
+
+ROBOT_POSES = Layout("robotarium_msgs/msg/RobotPoses", HEADER + (
+    ("run_id", STRING),
+    ("step", UINT64),
+    ("sim_time", FLOAT64),
+    ("ids", _Sequence(np.uint32)),
+    ("x", _Sequence(np.float64)),
+    ("y", _Sequence(np.float64)),
+    ("theta", _Sequence(np.float64)),
+))
+
+POSE_ARRAY = Layout("geometry_msgs/msg/PoseArray", HEADER + (
+    ("poses", _Sequence(np.float64, 7)),      # position x, y, z, orientation x, y, z, w per robot
+))
+
+
+def twists(v, w):
+    """(count, 6) Twist rows with linear.x = v and angular.z = w."""
+    rows = np.zeros((len(v), 6))
+    rows[:, 0] = v
+    rows[:, 5] = w
+    return rows
+
+
+def planar_poses(x, y, theta):
+    """(count, 7) Pose rows of robots on the floor: position (x, y, 0), heading as a quaternion
+    about z (as the simulator's PoseArray always was: z = sin(theta/2), w = cos(theta/2))."""
+    rows = np.zeros((len(x), 7))
+    rows[:, 0] = x
+    rows[:, 1] = y
+    rows[:, 5] = np.sin(np.asarray(theta) / 2)
+    rows[:, 6] = np.cos(np.asarray(theta) / 2)
+    return rows

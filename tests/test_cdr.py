@@ -1,0 +1,140 @@
+"""robotarium_core.cdr against rclpy's own serialization: the bytes we publish are the bytes rclpy
+would publish, and what we read from rclpy's bytes is what rclpy reads."""
+import math
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import Pose, PoseArray, Twist
+from rclpy.serialization import deserialize_message, serialize_message
+
+from robotarium_core import cdr
+from robotarium_msgs.msg import RobotPoses, TwistArray
+
+RNG = np.random.default_rng(13)
+SIZES = [0, 1, 3, 20, 50]
+
+
+def same_bytes(ours, layout, values, theirs):
+    """Ours equal rclpy's byte for byte, except in the alignment padding (rclpy leaves whatever
+    was in its buffer there; we write zeros) and after the end (rclpy's serialize_message returns
+    its size estimate, which can be a few bytes longer than the message)."""
+    theirs = bytearray(theirs[:len(ours)])
+    for offset, size in layout._writer(values).padding:
+        theirs[4 + offset:4 + offset + size] = bytes(size)
+    return bytes(theirs) == ours
+
+
+def twist_array_message(n, step, v, w, exceeds, frame="arena", sec=17, nanosec=999):
+    msg = TwistArray(step=step, requested_exceeds_limits=exceeds)
+    msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id = sec, nanosec, frame
+    msg.ids = list(range(n))
+    for vi, wi in zip(v.tolist(), w.tolist()):
+        twist = Twist()
+        twist.linear.x, twist.angular.z = vi, wi
+        msg.twists.append(twist)
+    return msg
+
+
+@pytest.mark.parametrize("n", SIZES)
+def test_twist_array_is_rclpys_message_byte_for_byte(n):
+    v, w = RNG.normal(size=(2, n))
+    exceeds = bool(n % 2)
+    msg = twist_array_message(n, 2**40 + n, v, w, exceeds)
+    values = dict(sec=17, nanosec=999, frame_id="arena", step=2**40 + n, ids=np.arange(n),
+                  twists=cdr.twists(v, w), requested_exceeds_limits=exceeds)
+    ours = cdr.TWIST_ARRAY.build(**values)
+    assert same_bytes(ours, cdr.TWIST_ARRAY, values, serialize_message(msg))
+    assert deserialize_message(ours, TwistArray) == msg
+
+    parsed = cdr.TWIST_ARRAY.parse(serialize_message(msg))
+    assert (parsed.sec, parsed.nanosec, parsed.frame_id, parsed.step) == (17, 999, "arena", 2**40 + n)
+    assert parsed.ids.tolist() == list(range(n))
+    assert np.array_equal(parsed.twists[:, 0], v) and np.array_equal(parsed.twists[:, 5], w)
+    assert not parsed.twists[:, 1:5].any()
+    assert parsed.requested_exceeds_limits is exceeds
+
+
+def test_every_twist_component_and_odd_strings():
+    """All six components land where rclpy puts them, whatever the string lengths before them."""
+    for frame in ["", "a", "ab", "abc", "abcd", "arena_5"]:
+        msg = TwistArray(step=3)
+        msg.header.frame_id = frame
+        msg.ids = [4, 2]
+        rows = RNG.normal(size=(2, 6))
+        for row in rows:
+            twist = Twist()
+            (twist.linear.x, twist.linear.y, twist.linear.z,
+             twist.angular.x, twist.angular.y, twist.angular.z) = row.tolist()
+            msg.twists.append(twist)
+        parsed = cdr.TWIST_ARRAY.parse(serialize_message(msg))
+        assert parsed.frame_id == frame and parsed.ids.tolist() == [4, 2]
+        assert np.array_equal(parsed.twists, rows)
+        ours = cdr.TWIST_ARRAY.build(frame_id=frame, step=3, ids=[4, 2], twists=rows)
+        assert deserialize_message(ours, TwistArray) == msg
+
+
+@pytest.mark.parametrize("n", SIZES)
+def test_robot_poses_and_pose_array_are_rclpys_messages(n):
+    x, y, theta = RNG.uniform(-1.5, 1.5, size=(3, n))
+    msg = RobotPoses(run_id="consensus_20261123-101500", step=n * 1000 + 7, sim_time=0.033 * 7)
+    msg.header.stamp.sec, msg.header.frame_id = 1_800_000_000, "arena"
+    msg.ids, msg.x, msg.y, msg.theta = list(range(n)), x.tolist(), y.tolist(), theta.tolist()
+    values = dict(sec=1_800_000_000, frame_id="arena", run_id=msg.run_id, step=msg.step, sim_time=msg.sim_time,
+                  ids=np.arange(n), x=x, y=y, theta=theta)
+    ours = cdr.ROBOT_POSES.build(**values)
+    assert same_bytes(ours, cdr.ROBOT_POSES, values, serialize_message(msg))
+    assert deserialize_message(ours, RobotPoses) == msg
+    parsed = cdr.ROBOT_POSES.parse(serialize_message(msg))
+    assert (parsed.run_id, parsed.step, parsed.sim_time) == (msg.run_id, msg.step, msg.sim_time)
+    assert np.array_equal(np.array([parsed.x, parsed.y, parsed.theta]), np.array([x, y, theta]))
+
+    # the viewers' PoseArray, as the simulator built it with Pose objects
+    poses = PoseArray()
+    poses.header.frame_id = "arena"
+    for xi, yi, ti in zip(x.tolist(), y.tolist(), theta.tolist()):
+        pose = Pose()
+        pose.position.x, pose.position.y = xi, yi
+        pose.orientation.z, pose.orientation.w = math.sin(ti / 2), math.cos(ti / 2)
+        poses.poses.append(pose)
+    values = dict(frame_id="arena", poses=cdr.planar_poses(x, y, theta))
+    ours = cdr.POSE_ARRAY.build(**values)
+    assert same_bytes(ours, cdr.POSE_ARRAY, values, serialize_message(poses))
+    assert deserialize_message(ours, PoseArray) == poses
+
+
+@pytest.mark.parametrize("layout, message", [(cdr.TWIST_ARRAY, TwistArray), (cdr.ROBOT_POSES, RobotPoses),
+                                             (cdr.POSE_ARRAY, PoseArray)])
+def test_layouts_follow_the_message_definitions(layout, message):
+    """A field added to a .msg file must be added to its layout too (or every parse is off)."""
+    fields = []
+    for name, kind in message.get_fields_and_field_types().items():
+        fields += ["sec", "nanosec", "frame_id"] if kind == "std_msgs/Header" else [name]
+    assert list(layout.Message._fields) == fields
+    assert layout.type_name == "%s/msg/%s" % (message.__module__.split(".")[0], message.__name__)
+
+
+def test_bad_bytes_are_a_cdr_error_never_a_crash():
+    good = serialize_message(twist_array_message(5, 9, np.ones(5), np.ones(5), False))
+    for cut in range(len(good) - 1):   # every truncation (the last byte is the bool)
+        with pytest.raises(cdr.CdrError):
+            cdr.TWIST_ARRAY.parse(good[:cut])
+    with pytest.raises(cdr.CdrError, match="encapsulation"):
+        cdr.TWIST_ARRAY.parse(b"\x00\x00\x00\x00" + good[4:])   # big-endian CDR
+    with pytest.raises(cdr.CdrError, match="at most 4 accepted"):
+        cdr.TWIST_ARRAY.parse(good, max_elements=4)
+    assert cdr.TWIST_ARRAY.parse(good, max_elements=5).ids.tolist() == [0, 1, 2, 3, 4]
+    # a count of 2**32 - 1 twists in a short message: refused from its length, nothing allocated
+    offset = 4 + 56   # encapsulation; stamp 8, "arena" 4 + 6, padding 6, step 8, ids 4 + 20
+    assert good[offset:offset + 4] == b"\x05\x00\x00\x00"
+    huge = good[:offset] + b"\xff\xff\xff\xff" + good[offset + 4:]
+    with pytest.raises(cdr.CdrError, match="truncated"):
+        cdr.TWIST_ARRAY.parse(huge)
+    with pytest.raises(cdr.CdrError, match="string"):
+        cdr.TWIST_ARRAY.parse(good[:12] + b"\xff\xff\xff\x7f" + good[16:], max_string=1024)
+
+
+def test_build_refuses_unknown_fields_and_wrong_shapes():
+    with pytest.raises(TypeError, match="no field speed"):
+        cdr.TWIST_ARRAY.build(speed=1.0)
+    with pytest.raises(ValueError, match="shape"):
+        cdr.TWIST_ARRAY.build(ids=[0], twists=np.zeros((1, 2)))
