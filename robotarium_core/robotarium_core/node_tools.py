@@ -1,15 +1,21 @@
 """What every testbed node does the same way: the testbed configuration as ROS parameters, and a
-main() that spins.
+main() that spins until a signal or its lifeline says stop, then winds down cleanly.
 
 Kept apart from model.py and config.py (no ROS there); the nodes themselves stay thin shells.
 """
 import math
+import os
+import signal
 import sys
+import time
 
 import rclpy
 from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 
+from robotarium_core import lifeline
 from robotarium_core.config import DEFAULT, FIELDS, TestbedConfig
 
 
@@ -64,23 +70,82 @@ def declare_config(node, role=None):
     return TestbedConfig.from_dict(values, base=DEFAULT)
 
 
+# The longest a node spends winding down after it was asked to stop (the simulator ending its
+# experiment, the recorder closing the run's bag); then it exits whatever is left.
+WIND_DOWN_LIMIT = 2.0
+STOP_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
+
+
+class StopRequest:
+    """Why a node should stop: a signal (SIGINT, SIGTERM, SIGHUP: Ctrl-C, `kill`, a closed
+    terminal) or its lifeline (the process that started it is gone, SIGKILL included: see
+    robotarium_core.lifeline). Made before the node, so a signal during start-up is kept too; once
+    attached to the node either one wakes its executor at once through a guard condition."""
+
+    def __init__(self):
+        self.reason = None
+        self.signals = 0
+        self._wake = None
+        for name in STOP_SIGNALS:
+            signal.signal(getattr(signal, name), self._on_signal)
+        parent = os.getppid()
+        lifeline.watch(lambda: self.request("the process that started this testbed (pid %d) is gone" % parent))
+
+    def attach(self, node):
+        self._wake = node.create_guard_condition(lambda: None)
+        if self.reason is not None:
+            self._wake.trigger()
+
+    def _on_signal(self, signum, frame):
+        self.signals += 1
+        self.request("received %s" % signal.Signals(signum).name)
+
+    def request(self, reason):
+        if self.reason is None:
+            self.reason = reason
+        if self._wake is not None:
+            self._wake.trigger()
+
+
 def run_node(make_node, name, args=None, before_destroy=None):
-    """rclpy.init, make the node (a bad parameter exits with code 2 and its message), spin until
-    Ctrl-C or shutdown, then clean up. Returns the process exit code."""
-    rclpy.init(args=args)
+    """rclpy.init, make the node (a bad parameter exits with code 2 and its message), spin until a
+    stop is requested (StopRequest), wind down, then clean up. Returns the process exit code.
+
+    Winding down, while DDS still works: a node with a `wind_down(reason)` method is told why it
+    stops; it may return a predicate "done", and the node keeps spinning until that holds or
+    WIND_DOWN_LIMIT passed (a second signal cuts it short). So on Ctrl-C, `kill`, or the death of
+    the process that started the testbed, the simulator ends the running experiment and the recorder
+    records that end and closes the bag before anything exits. Nodes started with `ros2 run` get
+    no lifeline and stop on the signals alone."""
+    # rclpy's own handlers would shut the context down at the first signal, before the wind-down.
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = StopRequest()
     try:
         node = make_node()
     except (ValueError, AssertionError, ParameterException) as error:
         print("%s: %s" % (name, error), file=sys.stderr)
         rclpy.try_shutdown()
         return 2
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    stop.attach(node)
     try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
+        while stop.reason is None and rclpy.ok():
+            executor.spin_once(timeout_sec=0.2)   # a signal's Python handler runs between waits
+        if stop.reason is not None and rclpy.ok():
+            node.get_logger().info("stopping: %s" % stop.reason)
+            wind_down = getattr(node, "wind_down", None)
+            done = wind_down(stop.reason) if wind_down is not None else None
+            deadline = time.monotonic() + WIND_DOWN_LIMIT
+            while (done is not None and not done() and stop.signals < 2 and rclpy.ok()
+                   and time.monotonic() < deadline):
+                executor.spin_once(timeout_sec=0.05)
+    except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         if before_destroy is not None:
             before_destroy(node)
+        executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
     return 0

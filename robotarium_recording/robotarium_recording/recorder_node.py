@@ -314,6 +314,11 @@ class RecorderNode(Node):
         if self.context.ok():
             self.recording_pub.publish(String(data=""))
 
+    def wind_down(self, reason):
+        """Stopping: a run still open is closed once the simulator's end of it (winding down, it
+        ends the experiment) arrived, or at run_node's limit, whichever is first."""
+        return lambda: self.session.state == "idle"
+
     def close(self):
         self.session.close()
 

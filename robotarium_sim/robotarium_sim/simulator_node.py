@@ -23,6 +23,7 @@ import time
 
 import numpy as np
 from geometry_msgs.msg import Pose, PoseArray
+from rclpy.duration import Duration
 from rclpy.node import Node
 from std_msgs.msg import String
 
@@ -158,6 +159,16 @@ class SimulatorNode(Node):
         self.publish_status()
         self.get_logger().info(response.message)
         return response
+
+    def wind_down(self, reason):
+        """Stopping (a signal, or the process that started the testbed is gone: node_tools.run_node):
+        end the running experiment as end_experiment does, and wait until its last statuses reached
+        every subscriber, so the recorder records the end and closes the run."""
+        if self.testbed is not None:
+            self.get_logger().warning("ending experiment %s: %s" % (self.run_id, reason))
+            self.on_end(EndExperiment.Request(), EndExperiment.Response())
+            self.status_pub.wait_for_all_acked(Duration(seconds=1.0))
+        return None
 
     # -- commands ----------------------------------------------------------------------------
 

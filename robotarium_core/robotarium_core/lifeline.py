@@ -1,0 +1,56 @@
+"""A lifeline from a process to the processes it starts: they notice at once when it is gone,
+however it went (SIGKILL included). Plain Python, Linux and macOS.
+
+The parent makes one pipe and keeps its write end open without ever writing to it; each child
+gets the read end (its number in ROBOTARIUM_LIFELINE_FD). When the parent dies the kernel closes
+the write end and the child's blocking read returns end-of-file: no polling, no delay beyond the
+scheduler's. Unlike Linux's parent-death signal (PR_SET_PDEATHSIG, which fires when the parent
+*thread* ends and is lost across an intermediate process), a pipe follows the process.
+
+The write end is never inherited (Python makes pipes non-inheritable and subprocess closes other
+descriptors), so only the parent holds it. A child given no lifeline (started by `ros2 run` or a
+launch file) watches nothing.
+"""
+import os
+import stat
+import threading
+
+ENV = "ROBOTARIUM_LIFELINE_FD"
+
+_pipe = []   # (read_fd, write_fd) of this process's lifeline to its children, made on first use
+
+
+def for_child(env):
+    """(env, pass_fds) for subprocess.Popen: `env` plus the lifeline of this process."""
+    if not _pipe:
+        _pipe.extend(os.pipe())
+    read_fd = _pipe[0]
+    return dict(env, **{ENV: str(read_fd)}), (read_fd,)
+
+
+def watch(on_lost, name="lifeline"):
+    """If this process was given a lifeline, call `on_lost()` (from a daemon thread) as soon as the
+    process that started it is gone. Returns whether a lifeline was given. The variable is taken
+    out of the environment, so the process's own children do not mistake it for theirs."""
+    value = os.environ.pop(ENV, None)
+    if value is None:
+        return False
+    try:
+        fd = int(value)
+        given = stat.S_ISFIFO(os.fstat(fd).st_mode)
+    except (ValueError, OSError):
+        given = False
+    if not given:
+        return False   # a stale variable (e.g. exported in a shell): nothing to watch
+
+    def wait():
+        while True:
+            try:
+                if not os.read(fd, 1):   # end of file: the last write end closed with its process
+                    break
+            except OSError:
+                break
+        on_lost()
+
+    threading.Thread(target=wait, name=name, daemon=True).start()
+    return True
