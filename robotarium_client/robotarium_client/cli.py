@@ -1,6 +1,12 @@
-"""The Python side of ./robotarium: up, run, demo, replay, report.
+"""The Python side of ./robotarium: up, run, demo, status, stop, end, replay, report.
 
 ./robotarium (bash) makes the environment and then calls `python -m robotarium_client.cli CMD`.
+
+Signals: SIGINT, SIGTERM and SIGHUP (Ctrl-C, `kill`, `timeout`, a closed terminal) to `run`, `demo`
+or `up` stop the script if it still runs (Interruption), end its experiment, stop the testbed
+nodes the command started and close the recording. SIGKILL cannot be caught: then the script and
+the nodes notice through their lifeline (robotarium_core.lifeline) that the command is gone and do
+the same by themselves.
 """
 import argparse
 import json
@@ -15,6 +21,7 @@ import time
 
 from robotarium_client import session
 from robotarium_client.testbed import LocalTestbed, namespace, repository_root, testbed_answers
+from robotarium_core import lifeline
 
 DEMO_SCRIPT = os.path.join("examples", "barrier_certificates.py")  # 8 robots swap places through the middle
 # Folders never searched for data files a script saved.
@@ -22,8 +29,75 @@ SKIP_DIRS = {".git", ".venv", ".venv-reference", "build", "install", "log", "bag
              "node_modules"}
 
 
+# Seconds a script has, after the first signal, to end its experiment before it is killed.
+SCRIPT_GRACE = 5.0
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
 def say(text):
     print("[robotarium] %s" % text, file=sys.stderr, flush=True)
+
+
+def _signal_group(process, sig):
+    """Signal the process group of a child started with process_group=0, unless it was reaped."""
+    if process.poll() is None:
+        try:
+            os.killpg(process.pid, sig)
+        except ProcessLookupError:
+            pass
+
+
+class Interruption:
+    """SIGINT, SIGTERM and SIGHUP, caught while installed: the first is remembered and forwarded
+    to the script (watch()) as SIGINT, once (its Robotarium then ends the experiment); a script
+    still running SCRIPT_GRACE seconds later, or at a second signal, is killed. The command then
+    stops what it started as after any run."""
+
+    def __init__(self):
+        self.signum = None
+        self.count = 0
+        self.script = None
+        self._timer = None
+        self._previous = {sig: signal.signal(sig, self._on_signal) for sig in STOP_SIGNALS}
+
+    @property
+    def name(self):
+        return signal.Signals(self.signum).name if self.signum else ""
+
+    @property
+    def exit_code(self):
+        """128 + the signal's number, as a shell reports a command a signal stopped (130: Ctrl-C)."""
+        return 128 + self.signum
+
+    def _on_signal(self, signum, frame):
+        self.count += 1
+        if self.signum is None:
+            self.signum = signum
+        self._forward()
+
+    def watch(self, process):
+        """Forward signals to this script (started with process_group=0)."""
+        self.script = process
+        if self.signum is not None:
+            self._forward()
+
+    def _forward(self):
+        process = self.script
+        if process is None or process.poll() is not None:
+            return
+        if self.count > 1:
+            _signal_group(process, signal.SIGKILL)
+        elif self._timer is None:
+            _signal_group(process, signal.SIGINT)
+            self._timer = threading.Timer(SCRIPT_GRACE, _signal_group, (process, signal.SIGKILL))
+            self._timer.daemon = True
+            self._timer.start()
+
+    def restore(self):
+        if self._timer is not None:
+            self._timer.cancel()
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
 
 
 def cmd_up(args):
@@ -32,20 +106,23 @@ def cmd_up(args):
         say("a testbed already answers in %s on ROS_DOMAIN_ID %s; not starting a second one"
             % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
         return 1
+    interruption = Interruption()
     testbed = LocalTestbed(record=not args.no_record, quiet=False, bags_dir=args.bags_dir,
                            config_file=args.config).start()
-    say("testbed up in namespace %s on ROS_DOMAIN_ID %s (simulator, safety%s). Ctrl-C stops it."
-        % (ns, os.environ.get("ROS_DOMAIN_ID", "0"), "" if args.no_record else ", recorder"))
-    stop = threading.Event()
-    signal.signal(signal.SIGINT, lambda *_: stop.set())
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    while not stop.wait(0.5):
-        failed = testbed.failed()
-        if failed:
-            say("node(s) exited: %s; stopping the testbed" % failed)
-            break
-    testbed.stop()
-    say("testbed stopped")
+    try:
+        say("testbed up in namespace %s on ROS_DOMAIN_ID %s (simulator, safety%s). It runs as long as this "
+            "command does: Ctrl-C (or SIGTERM, SIGHUP) stops it." % (ns, os.environ.get("ROS_DOMAIN_ID", "0"),
+                                                                   "" if args.no_record else ", recorder"))
+        while interruption.signum is None:
+            failed = testbed.failed()
+            if failed:
+                say("node(s) exited: %s; stopping the testbed" % failed)
+                break
+            time.sleep(0.2)
+    finally:
+        testbed.stop()   # a running experiment is ended and its recording closed
+        interruption.restore()
+    say("testbed stopped" + (" (%s)" % interruption.name if interruption.signum else ""))
     return 0
 
 
@@ -63,11 +140,21 @@ def _snapshot(directory):
     return seen
 
 
+def _shown(path):
+    """A path as short as it is clear: relative when it lies below the working folder."""
+    relative = os.path.relpath(path)
+    return path if relative.startswith("..") else relative
+
+
 def _tee(stream, sinks):
+    sinks = list(sinks)
     for line in iter(stream.readline, b""):
-        for sink in sinks:
-            sink.write(line)
-            sink.flush()
+        for sink in list(sinks):
+            try:
+                sink.write(line)
+                sink.flush()
+            except OSError:   # our terminal is gone (SIGHUP): keep the log, keep reading
+                sinks.remove(sink)
 
 
 def wait_until_recorded(run_dir, timeout=15.0):
@@ -91,9 +178,10 @@ def wait_until_recorded(run_dir, timeout=15.0):
 
 
 def run_script(script, script_args=(), real_time=None, record=True, bags_dir=None, results=True, video=True,
-               local_testbed=True, config_file=None):
+               local_testbed=True, config_file=None, time_limit=None):
     """Run an experiment script against the testbed (starting one here if none answers and
-    `local_testbed` allows it).
+    `local_testbed` allows it). SIGINT, SIGTERM and SIGHUP stop the script and this testbed
+    (Interruption); the results are then made as for any run that did not complete.
 
     Returns (exit code, run info dict or None, run folder or None).
     """
@@ -101,6 +189,16 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
     if not os.path.isfile(script):
         say("no such script: %s" % script)
         return 2, None, None
+    interruption = Interruption()
+    try:
+        return _run_script(script, script_args, real_time, record, bags_dir, results, video, local_testbed,
+                           config_file, time_limit, interruption)
+    finally:
+        interruption.restore()
+
+
+def _run_script(script, script_args, real_time, record, bags_dir, results, video, local_testbed, config_file,
+                time_limit, interruption):
     ns = namespace()
     testbed = None
     # Without local_testbed a testbed is known to be up (or coming up): wait for it, never start one.
@@ -110,43 +208,58 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
         say("no testbed answers in %s on ROS_DOMAIN_ID %s (--no-local-testbed forbids starting one); "
             "start it with ./robotarium up" % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
         return 2, None, None
-    else:
-        say("no testbed answers in %s: starting one on this machine for this run" % ns)
+    elif interruption.signum is None:
         testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file).start()
-
+        say("no testbed answers in %s: started one on this machine for this run (logs in %s)"
+            % (ns, _shown(testbed.log_dir)))
     work = tempfile.mkdtemp(prefix="robotarium-run-")
     info_path = os.path.join(work, "run.json")
     log_path = os.path.join(work, "log.txt")
     # The testbed is up (found or started above): the script waits for it, never starts another.
     options = session.RunOptions(real_time=real_time, local_testbed=False, namespace=ns,
                                  experiment_name=session.experiment_name_of(script),
-                                 progress_interval=session.progress_from_environment(10.0))
+                                 progress_interval=session.progress_from_environment(10.0), time_limit=time_limit)
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
         env.setdefault("MPLBACKEND", "Agg")
+    # The script's lifeline: should this command be killed outright, the script stops too.
+    env, pass_fds = lifeline.for_child(env)
     command = [sys.executable, "-m", "robotarium_client.runner", options.to_json(), info_path, script, *script_args]
 
     cwd = os.getcwd()
     before = _snapshot(cwd)
     started = time.time()
-    with open(log_path, "wb") as log:
-        process = subprocess.Popen(command, cwd=cwd, env=env,
-                                   stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-        try:
-            _tee(process.stdout, [sys.stdout.buffer, log])
-            code = process.wait()
-        except KeyboardInterrupt:
-            process.send_signal(signal.SIGINT)
-            code = process.wait()
-    if testbed is not None:
-        testbed.stop()  # the recorder closes the bag
+    code = None
+    try:
+        if interruption.signum is None:
+            with open(log_path, "wb") as log:
+                # A process group of its own: a terminal's Ctrl-C reaches only this command, which forwards it
+                # once (a second SIGINT would cut short the script's exit handler ending its experiment).
+                process = subprocess.Popen(command, cwd=cwd, env=env, pass_fds=pass_fds, process_group=0,
+                                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+                interruption.watch(process)
+                _tee(process.stdout, [sys.stdout.buffer, log])
+                code = process.wait()
+    finally:
+        if testbed is not None:
+            testbed.stop()  # the simulator ends an experiment still running; the recorder closes the bag
+        interruption.restore()   # from here on (results, video) a signal acts as usual
+    if interruption.signum is not None:
+        say("interrupted (%s): %s%s" % (
+            interruption.name, "the script was stopped" if code is not None else "before the script started",
+            " and the testbed this run started was stopped" if testbed is not None else ""))
+        code = interruption.exit_code
+    if not os.path.exists(log_path):
+        shutil.rmtree(work, ignore_errors=True)
+        return code, None, None
 
     info = None
     if os.path.exists(info_path):
         with open(info_path) as f:
             info = json.load(f)
     if info is None:
-        say("the script did not end its experiment (no call_at_scripts_end?); exit code %d" % code)
+        if interruption.signum is None:
+            say("the script did not end its experiment (no call_at_scripts_end?); exit code %d" % code)
         shutil.rmtree(work, ignore_errors=True)
         return code or 1, None, None
 
@@ -186,7 +299,8 @@ def cmd_run(args):
     real_time = {"lockstep": False, "real-time": True}.get(args.mode)
     code, _, _ = run_script(args.script, args.script_args, real_time=real_time, record=not args.no_record,
                             bags_dir=args.bags_dir, video=not args.no_video,
-                            local_testbed=not args.no_local_testbed, config_file=args.config)
+                            local_testbed=not args.no_local_testbed, config_file=args.config,
+                            time_limit=args.time_limit)
     return code
 
 
@@ -199,6 +313,127 @@ def cmd_demo(args):
     return code
 
 
+def _since(run_id):
+    """When an experiment started, from its run id (<name>_<YYYYmmdd-HHMMSS>), as a local time."""
+    try:
+        return time.strptime(run_id.rsplit("_", 1)[-1], "%Y%m%d-%H%M%S")
+    except ValueError:
+        return None
+
+
+def _ago(seconds):
+    seconds = int(max(0, seconds))
+    if seconds < 120:
+        return "%d s ago" % seconds
+    if seconds < 7200:
+        return "%d min ago" % (seconds // 60)
+    return "%.1f h ago" % (seconds / 3600)
+
+
+def _describe_status(msg):
+    """One line on what a testbed's status says, and the same as a dict (--json)."""
+    from robotarium_msgs.msg import TestbedStatus
+    if msg is None:
+        return "no testbed answers", None
+    if msg.state != TestbedStatus.STATE_RUNNING:
+        return "a testbed answers: no experiment is running", {"running": False, "last_run_id": msg.run_id}
+    since = _since(msg.run_id)
+    info = {"running": True, "experiment": msg.experiment, "run_id": msg.run_id, "mode": msg.mode,
+            "number_of_robots": msg.number_of_robots, "step": msg.step, "sim_time": msg.sim_time,
+            "since": time.strftime("%Y-%m-%d %H:%M:%S", since) if since else None}
+    text = "experiment %s running since %s: %d robots, %s, step %d (%.1f s of testbed time)" % (
+        msg.run_id, time.strftime("%H:%M:%S", since) + " (%s)" % _ago(time.time() - time.mktime(since))
+        if since else "?", msg.number_of_robots, msg.mode, msg.step, msg.sim_time)
+    return text, info
+
+
+def cmd_status(args):
+    from robotarium_client import local_testbeds
+    from robotarium_client.testbed import testbed_status
+    found = local_testbeds.find()
+    here = (local_testbeds.domain_id(), namespace())
+    # only where a simulator runs can a testbed answer (a probe that gets no answer waits the whole timeout)
+    targets = [(t["domain"], t["namespace"], t.get("discovery_range")) for t in found
+               if t["domain"] != "?" and any(name.startswith("simulator") for name in t["nodes"])]
+    statuses = testbed_status(targets + [(here[0], here[1], None)], timeout=args.timeout)
+    if args.json:
+        listed = [{k: v for k, v in t.items() if not k.startswith("_")} for t in found]
+        for t in listed:
+            t["experiment"] = _describe_status(statuses.get((t["domain"], t["namespace"])))[1]
+        print(json.dumps({"local_testbeds": listed, "here": {
+            "domain": here[0], "namespace": here[1], "answers": statuses.get(here) is not None,
+            "experiment": _describe_status(statuses.get(here))[1]}}, indent=2))
+        return 0
+    if not found:
+        print("No testbed runs on this machine.")
+    else:
+        print("Testbeds on this machine:")
+    for t in found:
+        started = ("started %s (%s)" % (time.strftime("%H:%M:%S", time.localtime(t["started"])),
+                                        _ago(time.time() - t["started"])) if t["started"] else "started ?")
+        owner = t.get("owner")
+        if owner:
+            by = "by %s (pid %d%s)" % (owner["command"], owner["pid"], "" if owner["running"] else
+                                       ", gone: its nodes should follow within seconds")
+        else:
+            by = "not by ./robotarium (ros2 run or a launch file, or left behind by an older version)"
+        print("  %s on ROS_DOMAIN_ID %s: %s %s" % (t["namespace"], t["domain"], started, by))
+        print("      nodes: %s" % (", ".join("%s %d" % item for item in sorted(t["nodes"].items())) or "none left"))
+        if t.get("log_dir"):
+            print("      logs:  %s" % t["log_dir"])
+        print("      %s" % (_describe_status(statuses.get((t["domain"], t["namespace"])))[0]
+                             if "simulator" in t["nodes"] else "no simulator: nothing can run here"))
+        print("      stop it: ./robotarium stop --domain %s --namespace %s" % (t["domain"], t["namespace"]))
+    local_here = local_testbeds.matching(found, here[1], here[0])
+    print("On ROS_DOMAIN_ID %s, namespace %s (this shell's, where ./robotarium run goes): %s%s" % (
+        here[0], here[1], _describe_status(statuses.get(here))[0],
+        "" if local_here or statuses.get(here) is None else " (not started on this machine)"))
+    return 0
+
+
+def cmd_stop(args):
+    from robotarium_client import local_testbeds
+    found = local_testbeds.find()
+    if args.all:
+        targets = found
+        where = "on this machine"
+    else:
+        ns = "/" + args.namespace.strip("/") if args.namespace else namespace()
+        domain = str(args.domain) if args.domain is not None else local_testbeds.domain_id()
+        targets = local_testbeds.matching(found, ns, domain)
+        where = "in %s on ROS_DOMAIN_ID %s on this machine" % (ns, domain)
+    if not targets:
+        say("no testbed runs %s; nothing to stop%s" % (where, " (./robotarium status lists them)" if found else ""))
+        return 1
+    for t in targets:
+        owner = t.get("owner")
+        say("stopping the testbed in %s on ROS_DOMAIN_ID %s (%s)" % (
+            t["namespace"], t["domain"], "via its owner, pid %d: %s" % (owner["pid"], owner["command"])
+            if owner and owner["running"] else "nodes %s" % ", ".join(str(p) for p in t["nodes"].values())))
+        how = local_testbeds.stop(t)
+        say("stopped: experiment ended, recording closed" if how == "stopped" else
+            "killed: it did not stop within the grace period (its recording may need ./robotarium report)")
+    return 0
+
+
+def cmd_end(args):
+    from robotarium_client.testbed import end_experiment
+    ns = namespace()
+    try:
+        response = end_experiment(ns, timeout=args.timeout)
+    except TimeoutError as error:
+        say("%s; ./robotarium status shows what runs where" % error)
+        return 1
+    if not response.success:
+        say("could not end the experiment in %s: %s" % (ns, response.message))
+        return 1
+    print(response.report, end="")
+    print("Run %s ended by ./robotarium end after %d steps; %s" % (
+        response.run_id, response.steps, "recorded in %s" % response.recording if response.recording
+        else "not recorded (no recorder was running)"))
+    return 0
+
+
 def cmd_replay(args):
     from robotarium_recording.replay_node import main as replay_main
     return replay_main(args.rest)
@@ -209,11 +444,22 @@ def cmd_report(args):
     return report_main(args.rest)
 
 
+def _seconds(text):
+    """A command-line number of seconds: finite and not negative."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (value >= 0 and value != float("inf")):
+        raise argparse.ArgumentTypeError("expected a number of seconds >= 0, got %r" % text)
+    return value
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="./robotarium", description="The Robotarium testbed on ROS 2.")
     sub = parser.add_subparsers(dest="command", required=True)
 
-    up = sub.add_parser("up", help="start the testbed nodes until Ctrl-C")
+    up = sub.add_parser("up", help="start the testbed nodes; they run as long as this command does (Ctrl-C stops)")
     up.add_argument("--no-record", action="store_true", help="do not start the recorder")
     up.add_argument("--bags-dir", help="where runs are recorded (default: bags/)")
     up.add_argument("--config", help="the testbed configuration file (default: robotarium_core's testbed.yaml)")
@@ -227,6 +473,9 @@ def main(argv=None):
                       help="one step per step() call, as fast as possible (overrides sim_in_real_time)")
     mode.add_argument("--real-time", dest="mode", action="store_const", const="real-time",
                       help="30 Hz like the real testbed (overrides sim_in_real_time)")
+    run.add_argument("--time-limit", type=_seconds, metavar="S",
+                     help="end the experiment after S seconds of testbed time, in real time and lockstep alike "
+                          "(default: the testbed's time_limit, 900 s: the real Robotarium's 15-minute slot; 0: none)")
     run.add_argument("--no-record", action="store_true", help="(local testbed only) do not record the run")
     run.add_argument("--no-video", action="store_true", help="skip rendering the video of the run")
     run.add_argument("--bags-dir", help="(local testbed only) where runs are recorded (default: bags/)")
@@ -235,6 +484,36 @@ def main(argv=None):
     run.add_argument("--no-local-testbed", action="store_true",
                      help="never start a testbed here: wait up to 60 s for one to answer (./robotarium up)")
     run.set_defaults(func=cmd_run)
+
+    status = sub.add_parser("status", help="the testbeds on this machine, and the experiment running on this domain",
+                            description="List the testbeds running on this machine (namespace, ROS_DOMAIN_ID, who "
+                                        "started them and when, process ids, logs) and, where a testbed answers, "
+                                        "which experiment runs and since when; also for ROS_DOMAIN_ID and "
+                                        "ROBOTARIUM_NAMESPACE of this shell.")
+    status.add_argument("--json", action="store_true", help="print the same as JSON")
+    status.add_argument("--timeout", type=_seconds, default=3.0, metavar="S",
+                        help="seconds to wait for testbeds to answer (default 3)")
+    status.set_defaults(func=cmd_status)
+
+    stop = sub.add_parser("stop", help="stop a testbed running on this machine (e.g. one left behind)",
+                          description="Stop the testbed running on this machine in a namespace and domain (default: "
+                                      "ROBOTARIUM_NAMESPACE and ROS_DOMAIN_ID of this shell): its owner "
+                                      "(./robotarium run or up) is asked to stop, else its nodes are; each ends its "
+                                      "experiment and closes its recording. Whatever is left after 15 s is killed.")
+    stop.add_argument("--namespace", help="the testbed's namespace (default: $ROBOTARIUM_NAMESPACE or /robotarium)")
+    stop.add_argument("--domain", type=int, help="the testbed's ROS_DOMAIN_ID (default: $ROS_DOMAIN_ID or 0)")
+    stop.add_argument("--all", action="store_true", help="every testbed on this machine")
+    stop.set_defaults(func=cmd_stop)
+
+    end = sub.add_parser("end", help="end the experiment running on the testbed and print its report",
+                         description="End the experiment running in ROBOTARIUM_NAMESPACE on ROS_DOMAIN_ID (on any "
+                                     "machine of the domain) and print its debug report and where it was recorded. "
+                                     "The testbed keeps running for the next experiment.")
+    end.add_argument("--force", action="store_true",
+                     help="end it even though another client owns it (the operator's override)")
+    end.add_argument("--timeout", type=_seconds, default=10.0, metavar="S",
+                     help="seconds to wait for the testbed (default 10)")
+    end.set_defaults(func=cmd_end)
 
     demo = sub.add_parser("demo", help="run a bundled multi-robot example headless, recorded")
     demo.add_argument("--no-video", action="store_true", help="skip rendering the video of the run")
@@ -252,10 +531,16 @@ def main(argv=None):
         own = {"--lockstep": ("mode", "lockstep"), "--real-time": ("mode", "real-time"),
                "--no-record": ("no_record", True), "--no-video": ("no_video", True),
                "--no-local-testbed": ("no_local_testbed", True)}
-        rest = []
-        for arg in args.script_args:
+        rest, given = [], iter(args.script_args)
+        for arg in given:
             if arg in own:
                 setattr(args, *own[arg])
+            elif arg == "--time-limit" or arg.startswith("--time-limit="):
+                value = arg.partition("=")[2] or next(given, "")
+                try:
+                    args.time_limit = _seconds(value)
+                except argparse.ArgumentTypeError as error:
+                    run.error("argument --time-limit: %s" % error)
             else:
                 rest.append(arg)
         args.script_args = rest

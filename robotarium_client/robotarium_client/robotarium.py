@@ -24,8 +24,20 @@ from robotarium_core import model
 from robotarium_core.model import RobotariumError
 
 STARTUP_WAIT = 60.0   # s for a testbed started here to come up
+EXIT_TIME_LIMIT = 5   # exit code of a script stopped at the time limit (README: exit codes)
 STEP_TIMEOUT = 10.0   # s without poses after a step() before we give up with an explanation
 CONFIG_WAIT = 2.0     # s for the testbed's latched configuration once its services answer
+
+
+class TimeLimitReached(SystemExit):
+    """Raised by step() once the experiment reached its time limit (testbed configuration
+    `time_limit`, or ./robotarium run --time-limit): the experiment has been ended and its report
+    printed; the rest of the script does not run. A SystemExit, so that `except Exception` in a
+    script's loop does not keep it going; the process exits with EXIT_TIME_LIMIT."""
+
+    def __init__(self, message):
+        super().__init__(EXIT_TIME_LIMIT)
+        self.message = message
 
 
 class Robotarium(RobotariumABC):
@@ -45,6 +57,8 @@ class Robotarium(RobotariumABC):
                                       "real time" if self.sim_in_real_time else "lockstep")
         self._connect()
         self._adopt_testbed_config()
+        limit = options.time_limit if options.time_limit is not None else self.config.time_limit
+        self._time_limit = float(limit) if limit and float(limit) > 0 else None
         self._start_experiment()
         session.robotaria.append(self)
         atexit.register(self._end_quietly)
@@ -61,7 +75,22 @@ class Robotarium(RobotariumABC):
             target = self._iterations
         poses = self._wait_for_step(target)
         self._progress(self._iterations)
+        if self._time_limit is not None and self._latest.sim_time >= self._time_limit - 1e-9:
+            self._stop_at_time_limit()
         return poses
+
+    def _stop_at_time_limit(self):
+        """End the experiment at its time limit as call_at_scripts_end() would, with the reason as
+        the report's first line, and stop the script (TimeLimitReached)."""
+        step, sim_time = self._latest.step, self._latest.sim_time
+        note = ("Stopped at the time limit: %g s of testbed time (step %d, %.2f s); the rest of the script "
+                "did not run." % (self._time_limit, step, sim_time))
+        self._ended = True
+        self._report = note + "\n" + self._end()
+        self.run_info["time_limit"] = {"limit": self._time_limit, "step": step, "sim_time": sim_time, "note": note}
+        print(self._report, end="")
+        self._after_report()
+        raise TimeLimitReached(note)
 
     def _end(self):
         from robotarium_msgs.srv import EndExperiment
@@ -196,7 +225,8 @@ class Robotarium(RobotariumABC):
         if not self._spin_until(lambda: self._latest is not None and self._latest.step >= target, STEP_TIMEOUT):
             raise RuntimeError(
                 "The testbed sent no poses for step %d within %.0f s. Is the safety node running (robots cannot "
-                "move without it)? Node logs are in log/testbed/ when ./robotarium started the testbed."
+                "move without it)? Node logs are in log/testbed/<namespace>_<domain>_<pid>/ when ./robotarium started "
+                "the testbed (./robotarium status lists the testbeds of this machine)."
                 % (target, STEP_TIMEOUT))
         msg = self._latest
         self._last_step = msg.step
@@ -225,7 +255,9 @@ class Robotarium(RobotariumABC):
             self._ended = True
             try:
                 from robotarium_msgs.srv import EndExperiment
-                self._call(self._end_client, EndExperiment.Request(), timeout=5.0)
+                # (a testbed whose service is gone has ended the experiment itself, or is gone with it)
+                if self._end_client.service_is_ready():
+                    self._call(self._end_client, EndExperiment.Request(), timeout=5.0)
             except Exception:
                 pass
         self._shutdown()

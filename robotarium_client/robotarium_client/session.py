@@ -47,6 +47,9 @@ class RunOptions:
     namespace: str = dataclasses.field(default_factory=namespace_from_environment)
     experiment_name: str = dataclasses.field(default_factory=lambda: experiment_name_of(sys.argv[0] if sys.argv else ""))
     progress_interval: float = dataclasses.field(default_factory=lambda: progress_from_environment(0.0))
+    # Seconds of testbed time after which the experiment is ended and the script stopped (None: the
+    # testbed configuration's time_limit; 0: no limit).
+    time_limit: object = None
 
     def to_json(self):
         return json.dumps(dataclasses.asdict(self))

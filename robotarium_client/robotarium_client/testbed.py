@@ -3,13 +3,22 @@
 The testbed is three nodes: the simulator, the safety node and the recorder. `LocalTestbed`
 runs them as subprocesses (the embedded default of `./robotarium run` and of a script run with
 no testbed around) and stops them again; `./robotarium up` keeps one running until Ctrl-C.
+
+A local testbed never outlives the process that started it: each node holds that process's
+lifeline (robotarium_core.lifeline) and, when it is gone (SIGKILL included), ends the experiment,
+closes the recording and exits. Each local testbed logs into its own folder,
+log/testbed/<namespace>_<domain>_<pid>/, and is listed in the registry of the machine's testbeds
+(robotarium_client.local_testbeds) while it runs.
 """
 import os
+import shutil
 import signal
 import subprocess
 import sys
 import time
 
+from robotarium_client import local_testbeds
+from robotarium_core import lifeline
 from robotarium_core.config import DEFAULT_FILE
 from robotarium_core.topics import DEFAULT_NAMESPACE
 
@@ -41,26 +50,69 @@ def node_command(name, ns=None, extra_ros_args=(), config_file=DEFAULT_FILE):
     return cmd + list(extra_ros_args)
 
 
+# Log folders of stopped local testbeds kept under log/testbed/ (older ones are removed).
+KEEP_LOG_DIRS = 20
+
+
+def owner_command():
+    """How the process starting a testbed was started, for `./robotarium status`."""
+    argv = list(sys.argv)
+    if argv and argv[0].replace(os.sep, "/").endswith("robotarium_client/cli.py"):
+        return " ".join(["./robotarium"] + argv[1:])
+    return " ".join([os.path.basename(sys.executable)] + argv)
+
+
+def default_log_dir(ns):
+    """log/testbed/<namespace>_<domain>_<pid>/ of the checkout: one folder per local testbed, so
+    that concurrent testbeds never write into each other's logs."""
+    base = os.path.join(repository_root(), "log", "testbed")
+    name = "%s_%s_%d" % (ns.strip("/").replace("/", "-") or "root", local_testbeds.domain_id(), os.getpid())
+    path, k = os.path.join(base, name), 1
+    while os.path.exists(path):   # a second testbed of this process in the same namespace and domain
+        k += 1
+        path = os.path.join(base, "%s_%d" % (name, k))
+    _prune_log_dirs(base)
+    return path
+
+
+def _prune_log_dirs(base):
+    """Keep the newest KEEP_LOG_DIRS log folders of stopped testbeds; never touch a running one's."""
+    try:
+        folders = [os.path.join(base, d) for d in os.listdir(base) if os.path.isdir(os.path.join(base, d))]
+    except FileNotFoundError:
+        return
+    in_use = {entry["log_dir"] for _, entry in local_testbeds.registered()}
+    old = sorted((f for f in folders if os.path.abspath(f) not in in_use), key=os.path.getmtime)
+    for folder in old[:max(0, len(old) - KEEP_LOG_DIRS)]:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 class LocalTestbed:
-    """Simulator, safety node and recorder in subprocesses, stopped together."""
+    """Simulator, safety node and recorder in subprocesses, stopped together, and tied to this
+    process by its lifeline."""
 
     def __init__(self, log_dir=None, record=True, ns=None, bags_dir=None, quiet=True, config_file=None):
         self.ns = ns or namespace()
         self.config_file = config_file
-        self.log_dir = log_dir or os.path.join(repository_root(), "log", "testbed")
+        self.log_dir = log_dir   # None: log/testbed/<namespace>_<domain>_<pid>/, chosen at start
         self.names = ["simulator", "safety"] + (["recorder"] if record else [])
         self.bags_dir = bags_dir
         self.quiet = quiet
         self.processes = {}
+        self.registry_entry = None
 
     def start(self):
+        self.log_dir = self.log_dir or default_log_dir(self.ns)
         os.makedirs(self.log_dir, exist_ok=True)
+        # Each node reads the lifeline's end: it stops when this process is gone, however it went.
+        env, pass_fds = lifeline.for_child(os.environ)
         for name in self.names:
             extra = ["-p", "bags_dir:=%s" % self.bags_dir] if name == "recorder" and self.bags_dir else []
             log = open(os.path.join(self.log_dir, name + ".log"), "wb") if self.quiet else None
             self.processes[name] = (subprocess.Popen(
                 node_command(name, self.ns, extra, self.config_file), stdout=log, stderr=subprocess.STDOUT if log else None,
-                start_new_session=True), log)
+                env=env, pass_fds=pass_fds, start_new_session=True), log)
+        self.registry_entry = local_testbeds.register(self, owner_command())
         return self
 
     def failed(self):
@@ -68,7 +120,8 @@ class LocalTestbed:
         return {name: p.returncode for name, (p, _) in self.processes.items() if p.poll() is not None}
 
     def stop(self, grace=5.0):
-        """SIGINT everyone (the recorder closes its bag), then SIGKILL what is left."""
+        """SIGINT everyone (the simulator ends a running experiment, the recorder closes its bag:
+        node_tools.run_node's wind-down, at most 2 s), then SIGKILL what is left after `grace`."""
         for process, _ in self.processes.values():
             if process.poll() is None:
                 os.killpg(process.pid, signal.SIGINT)
@@ -82,6 +135,8 @@ class LocalTestbed:
             if log:
                 log.close()
         self.processes = {}
+        local_testbeds.unregister(self.registry_entry)
+        self.registry_entry = None
 
     def __enter__(self):
         return self.start()
@@ -107,4 +162,111 @@ def testbed_answers(ns=None, timeout=3.0):
         node.destroy_node()
         return found
     finally:
+        rclpy.try_shutdown(context=context)
+
+
+def _private_context(domain=None, discovery_range=None):
+    """An initialised rclpy context on `domain` (default: ROS_DOMAIN_ID) with the given discovery
+    range (default: ROS_AUTOMATIC_DISCOVERY_RANGE), which rcl reads when the context starts."""
+    import rclpy
+    from rclpy.context import Context
+    saved = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE")
+    if discovery_range:
+        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = discovery_range
+    try:
+        context = Context()
+        rclpy.init(context=context, args=[], domain_id=None if domain is None else int(domain))
+    finally:
+        if discovery_range:
+            if saved is None:
+                os.environ.pop("ROS_AUTOMATIC_DISCOVERY_RANGE", None)
+            else:
+                os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = saved
+    return context
+
+
+def testbed_status(targets, timeout=3.0):
+    """The newest status of the testbed in each (domain, namespace, discovery range) of `targets`:
+    {(domain, namespace): robotarium_msgs TestbedStatus, or None where no testbed answered within
+    `timeout` seconds}. The status topic keeps its last messages (transient local), so a testbed
+    answers as soon as discovery matched it; all domains are probed at once."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    from robotarium_core.topics import STATUS
+    from robotarium_msgs.msg import TestbedStatus
+
+    # The testbed's status QoS, but keeping only the newest message of the history handed over.
+    NEWEST_ONLY = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+    newest = {}
+    probes = []   # (context, executor, node)
+    by_domain = {}
+    for domain, ns, discovery_range in targets:   # one probe per domain (the first discovery range given)
+        probe = by_domain.setdefault(str(domain), [discovery_range, set()])
+        probe[1].add(ns)
+    try:
+        for domain, (discovery_range, namespaces) in by_domain.items():
+            context = _private_context(domain, discovery_range)
+            node = Node("robotarium_status_%d_%s" % (os.getpid(), domain), context=context)
+            executor = SingleThreadedExecutor(context=context)
+            executor.add_node(node)
+            probes.append((context, executor, node))
+            for ns in namespaces:
+                newest[(domain, ns)] = None
+
+                def keep(msg, key=(domain, ns)):
+                    old = newest[key]
+                    stamp = (msg.header.stamp.sec, msg.header.stamp.nanosec)
+                    if old is None or stamp >= (old.header.stamp.sec, old.header.stamp.nanosec):
+                        newest[key] = msg
+                node.create_subscription(TestbedStatus, "%s/%s" % (ns.rstrip("/"), STATUS), keep, NEWEST_ONLY)
+        deadline = time.monotonic() + timeout
+        while any(v is None for v in newest.values()) and time.monotonic() < deadline:
+            for _, executor, _ in probes:
+                executor.spin_once(timeout_sec=0.02)
+        # a moment more, for anything newer still on its way
+        settle = time.monotonic() + 0.2
+        while time.monotonic() < settle:
+            for _, executor, _ in probes:
+                executor.spin_once(timeout_sec=0.02)
+    finally:
+        for context, executor, node in probes:
+            executor.shutdown()
+            node.destroy_node()
+            rclpy.try_shutdown(context=context)
+    return newest
+
+
+def end_experiment(ns=None, timeout=10.0):
+    """Call <ns>/end_experiment on this domain; returns the response (raises TimeoutError when no
+    testbed answers)."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    from robotarium_core.topics import END_EXPERIMENT
+    from robotarium_msgs.srv import EndExperiment
+
+    ns = ns or namespace()
+    context = _private_context()
+    node = Node("robotarium_end_%d" % os.getpid(), context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    try:
+        client = node.create_client(EndExperiment, "%s/%s" % (ns.rstrip("/"), END_EXPERIMENT))
+        if not client.wait_for_service(timeout_sec=timeout):
+            raise TimeoutError("no testbed answers in %s on ROS_DOMAIN_ID %s" % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
+        future = client.call_async(EndExperiment.Request())
+        executor.spin_until_future_complete(future, timeout_sec=timeout)
+        if not future.done():
+            raise TimeoutError("the testbed in %s did not answer end_experiment within %.0f s" % (ns, timeout))
+        return future.result()
+    finally:
+        executor.shutdown()
+        node.destroy_node()
         rclpy.try_shutdown(context=context)

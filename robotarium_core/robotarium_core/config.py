@@ -15,7 +15,7 @@ import yaml
 
 DEFAULT_FILE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "testbed.yaml")
 
-SIMULATOR, SAFETY = "simulator", "safety"
+SIMULATOR, SAFETY, CLIENT = "simulator", "safety", "client"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -55,6 +55,8 @@ FIELDS = {
                              used_by=(SAFETY,)),
     "pose_timeout": Field("s; commands filtered with poses older than this become a stop", 0.0, used_by=(SAFETY,)),
     "lockstep_wait": Field("s a lockstep command waits for the poses it was computed from", 0.0, used_by=(SAFETY,)),
+    "time_limit": Field("s of testbed time after which the client ends an experiment (0: no limit)", 0.0,
+                        low_open=False, used_by=(CLIENT,)),
 }
 
 
@@ -105,6 +107,7 @@ class TestbedConfig:
     boundary_margin: float
     pose_timeout: float
     lockstep_wait: float
+    time_limit: float
 
     def __post_init__(self):
         for name in FIELDS:

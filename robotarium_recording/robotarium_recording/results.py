@@ -22,6 +22,7 @@ cross-check then says so).
 Usage: ./robotarium report BAG [--out DIR] [--no-video]   (BAG: a run folder under bags/)
 """
 import argparse
+import json
 import os
 import sys
 
@@ -342,6 +343,15 @@ def render_video(track, out_dir, title="", progress=True, fps=FPS, fmt=None):
 
 # -- entry points -----------------------------------------------------------------------------------
 
+def _run_json(bag_dir):
+    """run.json beside a bag (./robotarium run writes it: how the script's run ended), or {}."""
+    try:
+        with open(os.path.join(bag_dir, "run.json"), encoding="utf-8") as f:
+            return json.load(f)
+    except (OSError, ValueError):
+        return {}
+
+
 def write_results(bag_dir, progress=True, *, out_dir=None, video=True):
     """Write report.txt, trajectories.png and run.mp4 (or run.gif) for the run in `bag_dir` (into
     `out_dir`, default the bag folder). Returns {"report": path, "trajectories": path, "video": path}
@@ -351,8 +361,12 @@ def write_results(bag_dir, progress=True, *, out_dir=None, video=True):
     os.makedirs(out_dir, exist_ok=True)
     numbers = recompute(bag)
     paths = {"report": os.path.join(out_dir, "report.txt")}
+    text = report_text(bag, numbers)
+    stopped = _run_json(bag.path).get("time_limit")
+    if stopped:   # the client ended the run at its time limit: say so first, as its printed report did
+        text = stopped["note"] + "\n" + text
     with open(paths["report"], "w", encoding="utf-8") as f:
-        f.write(report_text(bag, numbers))
+        f.write(text)
     track = bag.poses()
     s = numbers["settings"]
     title = "%s: %d robots, %d steps" % (s["run_id"] or bag.name, numbers["number_of_robots"], numbers["iterations"])
