@@ -161,3 +161,68 @@ class RosProbe:
         self.executor.shutdown()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
+
+
+def processes_on_domain(domain_id):
+    """{pid: command line} of every live process on this machine whose environment has this
+    ROS_DOMAIN_ID: with a domain of one's own (unique_domain_id), every process a test started
+    there, however it was started or orphaned, and nothing else."""
+    wanted = b"ROS_DOMAIN_ID=%d" % domain_id
+    found = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open("/proc/%s/environ" % entry, "rb") as f:
+                if wanted not in f.read().split(b"\0"):
+                    continue
+            with open("/proc/%s/cmdline" % entry, "rb") as f:
+                found[int(entry)] = f.read().replace(b"\0", b" ").decode(errors="replace").strip()
+        except OSError:   # gone meanwhile, or not ours to read
+            continue
+    return found
+
+
+class CliRun:
+    """`./robotarium run ARGS` (python -m robotarium_client.cli) in a session of its own, its
+    output collected line by line; wait_for(text) waits until a line contains text."""
+
+    def __init__(self, args, env, cwd):
+        import threading
+        self.lines = []
+        self._changed = threading.Condition()
+        self.proc = subprocess.Popen([sys.executable, "-m", "robotarium_client.cli", "run", *args], env=env, cwd=cwd,
+                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self):
+        for raw in iter(self.proc.stdout.readline, b""):
+            with self._changed:
+                self.lines.append(raw.decode(errors="replace").rstrip("\n"))
+                self._changed.notify_all()
+        with self._changed:
+            self.lines.append(None)   # end of output
+            self._changed.notify_all()
+
+    def wait_for(self, text, timeout):
+        with self._changed:
+            return self._changed.wait_for(lambda: any(line is None or text in line for line in self.lines),
+                                          timeout) and any(line is not None and text in line for line in self.lines)
+
+    def output(self):
+        return "\n".join(line for line in self.lines if line is not None)
+
+    def wait(self, timeout):
+        code = self.proc.wait(timeout=timeout)
+        self._reader.join(timeout)
+        return code
+
+    def close(self):
+        """Never leave it behind: SIGKILL the whole session if it still runs."""
+        if self.proc.poll() is None:
+            try:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        self.proc.wait()

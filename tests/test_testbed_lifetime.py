@@ -1,0 +1,215 @@
+"""A testbed that `./robotarium run` starts never outlives the run (issue 17).
+
+Real processes throughout: `./robotarium run` starts a real local testbed (simulator, safety node,
+recorder) for a real-time script that would run forever, and the test sends one signal to the
+`run` process alone, as `kill`, `timeout`, a CI runner or a closed terminal does. SIGTERM, SIGHUP
+and SIGINT are caught by `run` (it stops the script, which ends its experiment, then the nodes);
+SIGKILL cannot be, and the script and the nodes notice through their lifeline that `run` is gone.
+Either way, within seconds:
+- no process of that run remains (every process whose environment has the test's own
+  ROS_DOMAIN_ID is counted, so an orphan cannot hide);
+- the bag reads back with two independent readers (rosbags; mcap with mcap-ros2-support), was
+  closed properly (metadata says complete, the MCAP file has its summary) and records the end of
+  the experiment (its last status is IDLE);
+- the next run in the same namespace works: every run here starts in the namespace the previous
+  test's run was stopped in, and must find no testbed there and start its own experiment (an
+  orphaned testbed would answer, and refuse the experiment as "still running"). The time-limit
+  test runs last, after SIGKILL.
+The bounds (how fast) are measured by `./robotarium bench testbed_lifetime`, not asserted here.
+"""
+import glob
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from devtools.rosutil import CliRun, NodeProcess, RosProbe, node_env, processes_on_domain, unique_domain_id
+
+NAMESPACE = "/lifetime"
+# Real time, two robots, forever (a goal loop that never converges); prints RUNNING once it runs.
+FOREVER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "run_forever.py")
+
+
+@pytest.fixture(scope="module")
+def lab(tmp_path_factory):
+    """One domain and namespace for the module's runs; its own checkout root (log/testbed/ there)."""
+    domain = unique_domain_id()
+    root = tmp_path_factory.mktemp("lifetime")
+    script = root / "forever.py"
+    shutil.copy(FOREVER, script)
+    env = node_env(domain, ROBOTARIUM_NAMESPACE=NAMESPACE, ROBOTARIUM_ROOT=str(root), ROBOTARIUM_PROGRESS="0")
+    try:
+        yield {"domain": domain, "root": root, "script": str(script), "bags": str(root / "bags"), "env": env}
+    finally:
+        leftovers = processes_on_domain(domain)   # only after a failure: never leave them running
+        for pid in leftovers:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+
+def run_folders(bags):
+    return set(glob.glob(os.path.join(bags, "forever_*")))
+
+
+def start_run(lab, *flags):
+    """./robotarium run FLAGS forever.py, until the script's loop runs; checks that it started
+    its own testbed (none was left answering in the namespace)."""
+    run = CliRun(["--bags-dir", lab["bags"], *flags, lab["script"]], lab["env"], cwd=str(lab["root"]))
+    try:
+        assert run.wait_for("RUNNING", timeout=90), run.output()
+    except BaseException:
+        run.close()
+        raise
+    assert "started one on this machine" in run.output(), run.output()
+    return run
+
+
+def wait_until_gone(domain, timeout=20.0):
+    """The processes still on the domain once none is left or `timeout` passed."""
+    deadline = time.monotonic() + timeout
+    while processes_on_domain(domain) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    return processes_on_domain(domain)
+
+
+def read_back(folder):
+    """The run's bag through two independent readers; returns (poses count, last status state)."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    from rosbags.rosbag2 import Reader
+
+    import yaml
+    with open(os.path.join(folder, "metadata.yaml")) as f:   # closed by the recorder, not recovered
+        assert yaml.safe_load(f)["rosbag2_bagfile_information"]["custom_data"]["complete"] == "true"
+    with Reader(folder) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        assert sum(1 for _ in reader.messages()) == reader.message_count
+    (mcap_file,) = glob.glob(os.path.join(folder, "*.mcap"))
+    with open(mcap_file, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        assert reader.get_summary() is not None, "the MCAP file was not closed (no summary)"
+        statuses = [m.state for _, channel, _, m in reader.iter_decoded_messages(topics=[NAMESPACE + "/status"])]
+    return counts[NAMESPACE + "/poses"], statuses[-1]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT, signal.SIGKILL],
+                         ids=lambda s: s.name)
+def test_a_signal_to_run_leaves_no_testbed_behind(lab, sig):
+    before = run_folders(lab["bags"])
+    run = start_run(lab)
+    try:
+        os.kill(run.proc.pid, sig)   # to `run` alone, as `kill PID` does
+        code = run.wait(timeout=60)
+    finally:
+        run.close()
+    # caught signals: the shell's 128 + n; SIGKILL: killed
+    assert code == (-sig if sig == signal.SIGKILL else 128 + sig), run.output()
+    left = wait_until_gone(lab["domain"])
+    assert not left, "still running after %s to ./robotarium run: %s" % (sig.name, left)
+    (folder,) = run_folders(lab["bags"]) - before
+    poses, last_state = read_back(folder)
+    assert poses > 5
+    from robotarium_msgs.msg import TestbedStatus
+    assert last_state == TestbedStatus.STATE_IDLE, "the recording does not show the experiment ending"
+    # the local testbed's registry entry went with it; its logs stay in a folder of its own
+    assert not [e for e in _registry_entries() if e["domain"] == str(lab["domain"])]
+    assert glob.glob(os.path.join(str(lab["root"]), "log", "testbed", "lifetime_%d_*" % lab["domain"], "simulator.log"))
+
+
+def _registry_entries():
+    from robotarium_client import local_testbeds
+    return [entry for _, entry in local_testbeds.registered()]
+
+
+def test_the_time_limit_ends_the_experiment_cleanly(lab):
+    """--time-limit 1 in lockstep: exactly ceil(1 / 0.033) = 31 steps, then the experiment is ended,
+    the script stopped (exit code 5), the report says so and every result is written."""
+    before = run_folders(lab["bags"])
+    run = CliRun(["--bags-dir", lab["bags"], "--lockstep", "--no-video", "--time-limit", "1", lab["script"]],
+                 lab["env"], cwd=str(lab["root"]))
+    try:
+        code = run.wait(timeout=120)
+    finally:
+        run.close()
+    out = run.output()
+    assert code == 5, out
+    assert "Stopped at the time limit: 1 s of testbed time (step 31" in out, out
+    assert "RUNNING" in out and "##### DEBUG OUTPUT #####" in out, out
+    assert not wait_until_gone(lab["domain"])
+    (folder,) = run_folders(lab["bags"]) - before
+    with open(os.path.join(folder, "report.txt")) as f:
+        assert f.readline().startswith("Stopped at the time limit: 1 s of testbed time (step 31,")
+    with open(os.path.join(folder, "run.json")) as f:
+        info = json.load(f)
+    assert info["steps"] == 31 and info["time_limit"]["limit"] == 1.0 and info["exit_code"] == 5
+    for name in ("log.txt", "trajectories.png", "forever.py"):
+        assert os.path.exists(os.path.join(folder, name)), name
+    poses, last_state = read_back(folder)
+    assert poses == 32   # step 0 and the 31 steps, nothing after the limit
+
+
+def cli(lab, *args, ns=NAMESPACE, timeout=60):
+    env = dict(lab["env"], ROBOTARIUM_NAMESPACE=ns)
+    return subprocess.run([sys.executable, "-m", "robotarium_client.cli", *args], env=env, cwd=str(lab["root"]),
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def test_status_lists_local_testbeds_and_stop_and_end_get_rid_of_them(lab):
+    """`up` in our namespace and a stray simulator in another (started without a lifeline, as by
+    `ros2 run`): status lists both with their process ids, the experiment running on the first and
+    since when; `end` ends that experiment and prints its report; `stop` stops each, cleanly."""
+    from robotarium_msgs.srv import StartExperiment
+    up = subprocess.Popen([sys.executable, "-m", "robotarium_client.cli", "up", "--bags-dir", lab["bags"]],
+                          env=lab["env"], cwd=str(lab["root"]), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                          start_new_session=True)
+    stray = NodeProcess("robotarium_sim.simulator_node", lab["domain"], ros_args=["-r", "__ns:=/stray"])
+    probe = RosProbe(lab["domain"])
+    try:
+        started = probe.call(StartExperiment, NAMESPACE + "/start_experiment",
+                             StartExperiment.Request(name="held", number_of_robots=3, real_time=True), timeout=60)
+        assert started.success, started.message
+
+        status = cli(lab, "status", "--json")
+        assert status.returncode == 0, status.stderr
+        listed = {t["namespace"]: t for t in json.loads(status.stdout)["local_testbeds"]
+                  if t["domain"] == str(lab["domain"])}
+        ours, other = listed[NAMESPACE], listed["/stray"]
+        assert ours["owner"]["command"].startswith("./robotarium up") and ours["owner"]["pid"] == up.pid
+        assert set(ours["nodes"]) == {"simulator", "safety", "recorder"}
+        assert ours["experiment"]["running"] and ours["experiment"]["run_id"] == started.run_id
+        assert ours["experiment"]["since"]
+        assert other["owner"] is None and other["nodes"] == {"simulator": stray.proc.pid}
+
+        end = cli(lab, "end")
+        assert end.returncode == 0, end.stderr
+        assert "##### DEBUG OUTPUT #####" in end.stdout and started.run_id in end.stdout, end.stdout
+
+        stopped = cli(lab, "stop", "--namespace", "/stray")
+        assert stopped.returncode == 0 and "stopped: " in stopped.stderr, stopped.stderr
+        assert stray.proc.wait(timeout=5) == 0
+        stopped = cli(lab, "stop")   # this shell's namespace: asks `up` to stop
+        assert stopped.returncode == 0 and "stopped: " in stopped.stderr, stopped.stderr
+        assert up.wait(timeout=5) == 0
+        assert not wait_until_gone(lab["domain"])
+        assert cli(lab, "stop").returncode == 1   # nothing left to stop
+    finally:
+        probe.close()
+        stray.close()
+        if up.poll() is None:
+            os.killpg(up.pid, signal.SIGKILL)
+        up.wait()
+
+
+def test_every_new_command_has_help():
+    from robotarium_client import cli as robotarium_cli
+    for command in ("status", "stop", "end", "run", "up"):
+        with pytest.raises(SystemExit) as exit_:
+            robotarium_cli.main([command, "--help"])
+        assert exit_.value.code == 0, command
