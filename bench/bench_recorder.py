@@ -18,7 +18,7 @@ import platform
 import tempfile
 import time
 
-from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id  # noqa: E402
+from devtools.rosutil import NodeProcess, RosProbe, SafetyStandIn, unique_domain_id  # noqa: E402
 from geometry_msgs.msg import Twist  # noqa: E402
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray  # noqa: E402
 from robotarium_msgs.srv import EndExperiment, StartExperiment  # noqa: E402
@@ -44,8 +44,10 @@ def run(n, seconds, work):
     probe = RosProbe(domain, name="bench_recorder")
     try:
         node = probe.node
+        safety = SafetyStandIn(probe)
         pubs = {name: node.create_publisher(cls, NS + "/" + name, TESTBED_QOS) for name, cls in
-                (("cmd_requested", TwistArray), ("cmd_safe", TwistArray), ("safety_report", SafetyReport))}
+                (("cmd_requested", TwistArray), ("safety_report", SafetyReport))}
+        pubs["cmd_safe"] = safety.publisher
         sent = dict.fromkeys(pubs, 0)
         latest = []
         node.create_subscription(RobotPoses, NS + "/poses", lambda m: latest.append(m.step), 100)
@@ -58,11 +60,14 @@ def run(n, seconds, work):
         cmd = TwistArray(ids=list(range(n)), twists=[Twist() for _ in range(n)])
         for i, twist in enumerate(cmd.twists):
             twist.linear.x, twist.angular.z = 0.02, 0.3 * (-1) ** i
-        report = SafetyReport(status="passthrough", number_of_robots=n)
+        report = SafetyReport(status=SafetyReport.STATUS_PASSTHROUGH, number_of_robots=n)
 
-        started = probe.call(StartExperiment, NS + "/start_experiment", StartExperiment.Request(
-            name="bench", number_of_robots=n, real_time=True, seed=7))
+        started = probe.hold_client_presence(probe.call(StartExperiment, NS + "/start_experiment",
+                                                        StartExperiment.Request(name="bench", number_of_robots=n,
+                                                                                real_time=True, seed=7)))
         assert started.success, started.message
+        safe_cmd = TwistArray(ids=cmd.ids, twists=cmd.twists, token=safety.armed.safety_key)
+        cmd.token = started.token
         cpu0, t0 = cpu_seconds(recorder.proc.pid), time.monotonic()
         answered = -1
         while time.monotonic() - t0 < seconds:
@@ -70,13 +75,13 @@ def run(n, seconds, work):
             if latest and latest[-1] != answered:   # as client + safety would: one command set per step
                 answered = latest[-1]
                 stamp = node.get_clock().now().to_msg()
-                cmd.step = report.step = answered + 1
-                cmd.header.stamp = report.header.stamp = stamp
-                for name, msg in (("cmd_requested", cmd), ("cmd_safe", cmd), ("safety_report", report)):
+                cmd.step = safe_cmd.step = report.step = answered + 1
+                cmd.header.stamp = safe_cmd.header.stamp = report.header.stamp = stamp
+                for name, msg in (("cmd_requested", cmd), ("cmd_safe", safe_cmd), ("safety_report", report)):
                     pubs[name].publish(msg)
                     sent[name] += 1
         probe.spin_for(0.2)
-        ended = probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request())
+        ended = probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request(token=started.token))
         wall = time.monotonic() - t0
         probe.spin_for(1.5)                      # the recorder's grace period, then it closes the bag
         cpu = cpu_seconds(recorder.proc.pid) - cpu0

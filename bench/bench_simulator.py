@@ -16,25 +16,25 @@ import time
 
 import numpy as np
 
-from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id  # noqa: E402
+from devtools.rosutil import NodeProcess, RosProbe, SafetyStandIn, unique_domain_id  # noqa: E402
 from geometry_msgs.msg import Twist  # noqa: E402
 from robotarium_msgs.msg import RobotPoses, TwistArray  # noqa: E402
 from robotarium_msgs.srv import EndExperiment, StartExperiment  # noqa: E402
 from robotarium_core import model  # noqa: E402
-from robotarium_core.topics import TESTBED_QOS  # noqa: E402
 
 NS = "/robotarium"
 
 
 def start(probe, n, real_time):
-    response = probe.call(StartExperiment, NS + "/start_experiment", StartExperiment.Request(
-        name="bench", number_of_robots=n, real_time=real_time, seed=1))
+    response = probe.hold_client_presence(probe.call(StartExperiment, NS + "/start_experiment", StartExperiment.Request(
+        name="bench", number_of_robots=n, real_time=real_time, seed=1)))
     assert response.success, response.message
+    probe.token = response.token
     return response.run_id
 
 
 def end(probe):
-    probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request())
+    probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request(token=probe.token))
 
 
 def real_time_jitter(probe, n, seconds):
@@ -50,7 +50,7 @@ def real_time_jitter(probe, n, seconds):
 
 def lockstep_rate(probe, n, steps):
     received = probe.collect(RobotPoses, NS + "/poses")
-    publisher = probe.node.create_publisher(TwistArray, NS + "/cmd_safe", TESTBED_QOS)
+    publisher = probe.safety.publisher
     run_id = start(probe, n, real_time=False)
     # the subscription also receives the last poses of the earlier run (transient-local history)
     poses = [None]
@@ -62,7 +62,7 @@ def lockstep_rate(probe, n, steps):
                 poses[0] = msg
         return poses[0].step if poses[0] is not None else -1
     probe.spin_until(lambda: publisher.get_subscription_count() > 0, 10)
-    msg = TwistArray()
+    msg = TwistArray(token=probe.safety.armed.safety_key)
     msg.ids = list(range(n))
     msg.twists = [Twist() for _ in range(n)]
     for t in msg.twists:
@@ -103,6 +103,7 @@ def main():
         domain = unique_domain_id()
         sim = NodeProcess("robotarium_sim.simulator_node", domain)
         probe = RosProbe(domain, name="bench")
+        probe.safety = SafetyStandIn(probe)   # the simulator alone: this process plays the safety node
         try:
             mean_ms, p99_ms, ticks = real_time_jitter(probe, n, args.seconds)
             rate = lockstep_rate(probe, n, args.steps)

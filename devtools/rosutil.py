@@ -6,6 +6,7 @@
   kills the whole group on close (SIGINT, then SIGKILL).
 - `RosProbe` is an rclpy node in a private context on a given domain, with small synchronous
   helpers (call a service, wait for messages).
+- `SafetyStandIn` plays the safety node's part on a probe, for tests of the simulator alone.
 """
 import fcntl
 import os
@@ -21,7 +22,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from devtools import PACKAGE_SOURCES, REPO
-from robotarium_core.topics import TESTBED_QOS
+from robotarium_core.topics import CMD_SAFE, SAFETY_ARM, TESTBED_QOS
 
 # Domain ids 1..232 are valid with Fast DDS. Each one handed out is held with an exclusive lock
 # on a file until this process exits, so no two processes on this machine (two pytest runs, a
@@ -117,6 +118,7 @@ class RosProbe:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self._subscriptions = []
+        self._presences = []
 
     def spin_for(self, seconds):
         end = time.monotonic() + seconds
@@ -142,6 +144,14 @@ class RosProbe:
             return future.result()
         finally:
             self.node.destroy_client(client)
+
+    def hold_client_presence(self, response):
+        """Be the client of the experiment a StartExperiment `response` started: hold the presence
+        the testbed watches (else it ends the experiment as "client lost" after a few seconds)."""
+        from robotarium_core.presence import Presence
+        if response.success:
+            self._presences.append(Presence(self.node, response.client_alive_topic, response.client_lease))
+        return response
 
     def collect(self, msg_type, topic, qos=TESTBED_QOS):
         """Subscribe and return the list that received messages are appended to. With the
@@ -226,3 +236,34 @@ class CliRun:
             except ProcessLookupError:
                 pass
         self.proc.wait()
+
+
+class SafetyStandIn:
+    """The safety node's part, played by a probe, for tests that drive the simulator alone: it
+    answers <ns>/safety/arm (so the simulator starts experiments and hands it the safety key) and
+    publishes command arrays on cmd_safe carrying that key, as the safety node does."""
+
+    def __init__(self, probe, ns="/robotarium"):
+        from robotarium_msgs.msg import TwistArray
+        from robotarium_msgs.srv import ArmSafety
+        self.probe = probe
+        self.armed = ArmSafety.Request()
+        self.arms = []    # every ArmSafety request received
+        self.service = probe.node.create_service(ArmSafety, "%s/%s" % (ns, SAFETY_ARM), self._on_arm)
+        self.publisher = probe.node.create_publisher(TwistArray, "%s/%s" % (ns, CMD_SAFE), TESTBED_QOS)
+
+    def _on_arm(self, request, response):
+        self.armed = request
+        self.arms.append(request)
+        response.success = True
+        return response
+
+    def wait_for_simulator(self, timeout=30.0):
+        """Until the simulator listens on cmd_safe and sees this arm service."""
+        if not self.probe.spin_until(lambda: self.publisher.get_subscription_count() > 0, timeout):
+            raise TimeoutError("the simulator did not subscribe to cmd_safe within %.0f s" % timeout)
+
+    def publish(self, msg):
+        """Publish `msg` (a TwistArray) on cmd_safe with the safety key of the armed experiment."""
+        msg.token = self.armed.safety_key
+        self.publisher.publish(msg)

@@ -73,7 +73,7 @@ def main():
         request.x = list(0.8 * np.cos(angles) * 1.4)
         request.y = list(0.8 * np.sin(angles))
         request.theta = list(angles + math.pi / 2)
-        started = probe.call(StartExperiment, NS + "/start_experiment", request)
+        started = probe.hold_client_presence(probe.call(StartExperiment, NS + "/start_experiment", request))
         if not started.success:
             raise RuntimeError(started.message)
         print(started.message)
@@ -85,7 +85,7 @@ def main():
                 continue
             step = latest.step
             v, w = consensus(np.array([latest.x, latest.y, latest.theta]))
-            msg = TwistArray(step=step, ids=list(range(N)))
+            msg = TwistArray(step=step, ids=list(range(N)), token=started.token)
             msg.header.stamp = probe.node.get_clock().now().to_msg()
             msg.header.frame_id = "arena"
             for vi, wi in zip(v, w):
@@ -93,7 +93,7 @@ def main():
                 twist.linear.x, twist.angular.z = float(vi), float(wi)
                 msg.twists.append(twist)
             publisher.publish(msg)
-        ended = probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request())
+        ended = probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request(token=started.token))
         print(ended.report)
         probe.spin_until(lambda: recording and recording[-1].data == "", 5)   # the recorder closed the run
         run_dir = ended.recording or os.path.join(work, ended.run_id)

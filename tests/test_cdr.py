@@ -124,8 +124,8 @@ def test_bad_bytes_are_a_cdr_error_never_a_crash():
         cdr.TWIST_ARRAY.parse(good, max_elements=4)
     assert cdr.TWIST_ARRAY.parse(good, max_elements=5).ids.tolist() == [0, 1, 2, 3, 4]
     # a count of 2**32 - 1 twists in a short message: refused from its length, nothing allocated
-    offset = 4 + 56   # encapsulation; stamp 8, "arena" 4 + 6, padding 6, step 8, ids 4 + 20
-    assert good[offset:offset + 4] == b"\x05\x00\x00\x00"
+    offset = good.rindex(b"\x05\x00\x00\x00", 0, len(good) - 1 - 5 * 48)   # the twists' count
+    assert good[offset - 20:offset] == np.arange(5, dtype="<u4").tobytes()     # right after the ids
     huge = good[:offset] + b"\xff\xff\xff\xff" + good[offset + 4:]
     with pytest.raises(cdr.CdrError, match="truncated"):
         cdr.TWIST_ARRAY.parse(huge)
@@ -138,3 +138,90 @@ def test_build_refuses_unknown_fields_and_wrong_shapes():
         cdr.TWIST_ARRAY.build(speed=1.0)
     with pytest.raises(ValueError, match="shape"):
         cdr.TWIST_ARRAY.build(ids=[0], twists=np.zeros((1, 2)))
+
+
+# -- the command inputs: parse_commands ---------------------------------------------------------
+
+def array(n, token="secret", step=7, frame="arena", flag=True, seed=0):
+    rng = np.random.default_rng(seed)
+    msg = TwistArray(step=step, token=token, requested_exceeds_limits=flag, ids=list(range(n)))
+    msg.header.frame_id = frame
+    msg.header.stamp.sec, msg.header.stamp.nanosec = -5, 123
+    for _ in range(n):
+        t = Twist()
+        t.linear.x, t.linear.y, t.linear.z, t.angular.x, t.angular.y, t.angular.z = rng.normal(size=6)
+        msg.twists.append(t)
+    return msg
+
+
+@pytest.mark.parametrize("n, token, frame", [(0, "", ""), (1, "a", "arena"), (3, "secret", "ab"),
+                                             (50, "x" * 32, "arena_frame"), (7, "tok", "abc")])
+def test_every_field_as_rclpy_serializes_it(n, token, frame):
+    msg = array(n, token=token, frame=frame)
+    parsed = cdr.parse_commands(serialize_message(msg), max_robots=50)
+    assert parsed.token == token and parsed.step == 7 and parsed.requested_exceeds_limits is True
+    assert (parsed.sec, parsed.nanosec) == (-5, 123)
+    assert parsed.ids.tolist() == list(range(n))
+    assert parsed.v.tolist() == [t.linear.x for t in msg.twists]
+    assert parsed.omega.tolist() == [t.angular.z for t in msg.twists]
+
+
+def test_ids_and_twists_of_different_lengths_come_through_for_check_commands():
+    msg = array(3)
+    msg.ids = [0, 1]
+    parsed = cdr.parse_commands(serialize_message(msg), max_robots=5)
+    assert len(parsed.ids) == 2 and len(parsed.v) == 3
+
+
+def test_an_array_without_the_token_is_foreign():
+    data = serialize_message(array(3, token="someone-else"))
+    with pytest.raises(cdr.CdrError) as error:
+        cdr.parse_commands(data, max_robots=5, token="secret")
+    assert error.value.reason == cdr.FOREIGN
+    for other in ("", "secre", "secret2"):
+        with pytest.raises(cdr.CdrError):
+            cdr.parse_commands(serialize_message(array(3, token=other)), max_robots=5, token="secret")
+    assert cdr.parse_commands(serialize_message(array(3)), max_robots=5, token="secret").step == 7
+
+
+def test_more_robots_than_the_experiment_has_is_oversized_before_reading_them():
+    data = serialize_message(array(9))
+    with pytest.raises(cdr.CdrError) as error:
+        cdr.parse_commands(data, max_robots=8)
+    assert error.value.reason == cdr.OVERSIZED
+    # a count field claiming 2**32 - 1 entries in a short message: refused from the count alone
+    head = serialize_message(array(0))
+    offset = len(head) - 1 - 4 - 4   # bool, twists count, ids count (0 entries each)
+    lying = head[:offset] + (2 ** 32 - 1).to_bytes(4, "little") + head[offset + 4:]
+    with pytest.raises(cdr.CdrError) as error:
+        cdr.parse_commands(lying, max_robots=50)
+    assert error.value.reason == cdr.OVERSIZED
+
+
+def test_every_truncation_is_malformed_never_an_exception_of_another_kind():
+    data = serialize_message(array(4))
+    for cut in range(len(data)):
+        with pytest.raises(cdr.CdrError) as error:
+            cdr.parse_commands(data[:cut], max_robots=50)
+        assert error.value.reason == cdr.MALFORMED
+    with pytest.raises(cdr.CdrError) as error:
+        cdr.parse_commands(b"\x07\x07\x00\x00" + data[4:], max_robots=50)   # not a CDR encapsulation
+    assert error.value.reason == cdr.MALFORMED
+    with pytest.raises(cdr.CdrError) as error:   # a token that is not what it claims: malformed, not foreign
+        cdr.parse_commands(data[:4 + 20] + b"\xff\xff\xff\x7f" + data[4 + 24:], max_robots=50, token="secret")
+    assert error.value.reason == cdr.MALFORMED
+
+
+def test_random_bytes_never_raise_anything_but_cdr_error():
+    rng = np.random.default_rng(1)
+    good = serialize_message(array(5))
+    for _ in range(2000):
+        data = bytearray(good)
+        for i in rng.integers(0, len(data), size=rng.integers(1, 6)):
+            data[i] = rng.integers(0, 256)
+        try:
+            parsed = cdr.parse_commands(bytes(data), max_robots=50)
+        except cdr.CdrError as error:
+            assert error.reason in (cdr.FOREIGN, cdr.OVERSIZED, cdr.MALFORMED)
+        else:
+            assert len(parsed.ids) <= 50 and len(parsed.v) <= 50

@@ -237,3 +237,22 @@ result["errors"] = {k: v for k, v in r._errors.items() if not k.endswith("_strin
     assert tb.collisions == ref["errors"]["collision"] > 0
     assert tb.boundary_violations == ref["errors"]["boundary"] > 0
     assert tb.actuator_limit_iterations == ref["errors"]["actuator"] == steps
+
+
+def test_huge_finite_commands_saturate_on_their_arc_never_a_stop():
+    """1e308 once overflowed the wheel speed to inf and scaled the command to 0 (a stop): it must
+    be full speed along the commanded arc like any other command beyond the limits."""
+    huge = np.array([[1e308, -1e308, 1e308, 0.1, -1e300, 1e308],
+                     [0.0, 1e308, -1.0, 1e308, 1e300, 1e308]])
+    out = model.threshold_keeping_arc(huge)
+    assert np.all(np.isfinite(out))
+    assert not model.exceeds_actuator_limits(out * (1 - 1e-12))
+    wheels = model.fastest_wheel(out[0], out[1])
+    # every robot drives at a limit: the wheel limit, or |v| = 0.2, or |omega| = its limit
+    at_limit = (np.isclose(wheels, model.MAX_WHEEL_VELOCITY) | np.isclose(np.abs(out[0]), model.MAX_LINEAR_VELOCITY)
+                | np.isclose(np.abs(out[1]), model.MAX_ANGULAR_VELOCITY))
+    assert np.all(at_limit), out
+    assert np.array_equal(np.sign(out), np.sign(huge))   # same direction
+    # the arc v / omega is kept where both are of comparable size
+    assert out[0, 1] / out[1, 1] == pytest.approx(-1.0) and out[0, 5] / out[1, 5] == pytest.approx(1.0)
+    assert out[0, 0] == model.MAX_LINEAR_VELOCITY and out[1, 0] == 0.0

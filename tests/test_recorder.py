@@ -22,8 +22,7 @@ from robotarium_msgs.srv import EndExperiment, StartExperiment
 from robotarium_recording import bag as bagmod
 from robotarium_core.topics import LATCHED
 from robotarium_recording.recorder_node import RunRecorder
-from robotarium_core.topics import TESTBED_QOS
-from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id
+from devtools.rosutil import NodeProcess, RosProbe, SafetyStandIn, unique_domain_id
 
 NS = "/robotarium"
 
@@ -31,7 +30,8 @@ NS = "/robotarium"
 # -- helpers shared with test_results.py -----------------------------------------------------------
 
 class Stack:
-    """Simulator + recorder on a private domain, and a probe that drives them."""
+    """Simulator + recorder on a private domain, and a probe that drives them (as the experiment's
+    client and in the safety node's place: it publishes on cmd_safe with the safety key)."""
 
     def __init__(self, tmp_path, recorder=True, config_file=None):
         self.domain = unique_domain_id()
@@ -43,7 +43,8 @@ class Stack:
         self.probe = RosProbe(self.domain)
         self.poses = self.probe.collect(RobotPoses, NS + "/poses")
         self.recording = self.probe.collect(String, NS + "/recording", LATCHED)
-        self.cmd = self.probe.node.create_publisher(TwistArray, NS + "/cmd_safe", TESTBED_QOS)
+        self.safety = SafetyStandIn(self.probe)
+        self.cmd = self.safety.publisher
         assert self.probe.spin_until(lambda: self.cmd.get_subscription_count() >= 1, 30), self.sim.output()
         if recorder:
             self.start_recorder()
@@ -61,9 +62,10 @@ class Stack:
         request = StartExperiment.Request(name=name, number_of_robots=n, real_time=real_time, seed=seed)
         if poses is not None:
             request.x, request.y, request.theta = (list(map(float, row)) for row in poses)
-        response = self.probe.call(StartExperiment, NS + "/start_experiment", request)
+        response = self.probe.hold_client_presence(self.probe.call(StartExperiment, NS + "/start_experiment", request))
         assert response.success, response.message
         self.run_id = response.run_id
+        self.token = response.token
         assert self.probe.spin_until(lambda: any(p.step == 0 for p in self.poses), 10)
         return response
 
@@ -81,7 +83,7 @@ class Stack:
             t = Twist()
             t.linear.x, t.angular.z = float(vi), float(wi)
             msg.twists.append(t)
-        self.cmd.publish(msg)
+        self.safety.publish(msg)
 
     def end(self):
         if self.recorder is not None and self.recorder.alive():
@@ -90,7 +92,7 @@ class Stack:
             announced = lambda: self.recording and self.recording[-1].data.endswith(self.run_id)  # noqa: E731
             assert self.probe.spin_until(announced, 10), self.recorder.output()
             self.probe.spin_for(0.2)
-        response = self.probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request())
+        response = self.probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request(token=self.token))
         assert response.success, response.message
         return response
 

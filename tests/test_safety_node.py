@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
-from robotarium_msgs.srv import EndExperiment, StartExperiment
+from robotarium_msgs.srv import ArmSafety, EndExperiment, StartExperiment
 from robotarium_core import model
 from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id
 from robotarium_core.topics import TESTBED_QOS
@@ -31,8 +31,15 @@ def stack(tmp_path):
 def start(probe, poses, real_time=False):
     request = StartExperiment.Request(name="safety", number_of_robots=poses.shape[1], real_time=real_time)
     request.x, request.y, request.theta = (list(map(float, row)) for row in poses)
-    response = probe.call(StartExperiment, NS + "/start_experiment", request)
+    response = probe.hold_client_presence(probe.call(StartExperiment, NS + "/start_experiment", request))
     assert response.success, response.message
+    return response
+
+
+def with_token(msg, started):
+    """A command array as the experiment's client sends it: with its token."""
+    msg.token = started.token
+    return msg
 
 
 def connected(probe, publisher, count=1):
@@ -48,15 +55,16 @@ def test_head_on_command_comes_out_changed_and_safe(stack):
     reports = probe.collect(SafetyReport, NS + "/safety_report")
     safe = probe.collect(TwistArray, NS + "/cmd_safe")
     probe.wait_for_publishers()
-    start(probe, HEAD_ON)
+    started = start(probe, HEAD_ON)
     requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
     connected(probe, requests)
     assert probe.spin_until(lambda: poses, 10)
     closest = np.inf
     for k in range(1, 151):  # both drive straight at each other at 0.15 m/s: they would meet at step ~81
-        p = as_array(lockstep(probe, requests, command([0, 1], [0.15, 0.15], [0.0, 0.0], step=k), poses))
+        msg = with_token(command([0, 1], [0.15, 0.15], [0.0, 0.0], step=k), started)
+        p = as_array(lockstep(probe, requests, msg, poses))
         closest = min(closest, np.hypot(*(p[:2, 0] - p[:2, 1])))
-    end = probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request())
+    end = probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request(token=started.token))
     assert end.collisions == 0 and end.boundary_violations == 0
     assert closest > model.ROBOT_DIAMETER
     assert any(r.status == SafetyReport.STATUS_SOLVED and r.max_change > 0.05 for r in reports)
@@ -76,10 +84,10 @@ def test_safe_command_passes_unchanged(stack):
     safe = probe.collect(TwistArray, NS + "/cmd_safe")
     reports = probe.collect(SafetyReport, NS + "/safety_report")
     probe.wait_for_publishers()
-    start(probe, np.array([[-1.0, 1.0], [0.0, 0.0], [np.pi / 2, -np.pi / 2]]))
+    started = start(probe, np.array([[-1.0, 1.0], [0.0, 0.0], [np.pi / 2, -np.pi / 2]]))
     requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
     connected(probe, requests)
-    lockstep(probe, requests, command([0, 1], [0.05, 0.05], [0.3, -0.2], step=1), poses)
+    lockstep(probe, requests, with_token(command([0, 1], [0.05, 0.05], [0.3, -0.2], step=1), started), poses)
     # the safe command and the poses it produced come from two nodes: either may arrive first
     assert probe.spin_until(lambda: safe and reports, 10)
     assert [t.linear.x for t in safe[-1].twists] == [0.05, 0.05]
@@ -94,11 +102,11 @@ def test_bad_request_becomes_a_stop(stack):
     safe = probe.collect(TwistArray, NS + "/cmd_safe")
     reports = probe.collect(SafetyReport, NS + "/safety_report")
     probe.wait_for_publishers()
-    start(probe, np.array([[-1.0, 1.0], [0.0, 0.0], [0.0, 0.0]]))
+    started = start(probe, np.array([[-1.0, 1.0], [0.0, 0.0], [0.0, 0.0]]))
     requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
     connected(probe, requests)
-    lockstep(probe, requests, command([0, 1], [0.1, 0.1], [0.0, 0.0], step=1), poses)
-    lockstep(probe, requests, command([0, 1], [0.1, float("nan")], [0.0, 0.0], step=2), poses)
+    lockstep(probe, requests, with_token(command([0, 1], [0.1, 0.1], [0.0, 0.0], step=1), started), poses)
+    lockstep(probe, requests, with_token(command([0, 1], [0.1, float("nan")], [0.0, 0.0], step=2), started), poses)
     assert probe.spin_until(lambda: reports and reports[-1].step == 2 and safe and safe[-1].step == 2, 10)
     assert reports[-1].status == SafetyReport.STATUS_STOP_BAD_INPUT
     assert [t.linear.x for t in safe[-1].twists] == [0.0, 0.0]
@@ -114,12 +122,18 @@ def test_no_poses_means_stop(tmp_path):
         safe = probe.collect(TwistArray, NS + "/cmd_safe")
         reports = probe.collect(SafetyReport, NS + "/safety_report")
         probe.wait_for_publishers()
+        # the probe plays the simulator: it arms the safety node with an experiment of three robots
+        arm = ArmSafety.Request(run_id="alone", number_of_robots=3, token="t" * 32, safety_key="s" * 32,
+                                poses_key="p" * 32)
+        assert probe.call(ArmSafety, NS + "/safety/arm", arm).success
         requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
         connected(probe, requests)
-        requests.publish(command([0, 1, 2], [0.2, 0.2, 0.2], [1.0, 0.0, -1.0]))
+        msg = command([0, 1, 2], [0.2, 0.2, 0.2], [1.0, 0.0, -1.0])
+        msg.token = arm.token
+        requests.publish(msg)
         assert probe.spin_until(lambda: safe and reports, 10)
         assert reports[-1].status == SafetyReport.STATUS_STOP_NO_POSES
-        assert list(safe[-1].ids) == [0, 1, 2]
+        assert list(safe[-1].ids) == [0, 1, 2] and safe[-1].token == arm.safety_key
         assert all(t.linear.x == 0.0 and t.angular.z == 0.0 for t in safe[-1].twists)
     finally:
         probe.close()
@@ -131,13 +145,13 @@ def test_robots_stop_when_the_safety_node_dies(stack):
     poses = probe.collect(RobotPoses, NS + "/poses")
     status = probe.collect(TestbedStatus, NS + "/status")
     probe.wait_for_publishers()
-    start(probe, np.array([[-1.0, 0.0], [-0.5, 0.5], [0.0, 0.0]]), real_time=True)
+    started = start(probe, np.array([[-1.0, 0.0], [-0.5, 0.5], [0.0, 0.0]]), real_time=True)
     requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
     connected(probe, requests)
 
     def drive(seconds):
         for _ in range(int(seconds * 30)):
-            requests.publish(command([0, 1], [0.1, 0.1], [0.0, 0.0]))
+            requests.publish(with_token(command([0, 1], [0.1, 0.1], [0.0, 0.0]), started))
             probe.spin_for(1 / 30)
 
     drive(0.5)  # until the safety node has matched the simulator (it sends stops until it has poses)
@@ -150,4 +164,4 @@ def test_robots_stop_when_the_safety_node_dies(stack):
     x_late = as_array(poses[-1])[0]
     drive(0.5)
     assert np.array_equal(as_array(poses[-1])[0], x_late), "robots kept moving without the safety node"
-    assert status[-1].command_timeouts >= 2
+    assert status[-1].state == TestbedStatus.STATE_RUNNING   # stopped, not ended: its client decides

@@ -9,7 +9,7 @@ from geometry_msgs.msg import Twist
 
 from robotarium_msgs.msg import RobotPoses, TestbedStatus, TwistArray
 from robotarium_msgs.srv import EndExperiment, StartExperiment
-from devtools.rosutil import REPO, NodeProcess, RosProbe, node_env, unique_domain_id
+from devtools.rosutil import REPO, NodeProcess, RosProbe, SafetyStandIn, node_env, unique_domain_id
 from robotarium_core.topics import TESTBED_QOS
 
 NS = "/robotarium"
@@ -21,7 +21,8 @@ def testbed(tmp_path):
     sim = NodeProcess("robotarium_sim.simulator_node", domain, log_path=tmp_path / "simulator.log")
     probe = RosProbe(domain)
     try:
-        yield sim, probe
+        safety = SafetyStandIn(probe)   # the test plays the safety node: arms, and publishes on cmd_safe
+        yield sim, probe, safety
     finally:
         probe.close()
         sim.close()
@@ -31,7 +32,7 @@ def start(probe, n=3, real_time=False, poses=None, name="test", seed=1):
     request = StartExperiment.Request(name=name, number_of_robots=n, real_time=real_time, seed=seed)
     if poses is not None:
         request.x, request.y, request.theta = (list(map(float, row)) for row in poses)
-    return probe.call(StartExperiment, NS + "/start_experiment", request)
+    return probe.hold_client_presence(probe.call(StartExperiment, NS + "/start_experiment", request))
 
 
 def command(ids, v, w, step=0):
@@ -52,23 +53,45 @@ def as_array(msg):
 LINE = np.array([[-0.5, 0.0, 0.5], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
 
 
+def end(probe, response):
+    """End the experiment `response` (its StartExperiment response) started, as its client."""
+    return probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request(token=response.token))
+
+
 def test_start_and_end_round_trip(testbed):
-    _, probe = testbed
+    _, probe, safety = testbed
     response = start(probe, n=3, poses=LINE, name="roundtrip")
     assert response.success, response.message
     assert response.run_id.startswith("roundtrip_")
     assert np.array_equal(np.array([response.x, response.y, response.theta]), LINE)
+    # the safety node was armed with this experiment, the client's token and fresh keys
+    assert safety.armed.run_id == response.run_id and safety.armed.token == response.token
+    assert len({response.token, safety.armed.safety_key, response.poses_key}) == 3 and len(response.token) == 32
 
     second = start(probe, n=2, name="other")
     assert not second.success and "still running" in second.message
 
-    end = probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request())
-    assert end.success and end.run_id == response.run_id and end.steps == 0
-    assert "No errors in your simulation!" in end.report
+    ended = end(probe, response)
+    assert ended.success and ended.run_id == response.run_id and ended.steps == 0
+    assert "No errors in your simulation!" in ended.report
+    assert ended.end_reason == "ended by its client at step 0"
+    assert safety.armed.run_id == ""   # disarmed
 
-    again = probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request())
+    again = end(probe, response)
     assert not again.success and "no experiment" in again.message
     assert start(probe, n=2, name="after").success  # a new one may start once the old one ended
+
+
+def test_only_its_client_or_an_operator_ends_an_experiment(testbed):
+    _, probe, _ = testbed
+    response = start(probe, n=2, poses=LINE[:, :2])
+    assert response.success, response.message
+    for stranger in (EndExperiment.Request(), EndExperiment.Request(token="0" * 32)):
+        refused = probe.call(EndExperiment, NS + "/end_experiment", stranger)
+        assert not refused.success and "belongs to the client that started it" in refused.message
+        assert "--force" in refused.message
+    forced = probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request(force=True))
+    assert forced.success and forced.end_reason == "ended by an operator (end --force) at step 0"
 
 
 @pytest.mark.parametrize("n, poses, words", [
@@ -79,16 +102,16 @@ def test_start_and_end_round_trip(testbed):
     (3, np.array([[0.0, 0.5], [0.0, 0.0], [0.0, 0.0]]), "length 3"),
 ])
 def test_invalid_start_is_refused_with_reason(testbed, n, poses, words):
-    _, probe = testbed
+    _, probe, _ = testbed
     response = start(probe, n=n, poses=poses)
     assert not response.success
     assert words in response.message
 
 
 def test_random_initial_conditions_are_valid_and_seeded(testbed):
-    _, probe = testbed
+    _, probe, _ = testbed
     first = start(probe, n=20, seed=42)
-    probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request())
+    end(probe, first)
     second = start(probe, n=20, seed=42)
     a = np.array([first.x, first.y, first.theta])
     assert a.shape == (3, 20)
@@ -106,29 +129,27 @@ def lockstep(probe, publisher, msg, poses_topic, timeout=10.0):
     return poses_topic[-1]
 
 
-def run_lockstep(probe, commands, poses_topic):
+def run_lockstep(probe, safety, commands, poses_topic):
     """Send each command array, wait for the step it produces; return the poses seen."""
-    publisher = probe.node.create_publisher(TwistArray, NS + "/cmd_safe", TESTBED_QOS)
-    assert probe.spin_until(lambda: publisher.get_subscription_count() > 0, 10)
+    safety.wait_for_simulator()
     trace = []
     for k, (v, w) in enumerate(commands, start=1):
-        trace.append(as_array(lockstep(probe, publisher, command(range(len(v)), v, w, step=k), poses_topic)))
-    probe.node.destroy_publisher(publisher)
+        trace.append(as_array(lockstep(probe, safety, command(range(len(v)), v, w, step=k), poses_topic)))
     return np.array(trace)
 
 
 def test_lockstep_is_deterministic(testbed):
-    _, probe = testbed
+    _, probe, safety = testbed
     poses = probe.collect(RobotPoses, NS + "/poses")
     probe.wait_for_publishers()
     rng = np.random.default_rng(0)
     commands = [(rng.uniform(-0.1, 0.1, 3), rng.uniform(-1, 1, 3)) for _ in range(60)]
     runs = []
     for _ in range(2):
-        assert start(probe, n=3, poses=LINE).success
-        runs.append(run_lockstep(probe, commands, poses))
-        end = probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request())
-        assert end.steps == 60
+        started = start(probe, n=3, poses=LINE)
+        assert started.success
+        runs.append(run_lockstep(probe, safety, commands, poses))
+        assert end(probe, started).steps == 60
         poses.clear()
     assert np.array_equal(runs[0], runs[1])
     # and it is the model's trajectory: the robots did move
@@ -136,13 +157,12 @@ def test_lockstep_is_deterministic(testbed):
 
 
 def test_bad_commands_are_dropped_counted_and_never_move_robots(testbed):
-    _, probe = testbed
+    _, probe, safety = testbed
     poses = probe.collect(RobotPoses, NS + "/poses")
     status = probe.collect(TestbedStatus, NS + "/status")
     probe.wait_for_publishers()
     assert start(probe, n=3, poses=LINE).success
-    publisher = probe.node.create_publisher(TwistArray, NS + "/cmd_safe", TESTBED_QOS)
-    assert probe.spin_until(lambda: publisher.get_subscription_count() > 0, 10)
+    safety.wait_for_simulator()
     bad = [
         command([0, 1, 2], [0.1, float("nan"), 0.1], [0, 0, 0]),     # nonfinite
         command([0, 1, 2], [0.1, 0.1, 0.1], [0, float("inf"), 0]),   # nonfinite
@@ -151,21 +171,21 @@ def test_bad_commands_are_dropped_counted_and_never_move_robots(testbed):
         command([0, 1, 7], [0.1, 0.1, 0.1], [0, 0, 0]),              # unknown id
     ]
     for msg in bad:
-        publisher.publish(msg)
+        safety.publish(msg)
 
     def counted():
-        return status and (status[-1].dropped_nonfinite, status[-1].dropped_length_mismatch,
-                           status[-1].dropped_unknown_id) == (2, 2, 1)
+        dropped = status and status[-1].dropped_cmd_safe
+        return dropped and (dropped.nonfinite, dropped.length_mismatch, dropped.unknown_id) == (2, 2, 1)
     assert probe.spin_until(counted, 10), status[-1] if status else "no status"
     assert status[-1].step == 0 and status[-1].commands_accepted == 0
     assert all(p.step == 0 for p in poses) and np.array_equal(as_array(poses[-1]), LINE)
 
-    lockstep(probe, publisher, command([0, 1, 2], [0.1, 0.1, 0.1], [0, 0, 0], step=1), poses)  # good ones work
+    lockstep(probe, safety, command([0, 1, 2], [0.1, 0.1, 0.1], [0, 0, 0], step=1), poses)  # good ones work
     assert as_array(poses[-1])[0, 0] == pytest.approx(-0.5 + 0.033 * 0.1)
 
 
 def test_real_time_tick_rate_is_30_hz(testbed):
-    _, probe = testbed
+    _, probe, _ = testbed
     poses = probe.collect(RobotPoses, NS + "/poses")
     probe.wait_for_publishers()
     assert start(probe, n=5, real_time=True).success
@@ -179,14 +199,13 @@ def test_real_time_tick_rate_is_30_hz(testbed):
 
 
 def test_command_held_for_half_a_second_then_robot_stops(testbed):
-    _, probe = testbed
+    _, probe, safety = testbed
     poses = probe.collect(RobotPoses, NS + "/poses")
     status = probe.collect(TestbedStatus, NS + "/status")
     probe.wait_for_publishers()
     assert start(probe, n=1, real_time=True, poses=np.array([[0.0], [0.0], [0.0]])).success
-    publisher = probe.node.create_publisher(TwistArray, NS + "/cmd_safe", TESTBED_QOS)
-    assert probe.spin_until(lambda: publisher.get_subscription_count() > 0, 10)
-    publisher.publish(command([0], [0.1], [0.0]))
+    safety.wait_for_simulator()
+    safety.publish(command([0], [0.1], [0.0]))
     probe.spin_for(1.5)
     x = np.array([p.x[0] for p in poses])
     moving_steps = np.count_nonzero(np.diff(x) > 0)
@@ -199,7 +218,7 @@ def test_command_held_for_half_a_second_then_robot_stops(testbed):
 
 def test_safety_interventions_are_counted(testbed):
     from robotarium_msgs.msg import SafetyReport
-    _, probe = testbed
+    _, probe, _ = testbed
     status = probe.collect(TestbedStatus, NS + "/status")
     probe.wait_for_publishers()
     assert start(probe, n=2, poses=LINE[:, :2]).success

@@ -172,8 +172,9 @@ def test_status_lists_local_testbeds_and_stop_and_end_get_rid_of_them(lab):
     stray = NodeProcess("robotarium_sim.simulator_node", lab["domain"], ros_args=["-r", "__ns:=/stray"])
     probe = RosProbe(lab["domain"])
     try:
-        started = probe.call(StartExperiment, NAMESPACE + "/start_experiment",
-                             StartExperiment.Request(name="held", number_of_robots=3, real_time=True), timeout=60)
+        started = probe.hold_client_presence(probe.call(
+            StartExperiment, NAMESPACE + "/start_experiment",
+            StartExperiment.Request(name="held", number_of_robots=3, real_time=True), timeout=60))
         assert started.success, started.message
 
         status = cli(lab, "status", "--json")
@@ -187,9 +188,12 @@ def test_status_lists_local_testbeds_and_stop_and_end_get_rid_of_them(lab):
         assert ours["experiment"]["since"]
         assert other["owner"] is None and other["nodes"] == {"simulator": stray.proc.pid}
 
-        end = cli(lab, "end")
+        end = cli(lab, "end")   # the experiment is the probe's: refused without --force
+        assert end.returncode == 1 and "belongs to the client that started it" in end.stderr, end.stderr
+        end = cli(lab, "end", "--force")
         assert end.returncode == 0, end.stderr
         assert "##### DEBUG OUTPUT #####" in end.stdout and started.run_id in end.stdout, end.stdout
+        assert "ended by an operator (end --force)" in end.stdout, end.stdout
 
         stopped = cli(lab, "stop", "--namespace", "/stray")
         assert stopped.returncode == 0 and "stopped: " in stopped.stderr, stopped.stderr

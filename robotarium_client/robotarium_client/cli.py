@@ -420,7 +420,7 @@ def cmd_end(args):
     from robotarium_client.testbed import end_experiment
     ns = namespace()
     try:
-        response = end_experiment(ns, timeout=args.timeout)
+        response = end_experiment(ns, timeout=args.timeout, force=args.force)
     except TimeoutError as error:
         say("%s; ./robotarium status shows what runs where" % error)
         return 1
@@ -428,8 +428,8 @@ def cmd_end(args):
         say("could not end the experiment in %s: %s" % (ns, response.message))
         return 1
     print(response.report, end="")
-    print("Run %s ended by ./robotarium end after %d steps; %s" % (
-        response.run_id, response.steps, "recorded in %s" % response.recording if response.recording
+    print("Run %s %s; %s" % (
+        response.run_id, response.end_reason, "recorded in %s" % response.recording if response.recording
         else "not recorded (no recorder was running)"))
     return 0
 

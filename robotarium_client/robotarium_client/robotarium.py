@@ -5,6 +5,14 @@ class talks to a testbed: the constructor starts an experiment (the start_experi
 each step() publishes the requested commands to the safety node and waits for the simulator's
 next poses, and call_at_scripts_end() ends the experiment and prints the simulator's debug report.
 
+The experiment belongs to this client: the start returns a secret token that goes on every command
+and on the end request (nobody else's commands move the robots, nobody else ends the run but an
+operator with ./robotarium end --force), and a poses key: poses without it (a replay, a stray
+publisher) are ignored. The client holds a presence the testbed watches (a killed script frees the
+testbed within client_lease seconds) and watches the simulator's, the safety node's and the
+recorder's: step() raises within node_lease (0.75 s) naming the node that is gone, or saying who
+ended the experiment, and a lost recorder is reported as "recording stopped at step k".
+
 Modes: sim_in_real_time=True paces the loop at the testbed's 30 Hz (the simulator's timer;
 a robot stops when its command is older than 0.5 s, as on the real testbed); False runs in
 lockstep, one simulator step per step() call, as fast as the nodes allow, deterministically.
@@ -94,23 +102,40 @@ class Robotarium(RobotariumABC):
 
     def _end(self):
         from robotarium_msgs.srv import EndExperiment
-        response = self._call(self._end_client, EndExperiment.Request())
+        self._check_testbed()
+        response = self._call(self._end_client, EndExperiment.Request(token=self._token))
         if not response.success:
+            self._check_testbed()   # ended meanwhile (lost, or by an operator): say so rather than "no experiment"
             raise RuntimeError("The testbed could not end the experiment: %s" % response.message)
+        dropped = {name: {reason: int(getattr(counts, reason)) for reason in model.DROP_REASONS}
+                   for name, counts in (("cmd_requested", response.dropped_cmd_requested),
+                                        ("cmd_safe", response.dropped_cmd_safe))}
         self.run_info = {"run_id": response.run_id, "recording": response.recording, "report": response.report,
                          "steps": response.steps, "collisions": response.collisions,
                          "boundary_violations": response.boundary_violations,
                          "actuator_limit_iterations": response.actuator_limit_iterations,
-                         "real_time": self.sim_in_real_time, "number_of_robots": self.number_of_robots}
+                         "real_time": self.sim_in_real_time, "number_of_robots": self.number_of_robots,
+                         "end_reason": response.end_reason, "dropped": dropped,
+                         "recording_stopped_at_step": self._recorder_lost_at}
         self._errors = {k: v for k, v in (("boundary", response.boundary_violations), ("collision", response.collisions),
                                           ("actuator", response.actuator_limit_iterations)) if v}
         return response.report
 
     def _after_report(self):
-        if self.run_info["recording"]:
-            print("Run %s recorded in %s" % (self.run_info["run_id"], self.run_info["recording"]))
+        info = self.run_info
+        for name, counts in info["dropped"].items():
+            if any(counts.values()):
+                print("[robotarium] the testbed dropped command arrays on %s that were not this script's or not "
+                      "valid: %s" % (name, ", ".join("%d %s" % (n, reason) for reason, n in counts.items() if n)),
+                      file=sys.stderr)
+        if self._recorder_lost_at is not None:
+            print("Run %s: recording stopped at step %d (the recorder is gone)%s" % (
+                info["run_id"], self._recorder_lost_at,
+                "; what it recorded until then is in %s" % info["recording"] if info["recording"] else ""))
+        elif info["recording"]:
+            print("Run %s recorded in %s" % (info["run_id"], info["recording"]))
         else:
-            print("Run %s ended (no recorder was running, so it was not recorded)." % self.run_info["run_id"])
+            print("Run %s ended (no recorder was running, so it was not recorded)." % info["run_id"])
         self._shutdown()
 
     # -- talking to the testbed ------------------------------------------------------------------
@@ -122,17 +147,25 @@ class Robotarium(RobotariumABC):
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
 
-        from robotarium_client.testbed import LocalTestbed
+        from robotarium_client.testbed import LocalTestbed, security_enabled
         from std_msgs.msg import String
 
         from robotarium_core.topics import (CMD_REQUESTED, CONFIG, END_EXPERIMENT, LATCHED, POSES, START_EXPERIMENT,
-                                            TESTBED_QOS)
-        from robotarium_msgs.msg import RobotPoses, TwistArray
+                                            STATUS, TESTBED_QOS)
+        from robotarium_msgs.msg import RobotPoses, TestbedStatus, TwistArray
         from robotarium_msgs.srv import EndExperiment, StartExperiment
 
         self._ns = self._options.namespace
+        self._token = ""
+        self._poses_key = None
+        self._presence = None
+        self._watches = {}
+        self._failure = None          # why the experiment cannot go on (a node lost, ended by someone else)
+        self._recorder_lost_at = None
         self._context = Context()
-        rclpy.init(context=self._context, args=[])
+        # With DDS Security (sros2/README.md) a script runs in the client enclave of the policy.
+        rclpy.init(context=self._context, args=["--ros-args", "--enclave", "/robotarium/client"]
+                   if security_enabled() else [])
         self._node = Node("robotarium_client_%d" % os.getpid(), namespace=self._ns, context=self._context)
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self._node)
@@ -140,6 +173,7 @@ class Robotarium(RobotariumABC):
         self._run_id = None
         self._command_pub = self._node.create_publisher(TwistArray, CMD_REQUESTED, TESTBED_QOS)
         self._node.create_subscription(RobotPoses, POSES, self._on_poses, TESTBED_QOS)
+        self._node.create_subscription(TestbedStatus, STATUS, self._on_status, TESTBED_QOS)
         self._testbed_config = None
         self._node.create_subscription(String, CONFIG, self._on_config, LATCHED)
         self._start_client = self._node.create_client(StartExperiment, START_EXPERIMENT)
@@ -188,14 +222,21 @@ class Robotarium(RobotariumABC):
 
     def _start_experiment(self):
         from robotarium_msgs.srv import StartExperiment
+        self._watch_testbed()
         request = StartExperiment.Request(name=self._options.experiment_name, number_of_robots=self.number_of_robots,
                                           real_time=self.sim_in_real_time)
         request.x, request.y, request.theta = (row.tolist() for row in self.initial_conditions)
         response = self._call(self._start_client, request)
         if not response.success:
+            incomplete = not self._watches["safety"].seen   # the testbed's fault, not the request's
             self._shutdown()
-            raise RobotariumError("The testbed refused to start the experiment: %s" % response.message)
+            raise (RuntimeError if incomplete else RobotariumError)(
+                "The testbed refused to start the experiment: %s" % response.message)
         self._run_id = response.run_id
+        self._token = self._command.token = response.token
+        self._poses_key = response.poses_key
+        from robotarium_core.presence import Presence
+        self._presence = Presence(self._node, response.client_alive_topic, response.client_lease)
         self._last_step = 0
         self.poses = np.array([response.x, response.y, response.theta])
         # Without a safety node nothing can move: say so now rather than at the first step's timeout.
@@ -205,12 +246,49 @@ class Robotarium(RobotariumABC):
             raise RuntimeError("No safety node listens on %s/cmd_requested: without it the robots cannot move. "
                                "Is the testbed complete (./robotarium up starts all of it)?" % self._ns)
 
+    def _watch_testbed(self):
+        """Follow the presence of the testbed's nodes (robotarium_core.presence), with the testbed's lease."""
+        from robotarium_core import presence
+        lease = self.config.node_lease
+        for who in (presence.SIMULATOR, presence.SAFETY, presence.RECORDER):
+            self._watches[who] = presence.Watch(self._node, presence.alive_topic(who), lease,
+                                                on_lost=lambda who=who: self._on_node_lost(who))
+
+    def _on_node_lost(self, who):
+        if self._run_id is None or self._ended:
+            return
+        step = self._latest.step if self._latest is not None else 0
+        if who == "recorder":
+            if self._recorder_lost_at is None:
+                self._recorder_lost_at = step
+                print("[robotarium] the recorder is gone: recording stopped at step %d. The experiment goes on; "
+                      "what was recorded until then stays readable." % step, file=sys.stderr)
+            return
+        what = {"simulator": "The simulator", "safety": "The safety node"}[who]
+        self._failure = self._failure or (
+            "%s is gone (no sign of it for %g s) at step %d: the experiment cannot go on%s. Node logs are in "
+            "log/testbed/ when ./robotarium started the testbed." % (
+                what, self.config.node_lease, step,
+                ", and the simulator stopped every robot" if who == "safety" else ""))
+
+    def _on_status(self, msg):
+        from robotarium_msgs.msg import TestbedStatus
+        if msg.run_id == self._run_id and msg.state == TestbedStatus.STATE_IDLE and not self._ended:
+            self._failure = self._failure or ("The experiment was ended by the testbed: %s." % (
+                msg.end_reason or "no reason given"))
+
+    def _check_testbed(self):
+        """Raise RuntimeError when the experiment cannot go on (a node lost, ended by someone else)."""
+        if self._failure is not None:
+            raise RuntimeError(self._failure)
+
     def _safety_node_listens(self):
         topic = self._command_pub.topic_name
         return any(info.node_name == "safety" for info in self._node.get_subscriptions_info_by_topic(topic))
 
     def _on_poses(self, msg):
-        if msg.run_id == self._run_id:
+        # Only the simulator's poses of this run carry its key (not a replay's, not a stray publisher's).
+        if msg.run_id == self._run_id and msg.key == self._poses_key:
             self._latest = msg
 
     def _send(self, velocities, step):
@@ -222,7 +300,10 @@ class Robotarium(RobotariumABC):
         self._command_pub.publish(self._command)
 
     def _wait_for_step(self, target):
-        if not self._spin_until(lambda: self._latest is not None and self._latest.step >= target, STEP_TIMEOUT):
+        arrived = self._spin_until(lambda: self._failure is not None or (
+            self._latest is not None and self._latest.step >= target), STEP_TIMEOUT)
+        self._check_testbed()
+        if not arrived:
             raise RuntimeError(
                 "The testbed sent no poses for step %d within %.0f s. Is the safety node running (robots cannot "
                 "move without it)? Node logs are in log/testbed/<namespace>_<domain>_<pid>/ when ./robotarium started "
@@ -253,13 +334,14 @@ class Robotarium(RobotariumABC):
         """At exit without call_at_scripts_end (or on an error): free the testbed for the next run."""
         if not self._ended and self._node is not None:
             self._ended = True
-            try:
-                from robotarium_msgs.srv import EndExperiment
-                # (a testbed whose service is gone has ended the experiment itself, or is gone with it)
-                if self._end_client.service_is_ready():
-                    self._call(self._end_client, EndExperiment.Request(), timeout=5.0)
-            except Exception:
-                pass
+            simulator = self._watches.get("simulator")
+            # (a testbed whose service is gone has ended the experiment itself, or is gone with it)
+            if self._token and not (simulator is not None and simulator.lost) and self._end_client.service_is_ready():
+                try:
+                    from robotarium_msgs.srv import EndExperiment
+                    self._call(self._end_client, EndExperiment.Request(token=self._token), timeout=5.0)
+                except Exception:
+                    pass
         self._shutdown()
 
     def _shutdown(self):

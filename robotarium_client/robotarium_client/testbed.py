@@ -47,7 +47,14 @@ def node_command(name, ns=None, extra_ros_args=(), config_file=DEFAULT_FILE):
     cmd = [sys.executable, "-m", module, "--ros-args", "-r", "__ns:=%s" % (ns or namespace())]
     if configured:
         cmd += ["--params-file", config_file or DEFAULT_FILE]
+    if security_enabled():   # each node in its enclave of sros2/robotarium.policy.xml
+        cmd += ["--enclave", "/robotarium/%s" % name]
     return cmd + list(extra_ros_args)
+
+
+def security_enabled():
+    """DDS Security asked for (a ROS install with SROS2: see sros2/README.md)."""
+    return os.environ.get("ROS_SECURITY_ENABLE", "").lower() == "true"
 
 
 # Log folders of stopped local testbeds kept under log/testbed/ (older ones are removed).
@@ -242,9 +249,10 @@ def testbed_status(targets, timeout=3.0):
     return newest
 
 
-def end_experiment(ns=None, timeout=10.0):
+def end_experiment(ns=None, timeout=10.0, force=False):
     """Call <ns>/end_experiment on this domain; returns the response (raises TimeoutError when no
-    testbed answers)."""
+    testbed answers). Without `force` the testbed refuses: an experiment is ended by its own client
+    (with its token), or by an operator who says so."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
@@ -261,7 +269,7 @@ def end_experiment(ns=None, timeout=10.0):
         client = node.create_client(EndExperiment, "%s/%s" % (ns.rstrip("/"), END_EXPERIMENT))
         if not client.wait_for_service(timeout_sec=timeout):
             raise TimeoutError("no testbed answers in %s on ROS_DOMAIN_ID %s" % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
-        future = client.call_async(EndExperiment.Request())
+        future = client.call_async(EndExperiment.Request(force=force))
         executor.spin_until_future_complete(future, timeout_sec=timeout)
         if not future.done():
             raise TimeoutError("the testbed in %s did not answer end_experiment within %.0f s" % (ns, timeout))

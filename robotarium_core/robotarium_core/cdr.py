@@ -21,6 +21,12 @@ Each message is a `Layout`: its fields in order (the header's stamp and frame_id
 against `max_elements` before reading anything, so a truncated, garbled or oversized array is a
 `CdrError` (a ValueError), never a crash and never a large allocation; `build` returns the bytes.
 A new field in a .msg file is one line in its layout here (tests/test_cdr.py fails until it is).
+
+The testbed's command inputs read with `parse_commands`: the token (kept second in TwistArray for
+this) is compared before anything after it is read, and the lengths are checked against the
+experiment's robot count, so a foreign, oversized or malformed array costs a few microseconds and
+is dropped with its reason (CdrError.reason: FOREIGN, OVERSIZED or MALFORMED; the names of
+robotarium_msgs/DropCounts).
 """
 import struct
 from collections import namedtuple
@@ -33,8 +39,16 @@ ENCAPSULATION = b"\x00\x01\x00\x00"     # plain CDR, little endian
 _COUNT = struct.Struct("<I")   # string lengths and sequence counts
 
 
+FOREIGN, OVERSIZED, MALFORMED = "foreign", "oversized", "malformed"
+
+
 class CdrError(ValueError):
-    """Bytes that are not a valid serialized message of the expected layout."""
+    """Bytes that are not a valid serialized message of the expected layout; `reason` says why in
+    DropCounts' words (MALFORMED, OVERSIZED: a sequence longer than max_elements, FOREIGN)."""
+
+    def __init__(self, text, reason=MALFORMED):
+        super().__init__(text)
+        self.reason = reason
 
 
 class _Scalar:
@@ -94,7 +108,7 @@ class _Sequence:
         reader.pos = pos + 4
         if reader.max_elements is not None and count > reader.max_elements:
             raise CdrError("a sequence of %d elements at offset %d (at most %d accepted)"
-                           % (count, pos, reader.max_elements))
+                           % (count, pos, reader.max_elements), OVERSIZED)
         if count == 0:
             return self.default
         start = reader.align(self.align)
@@ -187,6 +201,7 @@ class Layout:
 
 
 TWIST_ARRAY = Layout("robotarium_msgs/msg/TwistArray", HEADER + (
+    ("token", STRING),
     ("step", UINT64),
     ("ids", _Sequence(np.uint32)),
     ("twists", _Sequence(np.float64, 6)),     # linear x, y, z, angular x, y, z per robot
@@ -195,6 +210,7 @@ TWIST_ARRAY = Layout("robotarium_msgs/msg/TwistArray", HEADER + (
 
 ROBOT_POSES = Layout("robotarium_msgs/msg/RobotPoses", HEADER + (
     ("run_id", STRING),
+    ("key", STRING),
     ("step", UINT64),
     ("sim_time", FLOAT64),
     ("ids", _Sequence(np.uint32)),
@@ -206,6 +222,26 @@ ROBOT_POSES = Layout("robotarium_msgs/msg/RobotPoses", HEADER + (
 POSE_ARRAY = Layout("geometry_msgs/msg/PoseArray", HEADER + (
     ("poses", _Sequence(np.float64, 7)),      # position x, y, z, orientation x, y, z, w per robot
 ))
+
+
+# The fields of a TwistArray up to its token: read first, so a foreign array costs no more.
+_TWIST_ARRAY_HEAD = Layout("robotarium_msgs/msg/TwistArray", HEADER + (("token", STRING),))
+
+# A parsed command array: ids, v (linear.x) and omega (angular.z) as numpy arrays.
+Commands = namedtuple("Commands", "token step ids v omega requested_exceeds_limits sec nanosec")
+
+
+def parse_commands(data, max_robots, token=None):
+    """A TwistArray's serialized bytes (a raw=True subscription) -> Commands, or CdrError with its
+    reason: FOREIGN when `token` (str) is given and the array carries another, before anything
+    after the token is read; OVERSIZED when ids or twists hold more than `max_robots` entries,
+    from their count fields alone; MALFORMED when the bytes are not a TwistArray. Ids and twists
+    of different lengths, unknown ids and NaN are left to robotarium_core.model.check_commands."""
+    if token is not None and _TWIST_ARRAY_HEAD.parse(data).token != token:
+        raise CdrError("the array does not carry the running experiment's token", FOREIGN)
+    msg = TWIST_ARRAY.parse(data, max_elements=max_robots)
+    return Commands(msg.token, msg.step, msg.ids.astype(np.int64), msg.twists[:, 0].astype(float),
+                    msg.twists[:, 5].astype(float), bool(msg.requested_exceeds_limits), msg.sec, msg.nanosec)
 
 
 def twists(v, w):

@@ -57,6 +57,9 @@ FIELDS = {
     "lockstep_wait": Field("s a lockstep command waits for the poses it was computed from", 0.0, used_by=(SAFETY,)),
     "time_limit": Field("s of testbed time after which the client ends an experiment (0: no limit)", 0.0,
                         low_open=False, used_by=(CLIENT,)),
+    "client_lease": Field("s; a client gone this long (killed, crashed, network lost) loses its experiment", 0.1, 60.0,
+                          used_by=(SIMULATOR,)),
+    "node_lease": Field("s; a simulator, safety node or recorder gone this long is reported lost", 0.1, 60.0),
 }
 
 
@@ -108,6 +111,8 @@ class TestbedConfig:
     pose_timeout: float
     lockstep_wait: float
     time_limit: float
+    client_lease: float
+    node_lease: float
 
     def __post_init__(self):
         for name in FIELDS:

@@ -92,14 +92,25 @@ def threshold_keeping_arc(dxu, max_linear=MAX_LINEAR_VELOCITY, max_angular=MAX_A
     w_scaled = alpha w keeps the arc radius v/omega). Commands already within limits are
     returned unchanged, bit for bit."""
     v, w = np.abs(dxu[0]), np.abs(dxu[1])
-    with np.errstate(divide="ignore"):
-        alpha = np.minimum(np.minimum(max_wheel / fastest_wheel(v, w, wheel_radius, base_length), 1.0),
-                           np.minimum(max_linear / v, max_angular / w))
+    with np.errstate(divide="ignore", over="ignore"):
+        wheel = fastest_wheel(v, w, wheel_radius, base_length)
+        alpha = np.minimum(np.minimum(max_wheel / wheel, 1.0), np.minimum(max_linear / v, max_angular / w))
     over = alpha < 1
     if not np.any(over):
         return dxu.copy()
     scaled = dxu.copy()
     scaled[:, over] *= alpha[over]
+    huge = ~np.isfinite(wheel)
+    if np.any(huge):
+        # |v| or |omega| near the largest float (1e308): the wheel speed overflowed and alpha came
+        # out 0, a stop. Take the direction (v, omega) / max(|v|, |omega|) instead and go as far
+        # along it as the limits allow: full speed on the commanded arc, as for any other value.
+        unit = dxu[:, huge] / np.maximum(v[huge], w[huge])
+        u_v, u_w = np.abs(unit[0]), np.abs(unit[1])
+        with np.errstate(divide="ignore", over="ignore"):
+            reach = np.minimum(max_wheel / fastest_wheel(u_v, u_w, wheel_radius, base_length),
+                               np.minimum(max_linear / u_v, max_angular / u_w))
+        scaled[:, huge] = unit * reach
     return scaled
 
 
@@ -177,6 +188,20 @@ def random_initial_conditions(number_of_robots, rng, spacing=0.2, width=2.5, hei
     x_cell, y_cell = np.divmod(choices, y_range)
     return np.vstack((x_cell * spacing - width / 2, y_cell * spacing - height / 2,
                       rng.random(number_of_robots) * 2 * np.pi - np.pi))
+
+
+# Why a node drops an incoming command array: the fields of robotarium_msgs/DropCounts, counted
+# per input (cmd_requested at the safety node, cmd_safe at the simulator). The first three are
+# decided from the serialized bytes (robotarium_core.cdr), the next three by check_commands.
+DROP_REASONS = {
+    "foreign": "it does not carry the running experiment's token (or key), or no experiment is running",
+    "oversized": "more ids or twists than the experiment has robots",
+    "malformed": "its bytes are not a TwistArray",
+    "nonfinite": "NaN or inf in a velocity",
+    "length_mismatch": "ids and twists of different lengths, or an id given twice",
+    "unknown_id": "an id that is not a robot of this experiment",
+    "stale": "a lockstep step that was already taken",
+}
 
 
 def check_commands(ids, v, w, number_of_robots):

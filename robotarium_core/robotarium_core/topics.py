@@ -21,6 +21,13 @@ DEFAULT_NAMESPACE = "robotarium"
 TESTBED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
+# The testbed's command inputs (cmd_requested at the safety node, cmd_safe at the simulator) read
+# serialized arrays and drop foreign ones in microseconds (robotarium_core.cdr), so their queue
+# only has to outlast a moment's stall of the node: 1000 arrays are one second of a 1 kHz flood
+# before a client's array could be pushed out.
+COMMAND_INPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                               durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
 # A topic that keeps only its last message for late subscribers (announcements, the run's configuration).
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -32,6 +39,7 @@ STATUS = "status"                 # TestbedStatus
 SAFETY_REPORT = "safety_report"   # SafetyReport
 RECORDING = "recording"           # std_msgs/String: recorder -> simulator, where the run is recorded
 CONFIG = "config"                 # std_msgs/String, latched: the running experiment's TestbedConfig as YAML
+SAFETY_ARM = "safety/arm"        # ArmSafety: simulator -> safety node, the experiment to guard and its secrets
 START_EXPERIMENT = "start_experiment"
 END_EXPERIMENT = "end_experiment"
 

@@ -30,7 +30,8 @@ header stamp (or the Log stamp), else the receive time.
 
 Parameters: bags_dir (default $ROBOTARIUM_ROOT/bags, else ./bags), chunk_seconds (0.8: a chunk
 is closed and put on disk this long after the previous one at the latest, checked on every
-message and five times a second, so no received message waits more than a second).
+message and five times a second, so no received message waits more than a second), node_lease
+(the testbed configuration's: clients notice a lost recorder within it, robotarium_core.presence).
 Run: ros2 run robotarium_recording recorder [--ros-args -r __ns:=/other -p bags_dir:=/data/bags]
 """
 import importlib
@@ -47,6 +48,8 @@ from rcl_interfaces.msg import Log
 from std_msgs.msg import String
 
 from robotarium_msgs.msg import TestbedStatus
+from robotarium_core import presence
+from robotarium_core.config import DEFAULT, FIELDS
 from robotarium_core.node_tools import declare_parameter, run_node
 from robotarium_core.topics import DEFAULT_NAMESPACE, LATCHED, RECORDING
 from robotarium_recording import bag
@@ -222,6 +225,11 @@ class RecorderNode(Node):
                                           "often, so a killed recorder loses less", low=0.05, high=60.0)
         if not 0 < chunk_seconds <= 60:
             raise ValueError("parameter chunk_seconds=%r must be in (0, 60] seconds." % chunk_seconds)
+        field = FIELDS["node_lease"]
+        node_lease = declare_parameter(self, "node_lease", DEFAULT.node_lease, field.description,
+                                       low=field.low, high=field.high)
+        # Clients watch it: a lost recorder is reported as "recording stopped at step k".
+        self.presence = presence.Presence(self, presence.alive_topic(presence.RECORDER), node_lease)
         self.ns = self.get_namespace().rstrip("/")
         # Log lines of this namespace's nodes: logger names are the namespace with dots.
         self.logger_prefix = self.ns.strip("/").replace("/", ".") + "." if self.ns else ""

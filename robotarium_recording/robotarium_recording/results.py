@@ -42,7 +42,8 @@ def _run_settings(bag):
     running = [s for s in bag.statuses() if s.state == 1]
     if not running:
         return {"experiment": "", "run_id": "", "mode": "", "number_of_robots": 0, "final": None}
-    final = max(running, key=lambda s: s.step)
+    last_step = max(s.step for s in running)
+    final = [s for s in running if s.step == last_step][-1]   # the simulator's last word: counters, end reason
     return {"experiment": final.experiment, "run_id": final.run_id, "mode": final.mode,
             "number_of_robots": int(final.number_of_robots), "final": final}
 
@@ -140,7 +141,7 @@ def recompute(bag):
                    "command_timeouts": int(final.command_timeouts),
                    "commands_accepted": int(final.commands_accepted),
                    "safety_interventions": int(final.safety_interventions),
-                   "dropped": int(final.dropped_nonfinite + final.dropped_length_mismatch + final.dropped_unknown_id)}
+                   "dropped": _dropped(final), "end_reason": getattr(final, "end_reason", "")}
         result["testbed"] = testbed
         for key in ("iterations", "collisions", "boundary_violations", "actuator_limit_iterations"):
             if testbed[key] != result[key]:
@@ -149,6 +150,16 @@ def recompute(bag):
     else:
         notes.append("no status of the running experiment in the bag: nothing to cross-check against.")
     return result
+
+
+def _dropped(status):
+    """{input: {reason: count}} of the arrays the testbed dropped (a TestbedStatus); bags recorded
+    before the counts by input and reason have three counts of the simulator's input."""
+    if hasattr(status, "dropped_cmd_safe"):
+        return {name: {reason: int(getattr(counts, reason)) for reason in model.DROP_REASONS}
+                for name, counts in (("cmd_requested", status.dropped_cmd_requested),
+                                     ("cmd_safe", status.dropped_cmd_safe))}
+    return {"cmd_safe": {reason: int(getattr(status, "dropped_" + reason, 0)) for reason in model.DROP_REASONS}}
 
 
 def report_text(bag, numbers):
@@ -170,9 +181,13 @@ def report_text(bag, numbers):
         lines.append("cross-check:  %s" % ("collisions, boundary violations, actuator-limit iterations and steps "
                                           "agree with the testbed's counters" if not numbers["mismatches"]
                                           else "DIFFERS: " + "; ".join(numbers["mismatches"])))
-        lines.append("testbed:      %d command timeouts, %d command arrays accepted, %d dropped, "
-                     "%d safety interventions" % (t["command_timeouts"], t["commands_accepted"], t["dropped"],
-                                                  t["safety_interventions"]))
+        lines.append("testbed:      %d command timeouts, %d command arrays accepted, %d safety interventions" % (
+            t["command_timeouts"], t["commands_accepted"], t["safety_interventions"]))
+        for name, counts in t["dropped"].items():
+            lines.append("dropped:      %s: %s" % (name, ", ".join("%d %s" % (n, reason) for reason, n in counts.items()
+                                                                 if n) or "none"))
+        if t["end_reason"]:
+            lines.append("ended:        %s" % t["end_reason"])
     lines += ["note:         " + note for note in numbers["notes"]]
     lines.append("messages:     " + ", ".join("%s %d" % (topic, info.count) for topic, info in sorted(bag.topics.items())))
     return "\n".join(lines) + "\n"

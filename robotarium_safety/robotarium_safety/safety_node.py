@@ -1,10 +1,20 @@
 """The always-on safety node: every command on its way to the robots passes a barrier certificate.
 
 Topics (relative to the node's namespace, /robotarium by default):
-  cmd_requested  robotarium_msgs/TwistArray    in:  what the client asks for
+  cmd_requested  robotarium_msgs/TwistArray    in:  what the client asks for, read serialized
   poses          robotarium_msgs/RobotPoses    in:  the newest poses from the simulator
   cmd_safe       robotarium_msgs/TwistArray    out: the filtered commands, the simulator's only input
-  safety_report  robotarium_msgs/SafetyReport  out: one per command array: change, solve time, status
+  safety_report  robotarium_msgs/SafetyReport  out: one per command array: change, solve time, status,
+                                                    and the arrays dropped so far
+Service: safety/arm robotarium_msgs/ArmSafety (the simulator, at every start and end of an experiment)
+
+It guards only the experiment the simulator armed it with: it forwards only cmd_requested arrays
+that carry that experiment's token (anything else - a stray publisher, a replayed bag, another
+script - is dropped from its first bytes and counted by reason, robotarium_core.cdr), takes only
+poses that carry the run's poses key, and marks what it forwards with the safety key, the only
+cmd_safe the simulator applies. Commands beyond the actuator limits are first scaled to them
+keeping their arc (as the simulator's thresholding would), so the certificate judges what the
+robots will drive and a huge finite value becomes full speed along its arc, never a stop.
 
 Each requested array is merged into the current command of all robots (robots not named keep
 their last command, as on the simulator) and filtered through the unicycle barrier certificate
@@ -25,12 +35,14 @@ import numpy as np
 from geometry_msgs.msg import Twist
 from rclpy.node import Node
 
-from robotarium_msgs.msg import RobotPoses, SafetyReport, TwistArray
+from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, TwistArray
+from robotarium_msgs.srv import ArmSafety
 from robotarium_safety.barrier_certificates import create_unicycle_barrier_certificate_with_centre_boundary
-from robotarium_core import model
+from robotarium_core import cdr, model, presence
 from robotarium_core.node_tools import declare_config, run_node
-from robotarium_core.topics import (CMD_REQUESTED, CMD_SAFE, DEFAULT_NAMESPACE, POSES, SAFETY_REPORT, TESTBED_QOS,
-                                    warn_on_incompatible_qos)
+from robotarium_core.topics import (CMD_REQUESTED, CMD_SAFE, COMMAND_INPUT_QOS, DEFAULT_NAMESPACE, POSES,
+                                    SAFETY_ARM, SAFETY_REPORT, TESTBED_QOS, warn_on_incompatible_qos)
+
 
 def twists_of(v, w):
     out = []
@@ -50,21 +62,60 @@ class SafetyNode(Node):
             projection_distance=c.projection_distance, magnitude_limit=c.magnitude_limit,
             boundary_points=np.array(c.arena), boundary_margin=c.boundary_margin)
 
+        self.armed = ArmSafety.Request()   # the experiment guarded (run_id empty: none)
         self.poses = None            # 3 x N, newest
         self.poses_step = -1
         self.poses_time = -np.inf    # monotonic receive time
         self.commands = None         # 2 x N, the current requested command of every robot
-        self.pending = None          # (msg, received) a numbered command waiting for its poses
+        self.pending = None          # (commands, received) a numbered command waiting for its poses
+        self.last_step = 0           # the last numbered step forwarded
+        self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
+        self._dropped_reported = dict(self.dropped)
         self._logged = set()
 
         self.safe_pub = self.create_publisher(TwistArray, CMD_SAFE, TESTBED_QOS)
         self.report_pub = self.create_publisher(SafetyReport, SAFETY_REPORT, TESTBED_QOS)
-        self.create_subscription(TwistArray, CMD_REQUESTED, self.on_request, TESTBED_QOS,
+        self.create_subscription(TwistArray, CMD_REQUESTED, self.on_request, COMMAND_INPUT_QOS, raw=True,
                                  event_callbacks=warn_on_incompatible_qos(self, CMD_REQUESTED))
         self.create_subscription(RobotPoses, POSES, self.on_poses, TESTBED_QOS)
+        self.create_service(ArmSafety, SAFETY_ARM, self.on_arm)
+        self.presence = presence.Presence(self, presence.alive_topic(presence.SAFETY), c.node_lease)
         self.create_timer(0.02, self.check_pending)
+        self.create_timer(1.0, self.report_drops)
         self.get_logger().info("safety node ready in namespace %s (safety radius %.3f m, arena %s, margin %.3f m)" % (
             self.get_namespace(), c.safety_radius, list(c.arena), c.boundary_margin))
+
+    def on_arm(self, request, response):
+        """The simulator starts (run_id set) or ends (empty) an experiment: guard that one only."""
+        if request.run_id and request.number_of_robots < 1:
+            response.message = "an experiment needs at least one robot."
+            return response
+        self.armed = request
+        n = request.number_of_robots if request.run_id else 0
+        self.poses, self.poses_step, self.poses_time = None, -1, -np.inf
+        self.commands = np.zeros((2, n))   # nobody has a command yet
+        self.pending = None
+        self.last_step = 0
+        self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
+        self._dropped_reported = dict(self.dropped)
+        response.success = True
+        response.message = ("guarding %s (%d robots)" % (request.run_id, n)) if request.run_id else "disarmed"
+        self.get_logger().info(response.message)
+        return response
+
+    def drop(self, reason, text):
+        self.dropped[reason] += 1
+        self.warn_once("drop_" + reason, "dropped a command array on cmd_requested: %s (%s)" % (model.DROP_REASONS[reason], text))
+
+    def report_drops(self):
+        """Drops with no array filtered since: say so at most once a second (the simulator puts them in status)."""
+        if self.dropped != self._dropped_reported:
+            report = SafetyReport(status=SafetyReport.STATUS_COUNTS_ONLY, step=self.last_step)
+            report.header.stamp = self.get_clock().now().to_msg()
+            report.header.frame_id = "arena"
+            report.dropped = DropCounts(**self.dropped)
+            self._dropped_reported = dict(self.dropped)
+            self.report_pub.publish(report)
 
     def warn_once(self, kind, text):
         if kind not in self._logged:
@@ -72,57 +123,71 @@ class SafetyNode(Node):
             self.get_logger().warning(text + " (logged once; every case is in safety_report)")
 
     def on_poses(self, msg):
-        n = len(msg.x)
-        if self.poses is None or self.poses.shape[1] != n or msg.step < self.poses_step:
-            self.commands = np.zeros((2, n))  # a new experiment: nobody has a command yet
+        armed = self.armed
+        if not armed.run_id or msg.key != armed.poses_key or len(msg.x) != armed.number_of_robots:
+            # A replayed bag, a stray publisher, or the end of an earlier run: not this run's poses.
+            if armed.run_id:
+                self.warn_once("foreign_poses", "ignoring poses without this run's key (a replay or another "
+                                                "publisher on %s?)" % POSES)
+            return
         self.poses = np.array([msg.x, msg.y, msg.theta])
         self.poses_step = msg.step
         self.poses_time = time.monotonic()
         if self.pending is not None and self.poses_step >= self.pending[0].step - 1:
-            msg, _ = self.pending
+            request, _ = self.pending
             self.pending = None
-            self.filter(msg)
+            self.filter(request)
 
-    def on_request(self, msg):
-        if msg.step > 0 and (self.poses is None or msg.step - 1 > self.poses_step):
-            if self.pending is not None and self.pending[0].step == msg.step:
-                return  # a re-send of the command that is already waiting
+    def on_request(self, data):
+        armed = self.armed
+        if not armed.run_id:
+            return self.drop("foreign", "no experiment is running")
+        try:
+            request = cdr.parse_commands(data, armed.number_of_robots, token=armed.token)
+        except cdr.CdrError as error:
+            return self.drop(error.reason, str(error))
+        if not armed.real_time and 0 < request.step <= self.last_step:
+            return self.drop("stale", "step %d was forwarded already" % request.step)
+        if request.step > 0 and (self.poses is None or request.step - 1 > self.poses_step):
+            if self.pending is not None and self.pending[0].step == request.step:
+                return self.drop("stale", "step %d is waiting for its poses already" % request.step)
             if self.pending is not None:  # a newer step: the client gave up on the old one
                 self.filter(self.pending[0])
-            self.pending = (msg, time.monotonic())
+            self.pending = (request, time.monotonic())
             return
-        self.filter(msg)
+        self.filter(request)
 
     def check_pending(self):
         if self.pending is not None and time.monotonic() - self.pending[1] > self.config.lockstep_wait:
-            msg, _ = self.pending
+            request, _ = self.pending
             self.pending = None
             self.warn_once("late_poses", "poses for step %d did not come in time; filtering with step %d"
-                           % (msg.step - 1, self.poses_step))
-            self.filter(msg)
+                           % (request.step - 1, self.poses_step))
+            self.filter(request)
 
-    def filter(self, msg):
+    def filter(self, request):
         started = time.perf_counter()
-        ids = np.array(msg.ids, dtype=np.int64)
-        v = np.array([t.linear.x for t in msg.twists], dtype=float)
-        w = np.array([t.angular.z for t in msg.twists], dtype=float)
-        report = SafetyReport(step=msg.step)
+        ids, v, w = request.ids, request.v, request.omega
+        report = SafetyReport(step=request.step)
+        self.last_step = max(self.last_step, request.step)
 
         # In lockstep (numbered commands) time stands still between steps: only real-time poses age.
-        stale = msg.step == 0 and time.monotonic() - self.poses_time > self.config.pose_timeout
+        stale = request.step == 0 and time.monotonic() - self.poses_time > self.config.pose_timeout
         if self.poses is None or stale:
             self.warn_once("no_poses", "no recent poses from the simulator: sending stop")
-            return self.send_stop(msg, ids, report, SafetyReport.STATUS_STOP_NO_POSES, started)
+            return self.send_stop(request, report, SafetyReport.STATUS_STOP_NO_POSES, started)
         n = self.poses.shape[1]
         problem = model.check_commands(ids, v, w, n)
         if problem is not None:
+            self.dropped[problem] += 1
             self.warn_once(problem, "malformed command array (%s): sending stop" % problem)
-            return self.send_stop(msg, ids, report, SafetyReport.STATUS_STOP_BAD_INPUT, started)
+            return self.send_stop(request, report, SafetyReport.STATUS_STOP_BAD_INPUT, started)
 
         self.commands[0, ids] = v
         self.commands[1, ids] = w
-        requested = self.commands.copy()
-        over_limits = model.exceeds_actuator_limits(requested, **self.config.limits)
+        over_limits = model.exceeds_actuator_limits(self.commands, **self.config.limits)
+        # What the robots would drive: beyond the limits, scaled to them along the commanded arc.
+        requested = model.threshold_keeping_arc(self.commands, **self.config.limits)
         safe = self.certificate(requested, self.poses)
         info = self.certificate.info
         if info["fallback"]:
@@ -130,31 +195,33 @@ class SafetyNode(Node):
             status = SafetyReport.STATUS_STOP_SOLVER_FAILED
             safe = np.zeros_like(requested)
         else:
-            status = (SafetyReport.STATUS_PASSTHROUGH if info["status"] == "passthrough"
-                      else SafetyReport.STATUS_SOLVED)
             # The certificate bounds speed, not wheel speeds: where it replaced a command, make the
             # replacement drivable (keeping its arc); the debug report's actuator count judges the
             # script's own commands (requested_exceeds_limits), never our interventions.
             changed = np.any(safe != requested, axis=0)
             if np.any(changed):
                 safe[:, changed] = model.threshold_keeping_arc(safe[:, changed], **self.config.limits)
+            status = SafetyReport.STATUS_SOLVED if np.any(safe != requested) else SafetyReport.STATUS_PASSTHROUGH
         change = np.abs(safe - requested)
         report.status = status
         report.solver_status = info["status"]
         report.max_change = float(change.max()) if n else 0.0
         report.robots_changed = int(np.count_nonzero(change.max(axis=0) > 1e-6))
-        self.publish(msg, np.arange(n), safe[0], safe[1], report, started, over_limits)
+        self.publish(request, np.arange(n), safe[0], safe[1], report, started, over_limits)
 
-    def send_stop(self, msg, ids, report, status, started):
+    def send_stop(self, request, report, status, started):
         if self.poses is not None:
             ids = np.arange(self.poses.shape[1])  # stop every robot we know of
             self.commands[:] = 0.0
+        else:
+            ids = np.arange(self.armed.number_of_robots)
         report.status = status
         report.solver_status = ""
-        self.publish(msg, ids, np.zeros(len(ids)), np.zeros(len(ids)), report, started)
+        self.publish(request, ids, np.zeros(len(ids)), np.zeros(len(ids)), report, started)
 
     def publish(self, request, ids, v, w, report, started, requested_exceeds_limits=False):
-        out = TwistArray(step=request.step, requested_exceeds_limits=bool(requested_exceeds_limits))
+        out = TwistArray(step=request.step, requested_exceeds_limits=bool(requested_exceeds_limits),
+                         token=self.armed.safety_key)
         out.header.stamp = self.get_clock().now().to_msg()
         out.header.frame_id = "arena"
         out.ids = [int(i) for i in ids]
@@ -163,8 +230,9 @@ class SafetyNode(Node):
         report.header = out.header
         report.number_of_robots = len(ids)
         report.solve_time = time.perf_counter() - started
+        report.dropped = DropCounts(**self.dropped)
+        self._dropped_reported = dict(self.dropped)
         self.report_pub.publish(report)
-
 
 
 def main(args=None):

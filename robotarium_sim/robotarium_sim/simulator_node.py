@@ -1,13 +1,25 @@
 """The Robotarium simulator node: a thin ROS 2 shell around robotarium_core.model.Testbed.
 
 Topics (relative to the node's namespace, /robotarium by default):
-  cmd_safe        robotarium_msgs/TwistArray   in:  the safety node's commands (the only command input)
+  cmd_safe        robotarium_msgs/TwistArray   in:  the safety node's commands (the only command input), read
+                                                    serialized: foreign, oversized and malformed arrays are
+                                                    dropped from their first bytes (robotarium_core.cdr)
   safety_report   robotarium_msgs/SafetyReport in:  counted as safety interventions
   poses           robotarium_msgs/RobotPoses   out: every step
   pose_array      geometry_msgs/PoseArray      out: every step, for viewers (built only when someone listens)
   status          robotarium_msgs/TestbedStatus out: every step, and once a second while idle or in lockstep
 Services:
   start_experiment robotarium_msgs/StartExperiment, end_experiment robotarium_msgs/EndExperiment
+Calls: safety/arm robotarium_msgs/ArmSafety (at every start and end)
+
+An experiment belongs to the client that started it. A start makes three secrets: the client's
+token (returned to it; the safety node forwards only commands that carry it, and only it ends the
+experiment, or an operator with force), the safety key (only the safety node learns it, in the
+ArmSafety request, and puts it on cmd_safe: this node applies nothing else) and the poses key (on
+every poses message: the client and the safety node take no others). The start is refused when
+no safety node answers. The client holds a presence on the topic the start names; when it is gone
+for `client_lease` s the experiment ends by itself ("client lost at step k"). When the safety
+node's presence is lost, every robot stops at once.
 
 Modes, chosen per experiment: real time (a timer at `rate` Hz; a robot whose last command is older
 than `command_timeout` stops) or lockstep (exactly one step per accepted command array, as fast as
@@ -18,28 +30,34 @@ safely when a message was lost before discovery completed (step 0 means "unnumbe
 import array
 import math
 import re
+import secrets
 import sys
 import time
 
 import numpy as np
 from geometry_msgs.msg import Pose, PoseArray
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.task import Future
 from std_msgs.msg import String
 
-from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
-from robotarium_msgs.srv import EndExperiment, StartExperiment
-from robotarium_core import model
-from robotarium_core.node_tools import declare_config, run_node
-from robotarium_core.topics import (CMD_SAFE, CONFIG, DEFAULT_NAMESPACE, END_EXPERIMENT, LATCHED, POSE_ARRAY, POSES,
-                                    RECORDING, SAFETY_REPORT, START_EXPERIMENT, STATUS, TESTBED_QOS,
-                                    warn_on_incompatible_qos)
+from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, TestbedStatus, TwistArray
+from robotarium_msgs.srv import ArmSafety, EndExperiment, StartExperiment
 
-DROP_REASONS = {
-    "nonfinite": "NaN or inf in a velocity",
-    "length_mismatch": "ids and twists of different lengths, or an id given twice",
-    "unknown_id": "an id that is not a robot of this experiment",
-}
+from robotarium_core import cdr, model, presence
+from robotarium_core.node_tools import declare_config, run_node
+from robotarium_core.topics import (CMD_SAFE, COMMAND_INPUT_QOS, CONFIG, DEFAULT_NAMESPACE, END_EXPERIMENT, LATCHED,
+                                    POSE_ARRAY, POSES, RECORDING, SAFETY_ARM, SAFETY_REPORT, START_EXPERIMENT, STATUS,
+                                    TESTBED_QOS, warn_on_incompatible_qos)
+
+SAFETY_WAIT = 10.0          # s a start waits for the safety node to answer (discovery is slow on a loaded machine)
+CLIENT_DISCOVERY_WAIT = 10.0  # s after a start for the client's presence to appear before it counts as lost
+
+
+def drop_counts(counts):
+    """{reason: count} -> robotarium_msgs/DropCounts."""
+    return DropCounts(**counts)
 
 
 def to_float_array(values):
@@ -67,33 +85,48 @@ class SimulatorNode(Node):
         self.recording = ""
         self.safety_interventions = 0
         self.commands_accepted = 0
-        self.dropped = {kind: 0 for kind in DROP_REASONS}
+        self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
+        self.dropped_requested = DropCounts()   # the safety node's, from its safety_report
         self._logged_drops = set()
         self._clock_start = 0.0
         self._tick_timer = None
+        self._starting = False
+        self.token = self.safety_key = self.poses_key = ""
+        self.end_reason = ""
+        self.client_watch = None
+        self._client_deadline = None
 
         self.poses_pub = self.create_publisher(RobotPoses, POSES, TESTBED_QOS)
         self.pose_array_pub = self.create_publisher(PoseArray, POSE_ARRAY, 10)
         self.status_pub = self.create_publisher(TestbedStatus, STATUS, TESTBED_QOS)
         # The configuration of the running experiment, for the recorder and the report.
         self.config_pub = self.create_publisher(String, CONFIG, LATCHED)
-        self.create_subscription(TwistArray, CMD_SAFE, self.on_command, TESTBED_QOS,
+        self.create_subscription(TwistArray, CMD_SAFE, self.on_command, COMMAND_INPUT_QOS, raw=True,
                                  event_callbacks=warn_on_incompatible_qos(self, CMD_SAFE))
         self.create_subscription(SafetyReport, SAFETY_REPORT, self.on_safety_report, TESTBED_QOS)
         self.create_subscription(String, RECORDING, self.on_recording, LATCHED)
-        self.create_service(StartExperiment, START_EXPERIMENT, self.on_start)
+        # A start waits for the safety node's answer (a coroutine): in a group of its own, so that
+        # the node's other callbacks (that answer among them) run meanwhile.
+        self.create_service(StartExperiment, START_EXPERIMENT, self.on_start,
+                            callback_group=MutuallyExclusiveCallbackGroup())
         self.create_service(EndExperiment, END_EXPERIMENT, self.on_end)
+        self.arm_client = self.create_client(ArmSafety, SAFETY_ARM)
+        self.presence = presence.Presence(self, presence.alive_topic(presence.SIMULATOR), self.config.node_lease)
+        self.safety_watch = presence.Watch(self, presence.alive_topic(presence.SAFETY), self.config.node_lease,
+                                           on_lost=self.on_safety_lost)
         self.create_timer(1.0, self.publish_status_heartbeat)
+        self.create_timer(0.2, self.check_client)
         self.config_pub.publish(String(data=self.config.to_yaml()))
         self.get_logger().info("simulator ready in namespace %s" % self.get_namespace())
 
     # -- experiments -------------------------------------------------------------------------
 
-    def on_start(self, request, response):
+    async def on_start(self, request, response):
         response.success = False
-        if self.testbed is not None:
-            response.message = ("experiment %r is still running; end it (end_experiment) before starting another."
-                                % self.experiment)
+        if self.testbed is not None or self._starting:
+            response.message = ("experiment %r is still running; it ends when its client ends it, when its client is "
+                                "gone for %g s, or with ./robotarium end --force (an operator's override)."
+                                % (self.experiment, self.config.client_lease))
             return response
         name = request.name or "experiment"
         if not re.fullmatch(r"[A-Za-z0-9_-]{1,64}", name):
@@ -113,50 +146,149 @@ class SimulatorNode(Node):
                 raise model.RobotariumError(
                     "initial conditions need x, y and theta of length %d each, or all empty for random ones; "
                     "received lengths %s." % (n, given))
-            self.testbed = model.Testbed(poses, c)
+            testbed = model.Testbed(poses, c)
         except model.RobotariumError as error:
             response.message = str(error)
             return response
 
+        run_id = "%s_%s" % (name, time.strftime("%Y%m%d-%H%M%S"))
+        token, safety_key, poses_key = (secrets.token_hex(16) for _ in range(3))
+        self._starting = True
+        try:
+            armed = await self.arm_safety(ArmSafety.Request(
+                run_id=run_id, number_of_robots=n, real_time=bool(request.real_time), token=token,
+                safety_key=safety_key, poses_key=poses_key))
+        finally:
+            self._starting = False
+        if armed is not True:
+            response.message = armed
+            return response
+
+        self.testbed = testbed
         self.real_time = bool(request.real_time)
         self.experiment = name
-        self.run_id = "%s_%s" % (name, time.strftime("%Y%m%d-%H%M%S"))
+        self.run_id = run_id
+        self.token, self.safety_key, self.poses_key = token, safety_key, poses_key
+        self.end_reason = ""
         self.safety_interventions = 0
         self.commands_accepted = 0
-        self.dropped = {kind: 0 for kind in DROP_REASONS}
+        self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
+        self.dropped_requested = DropCounts()
         self._logged_drops = set()
         self._clock_start = time.monotonic()
+        self.watch_client(run_id)
         if self.real_time:
             self._tick_timer = self.create_timer(1.0 / c.rate, self.tick)
         self.publish_state()
         self.config_pub.publish(String(data=c.to_yaml()))
         response.success = True
         response.run_id = self.run_id
+        response.token = token
+        response.poses_key = poses_key
+        response.client_alive_topic = self.client_watch.subscription.topic_name
+        response.client_lease = c.client_lease
         response.x, response.y, response.theta = (to_float_array(row) for row in self.testbed.poses)
         response.message = "started %s: %d robots, %s" % (
             self.run_id, n, "real time at %g Hz" % c.rate if self.real_time else "lockstep")
         self.get_logger().info(response.message)
         return response
 
+    async def arm_safety(self, request):
+        """Hand the safety node the experiment to guard; True, or why it could not be done."""
+        deadline = time.monotonic() + SAFETY_WAIT
+        while not self.arm_client.service_is_ready():
+            if time.monotonic() > deadline:
+                return ("no safety node answers on %s within %.0f s: without it the robots cannot move. Is the "
+                        "testbed complete (./robotarium up starts all of it)?" % (self.arm_client.srv_name, SAFETY_WAIT))
+            await self.sleep(0.05)
+        future = self.arm_client.call_async(request)
+        while not future.done():
+            if time.monotonic() > deadline:
+                return "the safety node did not answer on %s within %.0f s." % (self.arm_client.srv_name, SAFETY_WAIT)
+            await self.sleep(0.01)
+        result = future.result()
+        return True if result.success else "the safety node refused the experiment: %s" % result.message
+
+    async def sleep(self, seconds):
+        """Wait inside a coroutine callback while the executor goes on serving the others."""
+        done = Future()
+        timer = self.create_timer(seconds, lambda: done.done() or done.set_result(None))
+        try:
+            await done
+        finally:
+            self.destroy_timer(timer)
+
+    def disarm_safety(self):
+        if self.arm_client.service_is_ready():
+            self.arm_client.call_async(ArmSafety.Request())   # nothing waits for it: the keys are dead anyway
+
+    def watch_client(self, run_id):
+        """Follow the presence of this experiment's client on a topic of its own."""
+        topic = presence.alive_topic("client_" + secrets.token_hex(8))
+        self.client_watch = presence.Watch(self, topic, self.config.client_lease, on_lost=self.on_client_lost)
+        self._client_deadline = time.monotonic() + CLIENT_DISCOVERY_WAIT + self.config.client_lease
+
+    def check_client(self):
+        # A client that never showed up (gone before its presence was discovered) is lost too.
+        if (self.testbed is not None and self.client_watch is not None and not self.client_watch.seen
+                and time.monotonic() > self._client_deadline):
+            self.on_client_lost()
+
+    def on_client_lost(self):
+        if self.testbed is not None:
+            self.get_logger().warning("the client of %s is gone (no sign of it for %g s): ending the experiment"
+                                      % (self.run_id, self.config.client_lease))
+            self.end_experiment("client lost at step %d" % self.testbed.steps)
+
+    def on_safety_lost(self):
+        if self.testbed is not None:
+            self.get_logger().warning("the safety node is gone: every robot stops")
+            self.testbed.set_commands(np.arange(self.testbed.number_of_robots), 0.0, 0.0, now=time.monotonic())
+
     def on_end(self, request, response):
         if self.testbed is None:
             response.success = False
             response.message = "no experiment is running."
             return response
+        if request.token != self.token and not request.force:
+            response.success = False
+            response.message = (
+                "experiment %s belongs to the client that started it (this request does not carry its token). "
+                "It ends when that client ends it or is gone for %g s; an operator can end it now with "
+                "./robotarium end --force." % (self.run_id, self.config.client_lease))
+            self.get_logger().warning("refused to end %s: the request does not carry its token" % self.run_id)
+            return response
+        reason = ("ended by its client at step %d" if request.token == self.token
+                  else "ended by an operator (end --force) at step %d") % self.testbed.steps
+        return self.end_experiment(reason, response)
+
+    def end_experiment(self, reason, response=None):
+        """End the running experiment (robots stop, counters frozen, the safety node disarmed) for
+        `reason`; fills and returns an EndExperiment response."""
+        response = response or EndExperiment.Response()
         if self._tick_timer is not None:
             self.destroy_timer(self._tick_timer)
             self._tick_timer = None
+        if self.client_watch is not None:
+            self.client_watch.destroy()
+            self.client_watch = None
         tb = self.testbed
+        self.end_reason = reason
         response.success = True
         response.run_id = self.run_id
         response.steps = tb.steps
         copy_counters(tb, response)
         response.report = tb.report()
         response.recording = self.recording
-        response.message = "ended %s after %d steps" % (self.run_id, tb.steps)
+        response.end_reason = reason
+        response.dropped_cmd_safe = drop_counts(self.dropped)
+        response.dropped_cmd_requested = self.dropped_requested
+        response.message = "%s: %s" % (self.run_id, reason)
         self.publish_status()  # the final counters, still marked running, so recorders keep them
         self.testbed = None
+        self.token = self.safety_key = self.poses_key = ""
         self.publish_status()
+        self.disarm_safety()
         self.get_logger().info(response.message)
         return response
 
@@ -166,40 +298,47 @@ class SimulatorNode(Node):
         every subscriber, so the recorder records the end and closes the run."""
         if self.testbed is not None:
             self.get_logger().warning("ending experiment %s: %s" % (self.run_id, reason))
-            self.on_end(EndExperiment.Request(), EndExperiment.Response())
+            self.end_experiment("the testbed stopped at step %d (%s)" % (self.testbed.steps, reason))
             self.status_pub.wait_for_all_acked(Duration(seconds=1.0))
         return None
 
     # -- commands ----------------------------------------------------------------------------
 
-    def on_command(self, msg):
+    def on_command(self, data):
         tb = self.testbed
         if tb is None:
             return
+        try:
+            msg = cdr.parse_commands(data, tb.number_of_robots, token=self.safety_key)
+        except cdr.CdrError as error:
+            return self.drop(error.reason, str(error))
         if not self.real_time and 0 < msg.step <= tb.steps:
-            return  # a lockstep command re-sent by a client that missed our poses: already applied
-        ids = np.frombuffer(msg.ids, dtype=np.uint32) if len(msg.ids) else np.zeros(0, dtype=np.uint32)
-        v = np.array([t.linear.x for t in msg.twists], dtype=float)
-        w = np.array([t.angular.z for t in msg.twists], dtype=float)
-        problem = model.check_commands(ids, v, w, tb.number_of_robots)
+            return self.drop("stale", "step %d was taken already" % msg.step)  # a re-send: already applied
+        problem = model.check_commands(msg.ids, msg.v, msg.omega, tb.number_of_robots)
         if problem is not None:
-            self.dropped[problem] += 1
-            if problem not in self._logged_drops:
-                self._logged_drops.add(problem)
-                self.get_logger().warning(
-                    "dropped a command array (step %d): %s. Further drops of this kind are only counted "
-                    "in the status topic." % (msg.step, DROP_REASONS[problem]))
-            self.publish_status()
-            return
+            return self.drop(problem, "step %d" % msg.step)
         self.commands_accepted += 1
-        tb.set_commands(ids, v, w, now=time.monotonic(), requested_exceeds_limits=msg.requested_exceeds_limits)
+        tb.set_commands(msg.ids, msg.v, msg.omega, now=time.monotonic(),
+                        requested_exceeds_limits=msg.requested_exceeds_limits)
         if not self.real_time:
             tb.step()
             self.publish_state()
 
+    def drop(self, reason, detail):
+        """Count a dropped array (in status); say so in the log the first time for each reason."""
+        self.dropped[reason] += 1
+        if reason not in self._logged_drops:
+            self._logged_drops.add(reason)
+            self.get_logger().warning(
+                "dropped a command array on cmd_safe: %s (%s). Further drops of this kind are only counted in the "
+                "status topic." % (model.DROP_REASONS[reason], detail))
+
     def on_safety_report(self, msg):
-        if self.testbed is not None and msg.status != SafetyReport.STATUS_PASSTHROUGH:
+        if self.testbed is None:
+            return
+        if msg.status not in (SafetyReport.STATUS_PASSTHROUGH, SafetyReport.STATUS_COUNTS_ONLY):
             self.safety_interventions += 1
+        self.dropped_requested = msg.dropped
 
     def on_recording(self, msg):
         self.recording = msg.data
@@ -221,6 +360,7 @@ class SimulatorNode(Node):
         msg.header.stamp = stamp
         msg.header.frame_id = "arena"
         msg.run_id = self.run_id
+        msg.key = self.poses_key
         msg.step = tb.steps
         msg.sim_time = tb.sim_time
         msg.ids = array.array("I", range(tb.number_of_robots))
@@ -256,10 +396,10 @@ class SimulatorNode(Node):
         msg.run_id = self.run_id
         msg.mode = "realtime" if self.real_time else "lockstep"
         msg.commands_accepted = self.commands_accepted
-        msg.dropped_nonfinite = self.dropped["nonfinite"]
-        msg.dropped_length_mismatch = self.dropped["length_mismatch"]
-        msg.dropped_unknown_id = self.dropped["unknown_id"]
+        msg.dropped_cmd_safe = drop_counts(self.dropped)
+        msg.dropped_cmd_requested = self.dropped_requested
         msg.safety_interventions = self.safety_interventions
+        msg.end_reason = self.end_reason
         if tb is None:
             msg.state = TestbedStatus.STATE_IDLE
         else:

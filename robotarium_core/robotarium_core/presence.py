@@ -1,0 +1,79 @@
+"""Noticing within a bound that a process is gone: DDS liveliness on a hidden topic.
+
+Each testbed node (and each client, for its experiment) holds a `Presence`: a publisher that never
+publishes, on `<ns>/_alive/<who>`, with AUTOMATIC liveliness. Fast DDS asserts it from its own
+threads every 2/3 of the offered lease, however busy the process's Python is, and stops when the
+process is gone (killed, crashed, cut off). A `Watch` on that topic requests a lease of `lease`
+seconds and calls `on_lost` once no writer has been alive for that long (or one left cleanly),
+measured at 0.2 s after a kill -9 with a 0.75 s lease on this project's 2-core machine (README,
+"Faults and what the testbed does").
+
+Measured here: the reader's *requested* lease is what decides (a reader that requests an infinite
+lease never hears of a lost writer), and a writer must offer a lease no longer than the reader
+requests (DDS's request/offer rule); writers offer a third of it, so an assertion can be late by
+two thirds of the lease before a loss is reported.
+
+The topics start with '_' (hidden: the recorder does not record them, so a replay never fakes a
+presence), and nothing is ever published on them.
+"""
+from rclpy.duration import Duration
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.qos import LivelinessPolicy, QoSProfile
+from std_msgs.msg import Empty
+
+SIMULATOR, SAFETY, RECORDER = "simulator", "safety", "recorder"
+
+
+def alive_topic(who):
+    """The presence topic of `who` (relative to the node's namespace)."""
+    return "_alive/" + who
+
+
+def _qos(lease):
+    return QoSProfile(depth=1, liveliness=LivelinessPolicy.AUTOMATIC,
+                      liveliness_lease_duration=Duration(nanoseconds=int(lease * 1e9)))
+
+
+class Presence:
+    """This process is there for as long as it holds this: a writer on `topic` (alive_topic(who),
+    or a client's own topic) of any rclpy node of it, offering a third of `lease`."""
+
+    def __init__(self, node, topic, lease):
+        self.node = node
+        self.publisher = node.create_publisher(Empty, topic, _qos(lease / 3),
+                                               event_callbacks=PublisherEventCallbacks())
+
+    def destroy(self):
+        self.node.destroy_publisher(self.publisher)
+
+
+class Watch:
+    """Tells when `who` is gone: `on_lost()` when, after a writer was alive, none has been alive for
+    `lease` seconds; `on_seen()` when one is alive (again). `seen`, `alive` and `lost` say where it
+    stands."""
+
+    def __init__(self, node, topic, lease, on_lost=None, on_seen=None):
+        self.node = node
+        self.on_lost = on_lost
+        self.on_seen = on_seen
+        self.seen = False
+        self.alive = False
+        self.lost = False
+        self.subscription = node.create_subscription(
+            Empty, topic, lambda msg: None, _qos(lease),
+            event_callbacks=SubscriptionEventCallbacks(liveliness=self._changed))
+
+    def _changed(self, info):
+        alive, was = info.alive_count > 0, self.alive
+        self.alive = alive
+        if alive and not was:
+            self.seen, self.lost = True, False
+            if self.on_seen is not None:
+                self.on_seen()
+        elif was and not alive:
+            self.lost = True
+            if self.on_lost is not None:
+                self.on_lost()
+
+    def destroy(self):
+        self.node.destroy_subscription(self.subscription)
