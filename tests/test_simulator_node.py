@@ -75,7 +75,7 @@ def test_start_and_end_round_trip(testbed):
     assert ended.success and ended.run_id == response.run_id and ended.steps == 0
     assert "No errors in your simulation!" in ended.report
     assert ended.end_reason == "ended by its client at step 0"
-    assert safety.armed.run_id == ""   # disarmed
+    assert probe.spin_until(lambda: safety.armed.run_id == "", 10)   # disarmed (the simulator does not wait for it)
 
     again = end(probe, response)
     assert not again.success and "no experiment" in again.message
