@@ -42,7 +42,7 @@ FIELDS = {
                         used_by=(SIMULATOR,), integer=True),
     "real_testbed_max_robots": Field("robots the real Robotarium deploys; the report says when a run uses more",
                                      1, 1000, low_open=False, used_by=(SIMULATOR,), integer=True),
-    "time_step": Field("s of simulated time per step", 0.0, 1.0, used_by=(SIMULATOR,)),
+    "time_step": Field("s of simulated time per step", 0.0, 1.0),
     "rate": Field("Hz of the real-time loop (one step per tick)", 0.0, 1000.0, used_by=(SIMULATOR,)),
     "command_timeout": Field("s; a robot whose last command is older stops until a new one arrives", 0.0,
                              used_by=(SIMULATOR,)),
@@ -53,6 +53,11 @@ FIELDS = {
     "magnitude_limit": Field("m/s, speed bound inside the barrier QP", 0.0, used_by=(SAFETY,)),
     "boundary_margin": Field("m each robot's centre keeps from the arena edge", 0.0, 0.5, low_open=False,
                              used_by=(SAFETY,)),
+    "collision_margin": Field("m beyond robot_diameter that the safety node keeps between robot centres", 0.0, 0.5,
+                              used_by=(SAFETY,)),
+    "collision_barrier_rate": Field("fraction of the gap |e|^2 - (robot_diameter + collision_margin)^2 two robot "
+                                    "centres may close in one step (the safety node's discrete-time barrier)",
+                                    0.0, 1.0, used_by=(SAFETY,)),
     "pose_timeout": Field("s; commands filtered with poses older than this become a stop", 0.0, used_by=(SAFETY,)),
     "lockstep_wait": Field("s a lockstep command waits for the poses it was computed from", 0.0, used_by=(SAFETY,)),
     "time_limit": Field("s of testbed time after which the client ends an experiment (0: no limit)", 0.0,
@@ -108,6 +113,8 @@ class TestbedConfig:
     projection_distance: float
     magnitude_limit: float
     boundary_margin: float
+    collision_margin: float
+    collision_barrier_rate: float
     pose_timeout: float
     lockstep_wait: float
     time_limit: float
@@ -136,6 +143,18 @@ class TestbedConfig:
         return dict(max_linear=self.max_linear_velocity, max_angular=self.max_angular_velocity,
                     max_wheel=self.max_wheel_velocity, wheel_radius=self.wheel_radius,
                     base_length=self.base_length)
+
+    @property
+    def safety_certificate(self):
+        """Keyword arguments of the safety node's certificate
+        (robotarium_safety.barrier_certificates.create_unicycle_barrier_certificate_with_centre_boundary):
+        it keeps robot centres robot_diameter + collision_margin apart, the collision rule the
+        simulator and the report count with, per time_step."""
+        return dict(barrier_gain=self.barrier_gain, safety_radius=self.safety_radius,
+                    projection_distance=self.projection_distance, magnitude_limit=self.magnitude_limit,
+                    boundary_points=self.arena, boundary_margin=self.boundary_margin,
+                    collision_distance=self.robot_diameter, collision_margin=self.collision_margin,
+                    collision_barrier_rate=self.collision_barrier_rate, time_step=self.time_step)
 
     # -- reading and writing -------------------------------------------------------------------------
 

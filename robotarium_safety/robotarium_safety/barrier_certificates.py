@@ -32,10 +32,55 @@ create_robust_barriers (Emam et al. 2022, robust to wheel-speed disturbances):
         wheels:     |w| <= wheel_vel_limit.
 
 The safety node's certificate, create_unicycle_barrier_certificate_with_centre_boundary (not in
-the guide), is the unicycle one whose boundary rows hold each robot's centre instead of its
-point ahead: the centre moves at v (cos t, sin t) = n n'u, so with n = (cos t, sin t)
-        cos t n.u <= 0.4 g (x_max - m - x)^3,   -cos t n.u <= 0.4 g (x - x_min - m)^3,   same for y,
-each bound clipped at 0 (m = boundary_margin); see its docstring for why.
+the guide; every number from the testbed configuration, robotarium_core/testbed.yaml), is the
+unicycle one (the pair rows on the points ahead, as above, except that a pair already closer
+than the radius is held, not pushed apart: bound max(g h^3, 0)) plus rows on the robots' CENTRES,
+which carry the testbed's guarantee; the guide's boundary rows on the points ahead are left out.
+
+The testbed's guarantee (the collision rule of the simulator and the debug report,
+model.count_collisions: two robot centres within robot_diameter):
+    Whatever the requested commands, after every step every two robot centres are more than
+    robot_diameter apart: at least D = robot_diameter + collision_margin (0.115 m) apart, or, for
+    a pair that started closer than D, no closer than at the start; and every centre stays
+    boundary_margin inside the arena (one that started outside that line moves no further out).
+    Assumptions: (1) each step's command was filtered at the poses that step starts from
+    (lockstep: always; real time: only when the node filters at every tick: a command held over
+    several ticks, or filtered at older poses, is not covered); (2) the simulator then moves each
+    robot by one forward-Euler step of time_step (model.Testbed.step), after scaling its (v, w) by
+    any factor in [0, 1] of its own (the wheel-limit thresholding of the node and of the simulator,
+    a stop, a command timeout); (3) the start poses are more than robot_diameter apart (the
+    simulator refuses others). Exact up to floating-point rounding (~1e-16 m a step).
+
+Why it holds. The centre c_k of robot k with heading n_k = (cos t_k, sin t_k) moves in one step to
+c_k + T a_k v_k n_k (T = time_step, a_k in [0, 1] the later scaling); the turn rate only changes
+the heading for the next step. Every centre row bounds one robot's forward speed alone,
+        s v_k <= b    with b >= 0,
+so standing still satisfies all of them (with the pair rows' bounds clipped at 0, u = 0 satisfies
+every row: the QP always has an answer), and a_k s v_k <= max(0, s v_k) <= b: any later scaling
+keeps every row. The rows:
+    pairs (i, j), e = c_i - c_j, h = |e|^2 - D^2, gamma = collision_barrier_rate in (0, 1]:
+        -2 (e.n_i) v_i <= r / 2,   2 (e.n_j) v_j <= r / 2,   r = max(0, gamma h / T)
+    Each robot keeps its own half of the approach: a joint row on v_i and v_j would not survive
+    the scaling (a robot backing away, then slowed by the wheel limits, would leave its
+    neighbour's approach uncovered). After the step
+        |e'|^2 = |e|^2 + 2 T e.(a_i v_i n_i - a_j v_j n_j) + T^2 |a_i v_i n_i - a_j v_j n_j|^2
+               >= |e|^2 - T r,
+    so h >= 0 gives h' >= (1 - gamma) h >= 0, i.e. |e'| >= D, and h < 0 (started closer) gives
+    r = 0 and |e'| >= |e|. By induction |e| >= min(D, |e_0|) > robot_diameter at every step.
+    A linear (discrete-time) barrier, not the cubic of the guide's rows: with the guide's gain the
+    cubic starts braking 0.3-0.4 m out and slowed a 50-robot script by a third (tests/data/
+    crowd_to_goals.py, seed 4: mean goal error 0.83 m instead of 0.52 m after 1000 steps); the
+    linear one only acts within centimetres of D, and is the exact condition in discrete time.
+    boundary, for each robot and each edge (gap: from the centre to the edge less boundary_margin):
+        cos t v <= q(x_max - m - x),   -cos t v <= q(x - x_min - m),   the same in y with sin t,
+        q(gap) = max(0, min(0.4 g gap^3, gap / T))
+    so x' = x + T a cos t v <= x + gap: no centre crosses the margin line, and one already past it
+    moves no further out. A turn never moves a centre, so none of these rows stops a robot turning.
+The rows are in the QP (in its variable u, the velocity of the point ahead: v = n.u), so the
+answer trades speed against steering as the other rows do; then, because OSQP solves only to a
+tolerance, each robot's v is clamped into the interval its rows allow (over every pair whose rows
+its speed could break: _CentreGuard), which makes them hold exactly. The clip of w at pi changes
+only w. If the QP fails, the answer is the stop, which holds every row.
 
 Where we differ from rps, on purpose: the caller's arrays are never modified (rps scales dxi in
 place); inputs are validated with a RobotariumError that names the parameter; the unicycle
@@ -60,6 +105,7 @@ import time
 
 import numpy as np
 
+from robotarium_core.config import DEFAULT
 from robotarium_core.model import (
     ARENA_X_MAX, ARENA_X_MIN, ARENA_Y_MAX, ARENA_Y_MIN, BASE_LENGTH, MAX_LINEAR_VELOCITY,
     MAX_WHEEL_VELOCITY, WHEEL_RADIUS, RobotariumError)
@@ -238,9 +284,13 @@ def _single_integrator_pair_rate(speed_bound):
 
 
 class _SingleIntegratorQP:
-    def __init__(self, barrier_gain, unsafe_barrier_gain, safety_radius, magnitude_limit, boundary_points):
+    def __init__(self, barrier_gain, unsafe_barrier_gain, safety_radius, magnitude_limit, boundary_points,
+                 hold_overlaps=False):
         self.gain = barrier_gain
         self.unsafe_gain = unsafe_barrier_gain   # None: one gain everywhere
+        # True: a pair already closer than safety_radius may not come closer, but is not pushed
+        # apart (bound clipped at 0), so that standing still satisfies every row (the safety node's).
+        self.hold_overlaps = hold_overlaps
         self.radius = safety_radius
         self.limit = magnitude_limit
         self.boundary = boundary_points
@@ -277,7 +327,8 @@ class _SingleIntegratorQP:
         h = np.einsum("ij,ij->i", e, e) - self.radius ** 2
         gain = self.gain if self.unsafe_gain is None else np.where(h >= 0, self.gain, self.unsafe_gain)
         coef = np.hstack([-2 * e, 2 * e])
-        return Rows(len(p), pairs, coef, np.full(len(pairs), -np.inf), gain * h ** 3, *boundary)
+        bound = np.maximum(gain * h ** 3, 0.0) if self.hold_overlaps else gain * h ** 3
+        return Rows(len(p), pairs, coef, np.full(len(pairs), -np.inf), bound, *boundary)
 
     def __call__(self, dxi, x, boundary=None):
         """dxi, x: 2 x N float arrays this object may modify; boundary: robot rows that replace the
@@ -378,29 +429,76 @@ def _single_integrator_function(where, barrier_gain, unsafe_barrier_gain, safety
 # Unicycle (through the single integrator at a point ahead of the robot)
 
 
-def _centre_boundary_rows(x, c, s, boundary, margin, gain):
-    """Robot rows that keep each unicycle's centre `margin` inside `boundary`, in the variables of
-    the unicycle QP: u, the velocity of the point ahead. The centre moves at v (cos t, sin t) with
-    v = (cos t, sin t).u, so its x velocity is cos t (cos t, sin t).u and its y velocity
-    sin t (cos t, sin t).u; each is bounded as the point rows bound theirs (0.4 g gap^3). Turning
-    in place never moves the centre, so these rows never stop a robot from turning. A centre
-    already beyond the margin may not move further out (the bound is clipped at 0), which keeps
-    u = 0 feasible: the QP always has an answer.
+class _CentreGuard:
+    """The centre rows of the safety node's certificate (the module docstring derives them): each
+    is `s v_k <= b` on one robot's forward speed v_k, with b >= 0.
+
+    In the QP they are robot rows on u_k (the velocity of the point ahead; v_k = n_k.u_k), so their
+    coefficient is s n_k. `clamp` then puts each v_k inside the interval its rows allow, so that
+    they hold exactly whatever OSQP's tolerance.
+
+    Pairs too far apart to need a row: with |v| <= S, the rows of pair (i, j) hold whenever
+    gamma h / T >= 4 S d (d = |e|; their left side is at most 2 d S, their bound gamma h / (2 T)),
+    that is for d >= d* = a + sqrt(a^2 + D^2) with a = 2 S T / gamma. The QP's rows assume
+    S = speed_bound; the clamp uses the answer's own S.
     """
-    n = x.shape[1]
-    x_min, x_max, y_min, y_max = boundary
-    k = 0.4 * gain
-    heading = np.stack([c, s], axis=1)                                       # N x 2
-    coef = np.empty((2 * n, 2))
-    coef[0::2], coef[1::2] = c[:, None] * heading, s[:, None] * heading
-    centre = x[:2].T
-    lower = np.minimum(-k * (centre - [x_min + margin, y_min + margin]) ** 3, 0.0)
-    upper = np.maximum(k * ([x_max - margin, y_max - margin] - centre) ** 3, 0.0)
-    return np.repeat(np.arange(n, dtype=np.intp), 2), np.arange(2 * n), coef, lower.ravel(), upper.ravel()
+
+    def __init__(self, gain, boundary, boundary_margin, distance, rate, time_step, speed_bound):
+        self.gain, self.boundary, self.margin = gain, boundary, boundary_margin
+        self.distance, self.rate, self.time_step, self.speed_bound = distance, rate, time_step, speed_bound
+        self._neighbours = NeighbourCache()
+
+    def cutoff(self, speed):
+        a = 2 * speed * self.time_step / self.rate
+        return a + math.sqrt(a * a + self.distance ** 2)
+
+    def rows(self, x, c, s, speed):
+        """(robot, key, s, b) of every row that a forward speed up to `speed` could break."""
+        n = x.shape[1]
+        centre = np.ascontiguousarray(x[:2].T)
+        x_min, x_max, y_min, y_max = self.boundary
+        m = self.margin
+        gaps = np.stack([x_max - m - centre[:, 0], centre[:, 0] - x_min - m,
+                         y_max - m - centre[:, 1], centre[:, 1] - y_min - m], axis=1)
+        edge_coef = np.stack([c, -c, s, -s], axis=1)
+        edge_bound = np.maximum(np.minimum(0.4 * self.gain * gaps ** 3, gaps / self.time_step), 0.0)
+
+        pairs = self._neighbours.pairs(centre, self.cutoff(speed))
+        i, j = pairs[:, 0], pairs[:, 1]
+        e = centre[i] - centre[j]
+        h = np.einsum("ij,ij->i", e, e) - self.distance ** 2
+        half = np.maximum(self.rate * h / self.time_step, 0.0) / 2
+        coef_i = -2 * (e[:, 0] * c[i] + e[:, 1] * s[i])
+        coef_j = 2 * (e[:, 0] * c[j] + e[:, 1] * s[j])
+        key = 4 * n + 2 * (i * n + j)
+        return (np.concatenate([np.repeat(np.arange(n, dtype=np.intp), 4), i, j]),
+                np.concatenate([np.arange(4 * n), key, key + 1]),
+                np.concatenate([edge_coef.ravel(), coef_i, coef_j]),
+                np.concatenate([edge_bound.ravel(), half, half]))
+
+    @staticmethod
+    def qp_rows(rows, c, s):
+        """The rows in the QP's variables: robot rows (s n_k).u_k <= b for Rows."""
+        robot, key, coef, bound = rows
+        return robot, key, coef[:, None] * np.stack([c[robot], s[robot]], axis=1), np.full(len(robot), -np.inf), bound
+
+    def clamp(self, v, x, c, s, rows):
+        """v with each entry moved into the interval its rows allow (which holds 0)."""
+        if v.size and np.abs(v).max() > self.speed_bound:
+            rows = self.rows(x, c, s, float(np.abs(v).max()))  # faster than the QP's rows assumed
+        robot, _, coef, bound = rows
+        high = np.full(len(v), np.inf)
+        low = np.full(len(v), -np.inf)
+        up, down = coef > 0, coef < 0
+        np.minimum.at(high, robot[up], bound[up] / coef[up])
+        np.maximum.at(low, robot[down], bound[down] / coef[down])
+        return np.minimum(np.maximum(v, low), high)
 
 
 def _unicycle_function(where, barrier_gain, unsafe_barrier_gain, safety_radius, projection_distance,
-                       magnitude_limit, boundary_points, gain_what="the barrier gain", centre_margin=None):
+                       magnitude_limit, boundary_points, gain_what="the barrier gain", centre=None):
+    """centre: None, or (boundary_margin, centre distance D, rate, time_step) for the safety node's
+    centre rows (_CentreGuard), which then replace the boundary rows on the points ahead."""
     gain = _positive(where, "barrier_gain", gain_what, barrier_gain)
     unsafe = None
     if unsafe_barrier_gain is not None:
@@ -412,8 +510,10 @@ def _unicycle_function(where, barrier_gain, unsafe_barrier_gain, safety_radius, 
     limit = _magnitude_limit(where, magnitude_limit)
     boundary = None if boundary_points is None else _boundary_points(where, boundary_points)
     # rps: the single-integrator certificate with radius safety_radius + projection_distance.
-    # With centre_margin the boundary rows are on the centres, not on the points ahead.
-    core = _SingleIntegratorQP(gain, unsafe, radius + distance, limit, None if centre_margin is not None else boundary)
+    # With `centre` the boundary rows are on the centres, not on the points ahead.
+    core = _SingleIntegratorQP(gain, unsafe, radius + distance, limit, None if centre is not None else boundary,
+                               hold_overlaps=centre is not None)
+    guard = None if centre is None else _CentreGuard(gain, boundary, *centre, speed_bound=_SPEED_BOUND_FACTOR * limit)
 
     def f(dxu, x):
         start = time.perf_counter()
@@ -423,13 +523,19 @@ def _unicycle_function(where, barrier_gain, unsafe_barrier_gain, safety_radius, 
         c, s = np.cos(x[2]), np.sin(x[2])
         points = x[:2] + distance * np.stack([c, s])
         dxi = np.stack([c * dxu[0] - distance * s * dxu[1], s * dxu[0] + distance * c * dxu[1]])
-        rows = None if centre_margin is None else _centre_boundary_rows(x, c, s, boundary, centre_margin, gain)
-        safe, unchanged = core(dxi, points, rows)
+        rows = None if guard is None else guard.rows(x, c, s, guard.speed_bound)
+        safe, unchanged = core(dxi, points, None if guard is None else guard.qp_rows(rows, c, s))
         if unchanged and np.all(np.abs(dxu[1]) <= ANGULAR_VELOCITY_LIMIT):
             answer = dxu   # the request was safe and within the limits: return it exactly
         else:
             answer = np.stack([c * safe[0] + s * safe[1], (-s * safe[0] + c * safe[1]) / distance])
             np.clip(answer[1], -ANGULAR_VELOCITY_LIMIT, ANGULAR_VELOCITY_LIMIT, out=answer[1])
+        if guard is not None and not core.info["fallback"]:
+            v = guard.clamp(answer[0], x, c, s, rows)
+            clamped = v != answer[0]
+            if clamped.any():
+                core.info["clamped"] = float(np.abs(v - answer[0]).max())
+                answer = np.stack([v, answer[1]])
         end_call(core.info, start)
         return answer
 
@@ -456,18 +562,29 @@ def create_unicycle_barrier_certificate_with_boundary(barrier_gain=100, safety_r
                               boundary_points)
 
 
-def create_unicycle_barrier_certificate_with_centre_boundary(barrier_gain=100, safety_radius=0.12,
-                                                             projection_distance=0.05, magnitude_limit=0.2,
-                                                             boundary_points=np.array(_ARENA), boundary_margin=0.055):
-    """The testbed's safety certificate (not in the guide; the safety node's): as
-    create_unicycle_barrier_certificate_with_boundary, but the boundary keeps each robot's centre
-    boundary_margin (m, >= 0; default a robot's radius, so the whole robot) inside boundary_points.
+def create_unicycle_barrier_certificate_with_centre_boundary(
+        barrier_gain=DEFAULT.barrier_gain, safety_radius=DEFAULT.safety_radius,
+        projection_distance=DEFAULT.projection_distance, magnitude_limit=DEFAULT.magnitude_limit,
+        boundary_points=np.array(DEFAULT.arena), boundary_margin=DEFAULT.boundary_margin,
+        collision_distance=DEFAULT.robot_diameter, collision_margin=DEFAULT.collision_margin,
+        collision_barrier_rate=DEFAULT.collision_barrier_rate, time_step=DEFAULT.time_step):
+    """The testbed's safety certificate (not in the guide; the safety node's, built from the
+    testbed configuration: create_unicycle_barrier_certificate_with_centre_boundary(**config.safety_certificate);
+    the defaults are the packaged configuration's): f(dxu, x) -> safe dxu, x is 3 x N.
 
-    Why not the guide's boundary rows: they hold the point projection_distance ahead of each robot
-    (safety_radius + projection_distance) / 2 = 8.5 cm inside, so a robot near the edge can neither
-    drive towards it nor turn there. generate_initial_conditions draws goals 10 cm from the edge,
-    and as the always-on layer those rows stalled the guide's own go-to-pose script (3.2.1) a few
-    centimetres from its goals. A turn never moves the centre: these rows leave it free.
+    The guide's unicycle certificate (pair rows on the points projection_distance ahead, kept
+    safety_radius + projection_distance apart) plus rows on the robots' centres, which guarantee,
+    step by step at time_step (the module docstring states the assumptions and the proof):
+    - every two centres stay more than collision_distance apart (the simulator's collision rule),
+      at least collision_distance + collision_margin or, if they started closer, no closer;
+    - every centre stays boundary_margin (m, >= 0; default a robot's radius, so the whole robot)
+      inside boundary_points, or moves no further out.
+
+    Why the boundary is on the centre, not the point ahead as in the guide's rows: those hold the
+    point (safety_radius + projection_distance) / 2 = 8.5 cm inside, so a robot near the edge can
+    neither drive towards it nor turn there. generate_initial_conditions draws goals 10 cm from the
+    edge, and as the always-on layer those rows stalled the guide's own go-to-pose script (3.2.1) a
+    few centimetres from its goals. A turn never moves the centre: these rows leave it free.
     """
     where = "create_unicycle_barrier_certificate_with_centre_boundary"
     margin = _at_least(where, "boundary_margin", "the distance kept from the boundary", boundary_margin, 0)
@@ -476,8 +593,17 @@ def create_unicycle_barrier_certificate_with_centre_boundary(barrier_gain=100, s
         raise RobotariumError(
             f"In the function {where}, the distance kept from the boundary (boundary_margin) must be less than "
             f"half the arena's width and height. Received {margin!r} for boundary_points {boundary_points!r}.")
+    collision = _positive(where, "collision_distance", "the centre distance that counts as a collision",
+                          collision_distance)
+    extra = _positive(where, "collision_margin", "the distance kept beyond collision_distance", collision_margin)
+    rate = _positive(where, "collision_barrier_rate", "the fraction of the gap two robots may close in a step",
+                     collision_barrier_rate)
+    if rate > 1:
+        raise RobotariumError(f"In the function {where}, the fraction of the gap two robots may close in a step "
+                              f"(collision_barrier_rate) must be at most 1. Received {rate!r}.")
+    step = _positive(where, "time_step", "the time step of the simulation", time_step)
     return _unicycle_function(where, barrier_gain, None, safety_radius, projection_distance, magnitude_limit,
-                              boundary_points, centre_margin=margin)
+                              boundary_points, centre=(margin, collision + extra, rate, step))
 
 
 def create_unicycle_barrier_certificate2(barrier_gain=500, unsafe_barrier_gain=1e6, safety_radius=0.12,

@@ -36,6 +36,10 @@ OSQP_SETTINGS = {
     "eps_rel": 1e-4,
     "polishing": True,
     "max_iter": 10000,
+    # rho adapted every 25 iterations, not at an interval OSQP derives from its set-up time: runs do
+    # not depend on the machine's speed, and ADMM does not stall (with the timed interval a 2-robot
+    # QP whose robot rows are parallel to its pair row ran to max_iter: tests/test_safety_guarantee.py).
+    "adaptive_rho_interval": 25,
 }
 # Where polishing fails, OSQP goes on to this tolerance (and polishes again).
 TIGHT_TOLERANCE = 1e-6
@@ -275,6 +279,7 @@ def new_info():
         "working_rows": 0,        # rows in the QP that OSQP finally solved (the rest provably hold)
         "max_violation": 0.0,     # worst row violation of the answer returned (unit-scaled rows)
         "polished": False,        # True when OSQP's polishing made the answer exact
+        "clamped": 0.0,           # m/s, the most the safety node's centre rows changed a speed after the QP
     }
 
 
@@ -401,7 +406,7 @@ def reset_info(info, n_robots):
     """Reset the per-call fields of info at the start of a call."""
     info.update(status="", fallback=False, reason="", num_robots=n_robots, num_constraints=0,
                 num_pairs=0, iterations=0, setup=False, rounds=0, max_violation=0.0, polished=False,
-                working_rows=0, widenings=0)
+                working_rows=0, widenings=0, clamped=0.0)
 
 
 def end_call(info, start):

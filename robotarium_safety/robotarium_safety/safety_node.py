@@ -17,10 +17,13 @@ keeping their arc (as the simulator's thresholding would), so the certificate ju
 robots will drive and a huge finite value becomes full speed along its arc, never a stop.
 
 Each requested array is merged into the current command of all robots (robots not named keep
-their last command, as on the simulator) and filtered through the unicycle barrier certificate
-with the arena boundary on the robots' centres (robotarium_safety.barrier_certificates, OSQP) at
-the newest poses. If it has no recent poses, or the input is malformed, or the solver fails, it
-sends a stop for the robots concerned: never the raw command. Without this node nothing reaches the simulator.
+their last command, as on the simulator) and filtered through the testbed's certificate
+(robotarium_safety.barrier_certificates.create_unicycle_barrier_certificate_with_centre_boundary,
+OSQP, every number from the testbed configuration) at the newest poses: it keeps every two robot
+centres more than robot_diameter (the simulator's collision rule) apart and every centre inside
+the arena, step by step (that module's docstring gives the guarantee, its assumptions and proof).
+If it has no recent poses, or the input is malformed, or the solver fails, it sends a stop for the
+robots concerned: never the raw command. Without this node nothing reaches the simulator.
 
 In lockstep the client numbers its command arrays: step k is sent right after the client saw the
 poses of step k - 1. Those poses may reach this node a moment after the command (two topics, no
@@ -57,10 +60,7 @@ class SafetyNode(Node):
     def __init__(self):
         super().__init__("safety", namespace=DEFAULT_NAMESPACE)
         self.config = c = declare_config(self, "safety")
-        self.certificate = create_unicycle_barrier_certificate_with_centre_boundary(
-            barrier_gain=c.barrier_gain, safety_radius=c.safety_radius,
-            projection_distance=c.projection_distance, magnitude_limit=c.magnitude_limit,
-            boundary_points=np.array(c.arena), boundary_margin=c.boundary_margin)
+        self.certificate = create_unicycle_barrier_certificate_with_centre_boundary(**c.safety_certificate)
 
         self.armed = ArmSafety.Request()   # the experiment guarded (run_id empty: none)
         self.poses = None            # 3 x N, newest
@@ -82,8 +82,11 @@ class SafetyNode(Node):
         self.presence = presence.Presence(self, presence.alive_topic(presence.SAFETY), c.node_lease)
         self.create_timer(0.02, self.check_pending)
         self.create_timer(1.0, self.report_drops)
-        self.get_logger().info("safety node ready in namespace %s (safety radius %.3f m, arena %s, margin %.3f m)" % (
-            self.get_namespace(), c.safety_radius, list(c.arena), c.boundary_margin))
+        self.get_logger().info(
+            "safety node ready in namespace %s: robot centres kept %.3f m apart (collision at %.3f m), %.3f m "
+            "inside the arena %s; points ahead %.3f m apart" % (
+                self.get_namespace(), c.robot_diameter + c.collision_margin, c.robot_diameter, c.boundary_margin,
+                list(c.arena), c.safety_radius + c.projection_distance))
 
     def on_arm(self, request, response):
         """The simulator starts (run_id set) or ends (empty) an experiment: guard that one only."""
