@@ -1,0 +1,338 @@
+"""The safety node's guarantee, searched for counter-examples (issue 16).
+
+The guarantee (robotarium_safety.barrier_certificates, module docstring): whatever the requested
+commands, the commands the safety node sends keep every two robot centres more than
+robot_diameter apart (the collision rule of the simulator and the debug report) and every robot
+inside the arena, step after step. Here the requests of random and adversarial scripts go
+through the node's certificate, built from the testbed configuration as the node builds it, and
+the node's own post-processing (a stop on a solver failure, wheel-limit scaling of what it
+changed), into robotarium_core.model.Testbed, the simulator's model; its collision and boundary
+counters must stay at zero. An adversary may also scale or stop any robot's command after the
+filter (a command timeout, a dropped message): the guarantee holds for any such scaling.
+
+hypothesis draws the scenes (pairs head-on, side by side and back to back, lines, crowds up to
+50, robots at the walls, goals packed 0.2 m apart) and the scripts (constant, random, huge,
+pursuing the nearest robot, reversing, bang-bang, going to packed goals); derandomized, so CI runs
+the same cases every time. Every counter-example a search ever found, minimised, is kept below as
+an explicit regression case (REGRESSIONS), with what it broke.
+"""
+import inspect
+import os
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from robotarium_core import model
+from robotarium_core.config import DEFAULT, TestbedConfig
+from robotarium_safety import barrier_certificates as bc
+
+ARENA = DEFAULT.arena
+
+
+def node_certificate(config=DEFAULT):
+    """The safety node's certificate, made as the node makes it (SafetyNode.__init__)."""
+    return bc.create_unicycle_barrier_certificate_with_centre_boundary(**config.safety_certificate)
+
+
+def node_filter(certificate, requested, poses, config):
+    """What SafetyNode.filter sends for `requested` at `poses`: a stop if the solver failed, else
+    the certificate's answer with the columns it changed scaled to the wheel limits (keeping the arc)."""
+    safe = certificate(requested, poses)
+    if certificate.info["fallback"]:
+        return np.zeros_like(requested), True
+    changed = np.any(safe != requested, axis=0)
+    if np.any(changed):
+        safe[:, changed] = model.threshold_keeping_arc(safe[:, changed], **config.limits)
+    return safe, False
+
+
+def closest_pair(poses):
+    if poses.shape[1] < 2:
+        return np.inf
+    i, j = model.robot_pairs(poses.shape[1])
+    return float(np.hypot(poses[0, i] - poses[0, j], poses[1, i] - poses[1, j]).min())
+
+
+def run_guarded(poses, script, steps, adversary=None, config=DEFAULT, allow_fallback=False):
+    """Run `script(k, poses) -> 2 x N request` for `steps` steps through the node's filter and
+    the model; fail on any collision or boundary violation the model counts. Returns
+    (closest centre distance seen, the testbed)."""
+    testbed = model.Testbed(poses, config)
+    certificate = node_certificate(config)
+    n = testbed.number_of_robots
+    closest = closest_pair(testbed.poses)
+    for k in range(steps):
+        requested = np.array(script(k, testbed.poses.copy()), dtype=float).reshape(2, n)
+        safe, fell_back = node_filter(certificate, requested, testbed.poses.copy(), config)
+        assert allow_fallback or not fell_back, "step %d: the solver failed (%s)" % (k, certificate.info["reason"])
+        if adversary is not None:
+            safe = safe * adversary(k)[None, :]
+        testbed.set_commands(np.arange(n), safe[0], safe[1])
+        testbed.step()
+        closest = min(closest, closest_pair(testbed.poses))
+        assert closest > config.robot_diameter, "step %d: centres %.6f m apart" % (k, closest)
+        assert not np.any(model.outside_arena(testbed.poses, config.arena)), "step %d: a robot left the arena" % k
+    testbed.step()  # the model counts the last poses too
+    assert testbed.collisions == 0 and testbed.boundary_violations == 0, testbed.report()
+    return closest, testbed
+
+
+# ---- scenes and scripts, written as data (a failing case prints as a spec to paste below) -------
+
+def pair_scene(distance, bearing, heading_i, heading_j, cx=0.0, cy=0.0):
+    """Two robots `distance` apart along `bearing`; headings relative to the bearing from i to j
+    (0, 0: one behind the other; 0, pi: head-on; pi, 0: back to back; pi/2, pi/2: side by side)."""
+    dx, dy = 0.5 * distance * np.cos(bearing), 0.5 * distance * np.sin(bearing)
+    return np.array([[cx - dx, cx + dx], [cy - dy, cy + dy], [bearing + heading_i, bearing + heading_j]])
+
+
+def line_scene(count, spacing, headings):
+    x = (np.arange(count) - (count - 1) / 2) * spacing
+    return np.vstack([x, np.zeros(count), np.resize(headings, count)])
+
+
+def crowd_scene(count, spacing, seed):
+    """The Robotarium's own draw of start poses (a grid of `spacing`, random headings)."""
+    return model.random_initial_conditions(count, np.random.default_rng(seed), spacing=spacing)
+
+
+def wall_scene(count, gap, edge, seed):
+    """`count` robots `gap` from an edge ("top", "right") or on a diagonal into the top right corner
+    (inside the arena, maybe past the boundary margin)."""
+    headings = np.random.default_rng(seed).uniform(-np.pi, np.pi, count)
+    x_min, x_max, y_min, y_max = ARENA
+    along = np.linspace(-0.6, 0.6, count) if count > 1 else np.zeros(1)
+    if edge == "top":
+        return np.vstack([along, np.full(count, y_max - gap), headings])
+    if edge == "right":
+        return np.vstack([np.full(count, x_max - gap), 0.8 * along, headings])
+    k = 0.15 * np.arange(count)
+    return np.vstack([x_max - gap - k, y_max - gap - k, headings])
+
+
+SCENES = {"pair": pair_scene, "line": line_scene, "crowd": crowd_scene, "wall": wall_scene}
+
+
+def make_scene(spec):
+    return SCENES[spec[0]](*spec[1:])
+
+
+def constant(v, w):
+    return lambda k, x: np.vstack([np.resize(v, x.shape[1]), np.resize(w, x.shape[1])])
+
+
+def random_commands(seed, speed, turn):
+    rng = np.random.default_rng(seed)
+    return lambda k, x: np.vstack([rng.uniform(-speed, speed, x.shape[1]), rng.uniform(-turn, turn, x.shape[1])])
+
+
+def bang_bang(period, v, w):
+    return lambda k, x: np.vstack([np.full(x.shape[1], v if (k // period) % 2 else -v),
+                                   np.full(x.shape[1], w if (k // (period + 1)) % 2 else -w)])
+
+
+def pursue(reverse=False):
+    """Every robot drives at its nearest neighbour (or backs into it), at full speed."""
+    def script(k, x):
+        n = x.shape[1]
+        d = np.hypot(x[0][:, None] - x[0][None], x[1][:, None] - x[1][None]) + np.eye(n) * 1e9
+        near = d.argmin(axis=1)
+        facing = np.arctan2(x[1, near] - x[1], x[0, near] - x[0]) + (np.pi if reverse else 0.0)
+        error = np.arctan2(np.sin(facing - x[2]), np.cos(facing - x[2]))
+        return np.vstack([np.full(n, -0.2 if reverse else 0.2), 4 * error])
+    return script
+
+
+def go_to_goals(seed, gain=2.0):
+    """A unicycle go-to-point controller (forwards or backwards, whichever is nearer) to goals
+    packed as generate_initial_conditions draws them, on a grid 0.2 m apart."""
+    def script(k, x):
+        goals = crowd_scene(x.shape[1], 0.2, seed)[:2]
+        e = goals - x[:2]
+        error = np.arctan2(e[1], e[0]) - x[2]
+        error = np.arctan2(np.sin(error), np.cos(error))
+        backwards = np.abs(error) > np.pi / 2
+        error = np.where(backwards, np.arctan2(np.sin(error + np.pi), np.cos(error + np.pi)), error)
+        return np.vstack([gain * np.hypot(e[0], e[1]) * np.where(backwards, -1, 1), 4 * error])
+    return script
+
+
+SCRIPTS = {"constant": constant, "random": random_commands, "bang": bang_bang,
+           "pursue": lambda: pursue(), "reverse": lambda: pursue(reverse=True), "goals": go_to_goals}
+
+
+def make_script(spec):
+    return SCRIPTS[spec[0]](*spec[1:])
+
+
+def make_adversary(spec, count):
+    """None, or ("scale", seed, p): with probability p a robot's filtered command is scaled by a
+    random factor in [0, 1], often 0 (a stop: a command timeout, a dropped message)."""
+    if spec is None:
+        return None
+    rng = np.random.default_rng(spec[1])
+    return lambda k: np.where(rng.random(count) < spec[2], rng.choice([0.0, 0.3, 1.0], count) * rng.random(count), 1.0)
+
+
+def run_case(scene, script, steps, adversary=None, **kwargs):
+    poses = make_scene(scene)
+    closest, testbed = run_guarded(poses, make_script(script), steps, make_adversary(adversary, poses.shape[1]),
+                                   **kwargs)
+    # never closer than the configured distance (or than they started, if they started closer)
+    kept = min(closest_pair(poses), DEFAULT.robot_diameter + DEFAULT.collision_margin)
+    assert closest >= kept - 1e-12, "centres %.6f m apart; the guard keeps %.6f m" % (closest, kept)
+    return closest, testbed
+
+
+# ---- the named adversarial cases, and every counter-example found so far ---------------------------
+
+CASES = {
+    # (scene, script, steps). With the node's certificate before its centre rows (the guide's rows
+    # on the points ahead) the three crowds collided within 70 steps.
+    "crowd of 50 pursuing their nearest neighbour": (("crowd", 50, 0.2, 3), ("pursue",), 150),
+    "crowd of 50 reversing into their nearest neighbour": (("crowd", 50, 0.2, 3), ("reverse",), 150),
+    "crowd of 50 going to goals packed 0.2 m apart": (("crowd", 50, 0.2, 3), ("goals", 4), 150),
+    "head-on at full speed": (("pair", 0.3, 0.0, 0.0, np.pi), ("constant", 0.2, 0.0), 100),
+    "side by side, turning into each other": (("pair", 0.111, np.pi / 2, -np.pi / 2, -np.pi / 2),
+                                              ("constant", 0.2, [-3.0, 3.0]), 100),
+    "back to back, reversing": (("pair", 0.13, 0.0, np.pi, 0.0), ("constant", -0.2, 0.0), 100),
+    "a line of 8 nose to tail, all reversing": (("line", 8, 0.115, 0.0), ("constant", -0.3, 0.0), 100),
+    "into a corner at full speed": (("wall", 6, 0.08, "corner", 1), ("constant", 0.2, 0.0), 100),
+}
+
+# Minimised counter-examples the search found (in CI and in longer runs with
+# ROBOTARIUM_SAFETY_EXAMPLES=2000), each with what it broke: (scene, script, adversary, steps).
+REGRESSIONS = {
+    # Against the node's certificate before the centre rows: a robot 0.1101 m behind another, both
+    # facing the same way; random commands drive the rear one into the front one at step 1 (its
+    # point ahead is then inside the front robot, where the guide's rows only push points apart).
+    "one robot right behind another, random commands": (
+        ("pair", 0.1101, 0.0, 0.0, 0.0), ("random", 0, 0.4, 8.0), None, 200),
+    # Liveness (no collision, but the solver failed: a stop at every step, forever). OSQP ran to
+    # max_iter on this 2-robot QP, whose centre rows are parallel to its pair row, with the rho-
+    # adaptation interval OSQP derives from its set-up time; fixed by a fixed interval
+    # (barrier_qp.OSQP_SETTINGS["adaptive_rho_interval"]).
+    "back to back 0.1133 m apart, both reversing: the solver stalled": (
+        ("pair", 0.1133, 0.0, np.pi, 0.0), ("constant", -0.2, 0.0), None, 30),
+    # Liveness: points ahead closer than the guide's 0.17 m had to be pushed apart while the centre
+    # rows held robots facing a neighbour: no answer, a stop at every step (found first as 46
+    # robots on a 0.15 m grid pursuing; this is its minimised form). Fixed: the node's pair rows
+    # hold such points (bound clipped at 0), so standing still satisfies every row and the QP
+    # always has an answer.
+    "4 robots nose to tail 0.112 m apart: no feasible answer": (
+        ("line", 4, 0.112, 0.0), ("constant", 0.2, 0.0), None, 30),
+}
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_adversarial_scenes_never_collide(name):
+    scene, script, steps = CASES[name]
+    run_case(scene, script, steps)
+
+
+@pytest.mark.parametrize("name", list(REGRESSIONS))
+def test_counter_examples_found_so_far(name):
+    scene, script, adversary, steps = REGRESSIONS[name]
+    run_case(scene, script, steps, adversary)
+
+
+def test_the_guides_certificate_alone_lets_a_crowd_collide():
+    """The crowd cases have teeth: with the guide's rows only (points ahead), robots collide."""
+    guide = bc.create_unicycle_barrier_certificate_with_boundary()
+    testbed = model.Testbed(make_scene(("crowd", 50, 0.2, 3)))
+    script = pursue()
+    for k in range(150):
+        safe = guide(script(k, testbed.poses.copy()), testbed.poses.copy())
+        testbed.set_commands(np.arange(50), safe[0], safe[1])
+        testbed.step()
+        if testbed.collisions:
+            break
+    assert testbed.collisions > 0
+
+
+def test_the_guard_follows_the_configured_collision_rule():
+    """One collision rule: with bigger robots configured, the node's certificate keeps their
+    centres the configured diameter plus margin apart (and the model counts with that diameter)."""
+    scene, script = ("crowd", 20, 0.3, 5), ("reverse",)
+    closest, _ = run_case(scene, script, 250)
+    assert closest < 0.2  # the default robots back up to within 0.2 m of each other
+    big = TestbedConfig.from_dict({"robot_diameter": 0.2, "collision_margin": 0.01}, base=DEFAULT)
+    closest, _ = run_guarded(make_scene(scene), make_script(script), 250, config=big)
+    assert 0.21 - 1e-12 <= closest < 0.22
+
+
+def test_the_certificate_defaults_are_the_testbed_configuration():
+    """Its defaults restate no number: they are the packaged configuration's, which the node passes."""
+    signature = inspect.signature(bc.create_unicycle_barrier_certificate_with_centre_boundary)
+    defaults = {name: p.default for name, p in signature.parameters.items()}
+    assert set(defaults) == set(DEFAULT.safety_certificate)
+    for name, value in DEFAULT.safety_certificate.items():
+        np.testing.assert_array_equal(defaults[name], value, err_msg=name)
+    assert DEFAULT.safety_certificate["collision_distance"] == DEFAULT.robot_diameter
+
+
+def test_a_robot_already_closer_than_the_margin_never_gets_closer():
+    # 0.112 m apart (inside robot_diameter + collision_margin, outside robot_diameter), facing each other
+    closest, testbed = run_case(("pair", 0.112, 0.3, 0.0, np.pi), ("constant", 0.2, 0.0), 100)
+    assert closest == pytest.approx(0.112, abs=1e-12)
+
+
+def test_the_guard_changes_nothing_where_nothing_is_at_risk():
+    f = node_certificate()
+    request = np.array([[0.1, 0.1, 0.1], [0.5, -0.5, 0.0]])
+    np.testing.assert_array_equal(f(request, line_scene(3, 0.5, 0.0)), request)
+    assert f.info["status"] == "passthrough" and f.info["clamped"] == 0.0
+
+
+# ---- the search ---------------------------------------------------------------------------------
+
+angles = st.floats(-np.pi, np.pi)
+headings = st.one_of(st.sampled_from([0.0, np.pi, np.pi / 2, -np.pi / 2]), angles)
+seeds = st.integers(0, 2 ** 31 - 1)
+
+
+@st.composite
+def scenes(draw):
+    kind = draw(st.sampled_from(["pair", "pair", "line", "crowd", "wall"]))
+    if kind == "pair":
+        return ("pair", draw(st.floats(0.1101, 0.4)), draw(angles), draw(headings), draw(headings),
+                draw(st.floats(-1.4, 1.4)), draw(st.floats(-0.8, 0.8)))
+    if kind == "line":
+        return ("line", draw(st.integers(2, 8)), draw(st.floats(0.1101, 0.25)),
+                draw(st.sampled_from([0.0, np.pi, (0.0, np.pi), (np.pi, 0.0), np.pi / 2])))
+    if kind == "crowd":  # the slow cases: mostly small, now and then up to 50
+        return ("crowd", draw(st.one_of(st.integers(2, 12), st.integers(13, 50))),
+                draw(st.sampled_from([0.12, 0.15, 0.2])), draw(seeds))
+    return ("wall", draw(st.integers(1, 6)), draw(st.floats(0.001, 0.1)), draw(st.sampled_from(["top", "right", "corner"])),
+            draw(seeds))
+
+
+@st.composite
+def scripts(draw):
+    kind = draw(st.sampled_from(["constant", "random", "huge", "bang", "pursue", "reverse", "goals"]))
+    if kind == "constant":
+        return ("constant", draw(st.lists(st.floats(-0.5, 0.5), min_size=1, max_size=6)),
+                draw(st.lists(st.floats(-10, 10), min_size=1, max_size=6)))
+    if kind == "random":
+        return ("random", draw(seeds), 0.4, 8.0)
+    if kind == "huge":
+        return ("random", draw(seeds), 1e3, 1e3)
+    if kind == "bang":
+        return ("bang", draw(st.integers(1, 20)), draw(st.floats(0.0, 0.5)), draw(st.floats(0.0, 6.0)))
+    if kind == "goals":
+        return ("goals", draw(seeds))
+    return (kind,)
+
+
+adversaries = st.one_of(st.none(), st.tuples(st.just("scale"), seeds, st.floats(0.05, 0.5)))
+
+
+# About 15 s on this project's 2-core machine. Search longer with ROBOTARIUM_SAFETY_EXAMPLES=2000
+# (a failure prints the specs of its minimised case: add it to REGRESSIONS).
+@settings(max_examples=int(os.environ.get("ROBOTARIUM_SAFETY_EXAMPLES", "40")), deadline=None, derandomize=True,
+          database=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(scene=scenes(), script=scripts(), adversary=adversaries, steps=st.sampled_from([200, 300]))
+def test_search_for_a_collision_finds_none(scene, script, adversary, steps):
+    run_case(scene, script, steps, adversary)
