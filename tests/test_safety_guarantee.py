@@ -273,6 +273,16 @@ def test_the_certificate_defaults_are_the_testbed_configuration():
     assert DEFAULT.safety_certificate["collision_distance"] == DEFAULT.robot_diameter
 
 
+@pytest.mark.parametrize("name,value,detail", [("collision_margin", 0.0, "positive"),
+                                               ("collision_distance", -0.11, "positive"),
+                                               ("collision_barrier_rate", 1.5, "at most 1"),
+                                               ("time_step", float("nan"), "finite")])
+def test_the_guards_numbers_are_checked(name, value, detail):
+    with pytest.raises(bc.RobotariumError) as error:
+        bc.create_unicycle_barrier_certificate_with_centre_boundary(**{name: value})
+    assert name in str(error.value) and detail in str(error.value)
+
+
 def test_a_robot_already_closer_than_the_margin_never_gets_closer():
     # 0.112 m apart (inside robot_diameter + collision_margin, outside robot_diameter), facing each other
     closest, testbed = run_case(("pair", 0.112, 0.3, 0.0, np.pi), ("constant", 0.2, 0.0), 100)
