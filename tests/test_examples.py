@@ -114,7 +114,7 @@ def test_guide_scripts_run_unchanged_in_lockstep(testbed, script):
 
 # Issue 16: 50 robots to goals packed 0.2 m apart, the guide's single-integrator certificate in
 # the script, 300 steps (the scene of the issue); before the safety node kept robot centres apart
-# every seed collided (debug report, seeds 1-5: 68, 166, 6, 72 and 109 collision iterations).
+# every seed collided (debug report, seeds 1-5: 65, 165, 2, 75 and 109 collision iterations).
 CROWD = os.path.join(REPO, "tests", "data", "crowd_to_goals.py")
 
 

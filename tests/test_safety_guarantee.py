@@ -5,10 +5,11 @@ commands, the commands the safety node sends keep every two robot centres more t
 robot_diameter apart (the collision rule of the simulator and the debug report) and every robot
 inside the arena, step after step. Here the requests of random and adversarial scripts go
 through the node's certificate, built from the testbed configuration as the node builds it, and
-the node's own post-processing (a stop on a solver failure, wheel-limit scaling of what it
-changed), into robotarium_core.model.Testbed, the simulator's model; its collision and boundary
-counters must stay at zero. An adversary may also scale or stop any robot's command after the
-filter (a command timeout, a dropped message): the guarantee holds for any such scaling.
+the node's own processing (scaling to the wheel limits along the arc before the certificate and,
+where it changed a command, after it; a stop on a solver failure) into robotarium_core.model.Testbed,
+the simulator's model: its collision and boundary counters must stay at zero. An adversary may
+also scale or stop any robot's command after the filter (a command timeout, a dropped message):
+the guarantee holds for any such scaling.
 
 hypothesis draws the scenes (pairs head-on, side by side and back to back, lines, crowds up to
 50, robots at the walls, goals packed 0.2 m apart) and the scripts (constant, random, huge,
@@ -36,9 +37,11 @@ def node_certificate(config=DEFAULT):
     return bc.create_unicycle_barrier_certificate_with_centre_boundary(**config.safety_certificate)
 
 
-def node_filter(certificate, requested, poses, config):
-    """What SafetyNode.filter sends for `requested` at `poses`: a stop if the solver failed, else
-    the certificate's answer with the columns it changed scaled to the wheel limits (keeping the arc)."""
+def node_filter(certificate, commands, poses, config):
+    """What SafetyNode.filter sends for `commands` at `poses`: the commands scaled to the wheel
+    limits along their arc, through the certificate; a stop if the solver failed, else its answer
+    with the columns it changed scaled to the wheel limits (keeping the arc)."""
+    requested = model.threshold_keeping_arc(commands, **config.limits)
     safe = certificate(requested, poses)
     if certificate.info["fallback"]:
         return np.zeros_like(requested), True
