@@ -18,8 +18,9 @@ def testbed(tmp_path_factory):
     logs = tmp_path_factory.mktemp("testbed")
     nodes = [NodeProcess("robotarium_sim.simulator_node", domain, log_path=logs / "sim.log"),
              NodeProcess("robotarium_safety.safety_node", domain, log_path=logs / "safety.log")]
-    saved = {k: os.environ.get(k) for k in ("ROS_DOMAIN_ID", "MPLBACKEND")}
-    os.environ.update(ROS_DOMAIN_ID=str(domain), MPLBACKEND="Agg")
+    saved = {k: os.environ.get(k) for k in ("ROS_DOMAIN_ID", "MPLBACKEND", "ROS_AUTOMATIC_DISCOVERY_RANGE")}
+    # localhost discovery, as the nodes have (node_env): a client discovering the whole subnet takes ~3 s
+    os.environ.update(ROS_DOMAIN_ID=str(domain), MPLBACKEND="Agg", ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     from robotarium_client import session
     from robotarium_client.testbed import testbed_answers
     saved_options, session.options = session.options, session.RunOptions(local_testbed=False)
@@ -177,3 +178,4 @@ def test_without_safety_node_nothing_moves(tmp_path, monkeypatch):
             robotarium(number_of_robots=2, initial_conditions=LINE[:, :2].copy())
     finally:
         sim.close()
+

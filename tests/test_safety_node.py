@@ -1,4 +1,6 @@
 """The safety node between client and simulator, all real nodes on a private DDS domain."""
+import time
+
 import numpy as np
 import pytest
 
@@ -6,7 +8,7 @@ from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistAr
 from robotarium_msgs.srv import ArmSafety, EndExperiment, StartExperiment
 from robotarium_core import model
 from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id
-from robotarium_core.topics import TESTBED_QOS
+from robotarium_core.topics import TESTBED_QOS, readers_matched
 from test_simulator_node import as_array, command, lockstep
 
 NS = "/robotarium"
@@ -144,6 +146,7 @@ def test_robots_stop_when_the_safety_node_dies(stack):
     nodes, probe = stack
     poses = probe.collect(RobotPoses, NS + "/poses")
     status = probe.collect(TestbedStatus, NS + "/status")
+    reports = probe.collect(SafetyReport, NS + "/safety_report")
     probe.wait_for_publishers()
     started = start(probe, np.array([[-1.0, 0.0], [-0.5, 0.5], [0.0, 0.0]]), real_time=True)
     requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
@@ -154,7 +157,11 @@ def test_robots_stop_when_the_safety_node_dies(stack):
             requests.publish(with_token(command([0, 1], [0.1, 0.1], [0.0, 0.0]), started))
             probe.spin_for(1 / 30)
 
-    drive(0.5)  # until the safety node has matched the simulator (it sends stops until it has poses)
+    # The safety node sends stops until the simulator's poses reach it (discovery between the two can
+    # take seconds on a loaded machine): drive until it passes commands.
+    deadline = time.monotonic() + 20
+    while not any(r.status == SafetyReport.STATUS_PASSTHROUGH for r in reports) and time.monotonic() < deadline:
+        drive(0.1)
     x_before = as_array(poses[-1])[0]
     drive(1.0)
     moved = as_array(poses[-1])[0] - x_before
@@ -165,3 +172,35 @@ def test_robots_stop_when_the_safety_node_dies(stack):
     drive(0.5)
     assert np.array_equal(as_array(poses[-1])[0], x_late), "robots kept moving without the safety node"
     assert status[-1].state == TestbedStatus.STATE_RUNNING   # stopped, not ended: its client decides
+
+
+def test_first_commands_of_quick_starts_are_never_lost(stack):
+    # cmd_requested is volatile (ros2 topic pub's default QoS drives the testbed), so nothing published
+    # before the writer matched the safety node's reader is delivered, ever. Each run starts the way a
+    # new client does: a new DDS participant (discovered afresh), a publisher, the client's wait
+    # (readers_matched), then at once the run's first command. In lockstep a lost first command never
+    # produces step 1. (Without the wait most runs lose it.)
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.node import Node
+    _, probe = stack
+    poses = probe.collect(RobotPoses, NS + "/poses")
+    probe.wait_for_publishers()
+    for run in range(30):
+        started = start(probe, np.array([[-0.5, 0.5], [0.0, 0.0], [0.0, np.pi]]))
+        context = Context()
+        rclpy.init(context=context, domain_id=probe.context.get_domain_id())
+        try:
+            client = Node("quick_start_%d" % run, namespace=NS, context=context)
+            requests = client.create_publisher(TwistArray, "cmd_requested", TESTBED_QOS)
+            deadline = time.monotonic() + 15
+            while not readers_matched(client, requests, "safety") and time.monotonic() < deadline:
+                time.sleep(0.01)   # the graph and the match count need no spinning
+            requests.publish(with_token(command([0, 1], [0.1, 0.1], [0.0, 0.0], step=1), started))
+            first = probe.spin_until(lambda: poses and poses[-1].run_id == started.run_id and poses[-1].step == 1, 10)
+        finally:
+            client.destroy_node()
+            rclpy.try_shutdown(context=context)
+        probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request(token=started.token))
+        assert first, "run %d: the first command of the run was lost" % run
+        assert as_array(poses[-1])[0, 0] > -0.5, "run %d: the first step did not move robot 0" % run

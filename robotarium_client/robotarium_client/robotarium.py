@@ -239,9 +239,11 @@ class Robotarium(RobotariumABC):
         self._presence = Presence(self._node, response.client_alive_topic, response.client_lease)
         self._last_step = 0
         self.poses = np.array([response.x, response.y, response.theta])
-        # Without a safety node nothing can move: say so now rather than at the first step's timeout.
-        # (Commands sent before it matched us wait in our writer's history: the QoS is transient-local.)
-        if not self._spin_until(self._safety_node_listens, STEP_TIMEOUT):
+        # The safety node's cmd_requested reader is volatile (any reliable publisher may drive the
+        # testbed): what we publish before our writer matched it would be lost, so the first command
+        # waits for that match (robotarium_core.topics). Without a safety node nothing can move: say
+        # so now rather than at the first step's timeout.
+        if not self._spin_until(self._safety_node_matched, STEP_TIMEOUT):
             self._end_quietly()
             raise RuntimeError("No safety node listens on %s/cmd_requested: without it the robots cannot move. "
                                "Is the testbed complete (./robotarium up starts all of it)?" % self._ns)
@@ -282,9 +284,9 @@ class Robotarium(RobotariumABC):
         if self._failure is not None:
             raise RuntimeError(self._failure)
 
-    def _safety_node_listens(self):
-        topic = self._command_pub.topic_name
-        return any(info.node_name == "safety" for info in self._node.get_subscriptions_info_by_topic(topic))
+    def _safety_node_matched(self):
+        from robotarium_core.topics import readers_matched
+        return readers_matched(self._node, self._command_pub, "safety")
 
     def _on_poses(self, msg):
         # Only the simulator's poses of this run carry its key (not a replay's, not a stray publisher's).

@@ -1,17 +1,22 @@
-"""Topic names and the QoS every testbed topic uses (shared by the nodes and the client).
+"""Topic names and the QoS of the testbed's topics (shared by the nodes and the client).
 
 DDS discovery is asymmetric: a reader may know a writer well before the writer knows the
 reader, and a reliable writer delivers nothing to readers it does not know yet. With slow
-discovery (a loaded 2-core machine takes seconds) the first commands of a run would be lost.
-So every testbed topic is reliable and transient-local with a history of 50: a writer keeps its
-last 50 samples and hands them to a reader as soon as it matches. Nothing a client sends before
-the safety node or the simulator matched it is lost, and a late viewer or recorder still gets
-the current poses. Subscribers ask for the same QoS to receive that history.
+discovery (a loaded 2-core machine takes seconds) a message published too early is lost.
 
-Publishers to the testbed must offer this durability too: a transient-local reader does not
-match a volatile writer (DDS's request/offer rule). A plain rclpy script publishes with
-`TESTBED_QOS`; the nodes log a warning naming the topic when an incompatible publisher appears
-(`warn_on_incompatible_qos`).
+Outputs (poses, status, cmd_safe, safety_report, ...) are reliable and transient-local with a
+history of 50 (`TESTBED_QOS`): a writer keeps its last 50 samples and hands them to a reader as
+soon as it matches, so a late viewer or recorder still gets the current poses and status.
+
+The two command inputs (the safety node's cmd_requested, the simulator's cmd_safe) subscribe
+reliable and *volatile* (`COMMAND_INPUT_QOS`): a volatile reader matches every reliable writer,
+transient-local or not, so `ros2 topic pub` and plain rclpy/rclcpp publishers (reliable + volatile
+by default) drive the testbed. A volatile reader receives no history, so the sender must not
+publish before its writer has matched the reader: our client waits until its publisher matched
+the safety node (`readers_matched`), and the safety node holds a command until its cmd_safe
+writer matched the simulator. From then on DDS's reliability delivers every sample: the writer
+keeps each one until the matched reader acknowledged it, even where the reader side learns of
+the writer a moment later.
 """
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -24,24 +29,57 @@ TESTBED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=
 # The testbed's command inputs (cmd_requested at the safety node, cmd_safe at the simulator) read
 # serialized arrays and drop foreign ones in microseconds (robotarium_core.cdr), so their queue
 # only has to outlast a moment's stall of the node: 1000 arrays are one second of a 1 kHz flood
-# before a client's array could be pushed out.
+# before a client's array could be pushed out. Volatile: any reliable publisher matches
+# (ros2 topic pub's default, rclpy's, rclcpp's).
 COMMAND_INPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                               durability=DurabilityPolicy.TRANSIENT_LOCAL)
+                               durability=DurabilityPolicy.VOLATILE)
 
 # A topic that keeps only its last message for late subscribers (announcements, the run's configuration).
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+# What viewers get (RViz, Foxglove): reliable + volatile, the ROS default.
+VIEWER_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
 
 CMD_REQUESTED = "cmd_requested"   # TwistArray: client -> safety node
 CMD_SAFE = "cmd_safe"             # TwistArray: safety node -> simulator
 POSES = "poses"                   # RobotPoses: simulator -> everyone
 POSE_ARRAY = "pose_array"         # geometry_msgs/PoseArray for viewers
+MARKERS = "markers"               # visualization_msgs/MarkerArray for viewers: arena, robots, trails
 STATUS = "status"                 # TestbedStatus
 SAFETY_REPORT = "safety_report"   # SafetyReport
 RECORDING = "recording"           # std_msgs/String: recorder -> simulator, where the run is recorded
 CONFIG = "config"                 # std_msgs/String, latched: the running experiment's TestbedConfig as YAML
-SAFETY_ARM = "safety/arm"        # ArmSafety: simulator -> safety node, the experiment to guard and its secrets
+SAFETY_ARM = "safety/arm"         # ArmSafety: simulator -> safety node, the experiment to guard and its secrets
 START_EXPERIMENT = "start_experiment"
 END_EXPERIMENT = "end_experiment"
+
+
+def offer_meets_request(offered, requested):
+    """DDS's request/offer rule for the two policies the testbed uses: a reliable reader needs a
+    reliable writer, a transient-local reader a transient-local writer. (rclpy's qos_check_compatible
+    reads a graph profile's infinite deadline and lease as set, so it cannot judge graph entries.)"""
+    return not ((requested.reliability == ReliabilityPolicy.RELIABLE and offered.reliability != ReliabilityPolicy.RELIABLE)
+                or (requested.durability == DurabilityPolicy.TRANSIENT_LOCAL
+                    and offered.durability != DurabilityPolicy.TRANSIENT_LOCAL))
+
+
+def readers_matched(node, publisher, required_node=None):
+    """True when `publisher` has matched every reader of its topic that the graph shows and that
+    can match it (same type, compatible QoS), and, if `required_node` is given, the graph shows a
+    reader of that node (a name, in the topic's namespace: "safety" for /robotarium/cmd_requested).
+
+    The graph learns of a reader in the same discovery step in which our writer matches it, so
+    "matched at least as many as the graph shows" means that each of them, the required one
+    included, is matched: whatever we publish from now on reaches it (reliable)."""
+    topic = publisher.topic_name
+    readers = node.get_subscriptions_info_by_topic(topic)
+    our_type = "%s/msg/%s" % (publisher.msg_type.__module__.split(".")[0], publisher.msg_type.__name__)
+    ns = topic.rsplit("/", 1)[0] or "/"
+    can_match = [r for r in readers if r.topic_type == our_type and offer_meets_request(publisher.qos_profile, r.qos_profile)]
+    if required_node is not None and not any(r.node_name == required_node and r.node_namespace == ns
+                                             for r in can_match):
+        return False
+    return publisher.get_subscription_count() >= len(can_match)
 
 
 def warn_on_incompatible_qos(node, topic):
@@ -53,5 +91,5 @@ def warn_on_incompatible_qos(node, topic):
             warned.append(True)
             node.get_logger().warning(
                 "a publisher on %s offers a QoS this testbed cannot accept (last policy: %s); publish "
-                "reliable + transient-local, e.g. robotarium_core.topics.TESTBED_QOS" % (topic, info.last_policy_kind))
+                "reliable (the ROS default; ros2 topic pub does)" % (topic, info.last_policy_kind))
     return SubscriptionEventCallbacks(incompatible_qos=on_incompatible)

@@ -25,6 +25,10 @@ the arena, step by step (that module's docstring gives the guarantee, its assump
 If it has no recent poses, or the input is malformed, or the solver fails, it sends a stop for the
 robots concerned: never the raw command. Without this node nothing reaches the simulator.
 
+cmd_requested takes any reliable publisher (`ros2 topic pub` too: robotarium_core.topics). The
+simulator's cmd_safe reader is volatile, so a command is held here until our cmd_safe writer has
+matched it (at most `lockstep_wait`): the first commands of a run are never lost to discovery.
+
 In lockstep the client numbers its command arrays: step k is sent right after the client saw the
 poses of step k - 1. Those poses may reach this node a moment after the command (two topics, no
 ordering between them), so a numbered command waits here until the poses it was computed from
@@ -33,6 +37,7 @@ have arrived (at most `lockstep_wait`). That keeps lockstep deterministic. Unnum
 """
 import sys
 import time
+from collections import deque
 
 import numpy as np
 from geometry_msgs.msg import Twist
@@ -44,7 +49,8 @@ from robotarium_safety.barrier_certificates import create_unicycle_barrier_certi
 from robotarium_core import cdr, model, presence
 from robotarium_core.node_tools import declare_config, run_node
 from robotarium_core.topics import (CMD_REQUESTED, CMD_SAFE, COMMAND_INPUT_QOS, DEFAULT_NAMESPACE, POSES,
-                                    SAFETY_ARM, SAFETY_REPORT, TESTBED_QOS, warn_on_incompatible_qos)
+                                    SAFETY_ARM, SAFETY_REPORT, TESTBED_QOS, readers_matched,
+                                    warn_on_incompatible_qos)
 
 
 def twists_of(v, w):
@@ -69,6 +75,8 @@ class SafetyNode(Node):
         self.commands = None         # 2 x N, the current requested command of every robot
         self.pending = None          # (commands, received) a numbered command waiting for its poses
         self.last_step = 0           # the last numbered step forwarded
+        self.held = deque()          # (request, received) commands waiting for the simulator to match cmd_safe
+        self._simulator_matched = (False, -1)   # (matched, our writer's match count when last checked)
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
         self._dropped_reported = dict(self.dropped)
         self._logged = set()
@@ -98,6 +106,7 @@ class SafetyNode(Node):
         self.poses, self.poses_step, self.poses_time = None, -1, -np.inf
         self.commands = np.zeros((2, n))   # nobody has a command yet
         self.pending = None
+        self.held.clear()
         self.last_step = 0
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
         self._dropped_reported = dict(self.dropped)
@@ -151,6 +160,36 @@ class SafetyNode(Node):
             return self.drop(error.reason, str(error))
         if not armed.real_time and 0 < request.step <= self.last_step:
             return self.drop("stale", "step %d was forwarded already" % request.step)
+        if self.held or not self.simulator_listens():
+            self.held.append((request, time.monotonic()))   # in order, behind any already held
+            return
+        self.accept(request)
+
+    def simulator_listens(self):
+        """Whether what we publish on cmd_safe now reaches the simulator. Asked once the run's poses
+        came (before that every command becomes a stop anyway). Looked up in the graph only while not
+        matched, or when our writer's match count changed."""
+        if self.poses is None:
+            return True
+        count = self.safe_pub.get_subscription_count()
+        matched, checked_at = self._simulator_matched
+        if not matched or count != checked_at:
+            self._simulator_matched = (readers_matched(self, self.safe_pub, "simulator"), count)
+        return self._simulator_matched[0]
+
+    def release_held(self):
+        if not self.held:
+            return
+        waited = time.monotonic() - self.held[0][1]
+        if not self.simulator_listens():
+            if waited <= self.config.lockstep_wait:
+                return
+            self.warn_once("simulator_unmatched", "the simulator has not matched our cmd_safe publisher after "
+                                                  "%.1f s; sending anyway" % waited)
+        while self.held:
+            self.accept(self.held.popleft()[0])
+
+    def accept(self, request):
         if request.step > 0 and (self.poses is None or request.step - 1 > self.poses_step):
             if self.pending is not None and self.pending[0].step == request.step:
                 return self.drop("stale", "step %d is waiting for its poses already" % request.step)
@@ -161,6 +200,7 @@ class SafetyNode(Node):
         self.filter(request)
 
     def check_pending(self):
+        self.release_held()
         if self.pending is not None and time.monotonic() - self.pending[1] > self.config.lockstep_wait:
             request, _ = self.pending
             self.pending = None
