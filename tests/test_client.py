@@ -65,6 +65,19 @@ def test_lockstep_steps_follow_the_model_exactly(testbed):
     assert np.abs(reference.poses - LINE).max() > 0.05
 
 
+def test_lockstep_run_is_bit_for_bit_the_recorded_reference(testbed):
+    """Every pose of a 300-step run in which the safety node steers (devtools.lockstep_reference)
+    equals the one recorded before the nodes' executors and message handling were rewritten for
+    speed, and so does the debug report."""
+    from devtools import lockstep_reference
+    reference = np.load(lockstep_reference.REFERENCE)
+    poses, report = lockstep_reference.run(robotarium(number_of_robots=6,
+                                                      initial_conditions=lockstep_reference.START.copy()))
+    assert report == str(reference["report"])
+    differs = [k for k in range(len(poses)) if not np.array_equal(poses[k], reference["poses"][k])]
+    assert not differs, "poses differ from the reference from step %d on" % differs[0]
+
+
 def test_call_order_errors_are_those_of_rps(testbed):
     r = robotarium(number_of_robots=2, initial_conditions=LINE[:, :2].copy())
     r.get_poses()

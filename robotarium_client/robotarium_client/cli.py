@@ -218,7 +218,8 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
     # The testbed is up (found or started above): the script waits for it, never starts another.
     options = session.RunOptions(real_time=real_time, local_testbed=False, namespace=ns,
                                  experiment_name=session.experiment_name_of(script),
-                                 progress_interval=session.progress_from_environment(10.0), time_limit=time_limit)
+                                 progress_interval=session.progress_from_environment(10.0), time_limit=time_limit,
+                                 config_file=os.path.abspath(config_file) if config_file else None)
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
         env.setdefault("MPLBACKEND", "Agg")

@@ -17,6 +17,11 @@ Modes: sim_in_real_time=True paces the loop at the testbed's 30 Hz (the simulato
 a robot stops when its command is older than 0.5 s, as on the real testbed); False runs in
 lockstep, one simulator step per step() call, as fast as the nodes allow, deterministically.
 How to run (which testbed, a forced mode, progress lines) comes from robotarium_client.session.
+
+The step's round trip is the hot path: commands are published and poses taken as CDR bytes
+(robotarium_core.cdr, no Python object per robot), and the node is spun by
+robotarium_core.executor.LeanExecutor (rclpy's default executor costs about half a millisecond
+of Python per message).
 """
 import atexit
 import os
@@ -28,7 +33,8 @@ import numpy as np
 from robotarium_client import session
 from robotarium_client.progress import StepProgress
 from robotarium_client.robotarium_abc import RobotariumABC
-from robotarium_core import model
+from robotarium_core import cdr, model
+from robotarium_core.config import DEFAULT, TestbedConfig
 from robotarium_core.model import RobotariumError
 
 STARTUP_WAIT = 60.0   # s for a testbed started here to come up
@@ -52,8 +58,11 @@ class Robotarium(RobotariumABC):
     """The Robotarium of the guide, on the ROS 2 testbed."""
 
     def __init__(self, number_of_robots=-1, show_figure=True, sim_in_real_time=True, initial_conditions=np.array([])):
-        super().__init__(number_of_robots, show_figure, sim_in_real_time, initial_conditions)
         options = session.options
+        # The testbed's own configuration replaces this once connected; a run's --config file
+        # (e.g. more robots than the packaged 50) is what the arguments are checked against first.
+        config = TestbedConfig.load(options.config_file) if options.config_file else DEFAULT
+        super().__init__(number_of_robots, show_figure, sim_in_real_time, initial_conditions, config)
         if options.real_time is not None:
             self.sim_in_real_time = bool(options.real_time)
         self._options = options
@@ -142,10 +151,10 @@ class Robotarium(RobotariumABC):
 
     def _connect(self):
         import rclpy
-        from geometry_msgs.msg import Twist
         from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
+
+        from robotarium_core.executor import LeanExecutor
 
         from robotarium_client.testbed import LocalTestbed, security_enabled
         from std_msgs.msg import String
@@ -167,12 +176,12 @@ class Robotarium(RobotariumABC):
         rclpy.init(context=self._context, args=["--ros-args", "--enclave", "/robotarium/client"]
                    if security_enabled() else [])
         self._node = Node("robotarium_client_%d" % os.getpid(), namespace=self._ns, context=self._context)
-        self._executor = SingleThreadedExecutor(context=self._context)
+        self._executor = LeanExecutor(context=self._context)
         self._executor.add_node(self._node)
         self._latest = None
         self._run_id = None
         self._command_pub = self._node.create_publisher(TwistArray, CMD_REQUESTED, TESTBED_QOS)
-        self._node.create_subscription(RobotPoses, POSES, self._on_poses, TESTBED_QOS)
+        self._node.create_subscription(RobotPoses, POSES, self._on_poses, TESTBED_QOS, raw=True)
         self._node.create_subscription(TestbedStatus, STATUS, self._on_status, TESTBED_QOS)
         self._testbed_config = None
         self._node.create_subscription(String, CONFIG, self._on_config, LATCHED)
@@ -196,11 +205,7 @@ class Robotarium(RobotariumABC):
                 raise RuntimeError("The local testbed did not come up (exited: %s); see %s."
                                    % (failed, self._local_testbed.log_dir))
 
-        # Twist objects reused every step: only their two numbers change.
-        self._command = TwistArray()
-        self._command.header.frame_id = "arena"
-        self._command.ids = list(range(self.number_of_robots))
-        self._command.twists = [Twist() for _ in range(self.number_of_robots)]
+        self._ids = np.arange(self.number_of_robots)
 
     def _on_config(self, msg):
         self._testbed_config = msg.data
@@ -209,7 +214,6 @@ class Robotarium(RobotariumABC):
         """Take the testbed's configuration (its latched `config` topic) for the constants and the
         checks of the initial conditions: a testbed run with another arena or time step is
         described by its own numbers. A testbed that publishes none uses the packaged default."""
-        from robotarium_core.config import TestbedConfig
         self._spin_until(lambda: self._testbed_config is not None, CONFIG_WAIT)
         if self._testbed_config is None:
             return
@@ -233,7 +237,7 @@ class Robotarium(RobotariumABC):
             raise (RuntimeError if incomplete else RobotariumError)(
                 "The testbed refused to start the experiment: %s" % response.message)
         self._run_id = response.run_id
-        self._token = self._command.token = response.token
+        self._token = response.token
         self._poses_key = response.poses_key
         from robotarium_core.presence import Presence
         self._presence = Presence(self._node, response.client_alive_topic, response.client_lease)
@@ -288,18 +292,20 @@ class Robotarium(RobotariumABC):
         from robotarium_core.topics import readers_matched
         return readers_matched(self._node, self._command_pub, "safety")
 
-    def _on_poses(self, msg):
+    def _on_poses(self, data):
+        try:
+            msg = cdr.ROBOT_POSES.parse(data, max_elements=self.number_of_robots)
+        except cdr.CdrError:
+            return   # not poses of this run's size: not this run's poses
         # Only the simulator's poses of this run carry its key (not a replay's, not a stray publisher's).
         if msg.run_id == self._run_id and msg.key == self._poses_key:
             self._latest = msg
 
     def _send(self, velocities, step):
         v, w = velocities
-        for twist, vi, wi in zip(self._command.twists, v.tolist(), w.tolist()):
-            twist.linear.x, twist.angular.z = vi, wi
-        self._command.step = step
-        self._command.header.stamp = self._node.get_clock().now().to_msg()
-        self._command_pub.publish(self._command)
+        sec, nanosec = self._node.get_clock().now().seconds_nanoseconds()
+        self._command_pub.publish(cdr.TWIST_ARRAY.build(sec=sec, nanosec=nanosec, frame_id="arena", token=self._token,
+                                                        step=step, ids=self._ids, twists=cdr.twists(v, w)))
 
     def _wait_for_step(self, target):
         arrived = self._spin_until(lambda: self._failure is not None or (
@@ -313,7 +319,7 @@ class Robotarium(RobotariumABC):
                 % (target, STEP_TIMEOUT))
         msg = self._latest
         self._last_step = msg.step
-        return np.array([msg.x, msg.y, msg.theta])
+        return np.array([msg.x, msg.y, msg.theta])   # a copy: the message's arrays are views of its bytes
 
     def _spin_until(self, predicate, timeout):
         deadline = time.monotonic() + timeout

@@ -50,6 +50,8 @@ class RunOptions:
     # Seconds of testbed time after which the experiment is ended and the script stopped (None: the
     # testbed configuration's time_limit; 0: no limit).
     time_limit: object = None
+    # The testbed configuration file the run was started with (--config), None: the packaged one.
+    config_file: object = None
 
     def to_json(self):
         return json.dumps(dataclasses.asdict(self))

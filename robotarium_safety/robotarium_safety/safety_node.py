@@ -34,13 +34,15 @@ poses of step k - 1. Those poses may reach this node a moment after the command 
 ordering between them), so a numbered command waits here until the poses it was computed from
 have arrived (at most `lockstep_wait`). That keeps lockstep deterministic. Unnumbered commands
 (step 0, real time) use the newest poses, if they are younger than `pose_timeout`.
+
+Poses come in and cmd_safe goes out as CDR bytes read and written with numpy (robotarium_core.cdr):
+rclpy's message objects, one per robot for a Twist[], cost more than the barrier QP.
 """
 import sys
 import time
 from collections import deque
 
 import numpy as np
-from geometry_msgs.msg import Twist
 from rclpy.node import Node
 
 from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, TwistArray
@@ -51,15 +53,6 @@ from robotarium_core.node_tools import declare_config, run_node
 from robotarium_core.topics import (CMD_REQUESTED, CMD_SAFE, COMMAND_INPUT_QOS, DEFAULT_NAMESPACE, POSES,
                                     SAFETY_ARM, SAFETY_REPORT, TESTBED_QOS, readers_matched,
                                     warn_on_incompatible_qos)
-
-
-def twists_of(v, w):
-    out = []
-    for vi, wi in zip(v.tolist(), w.tolist()):
-        t = Twist()
-        t.linear.x, t.angular.z = vi, wi
-        out.append(t)
-    return out
 
 
 class SafetyNode(Node):
@@ -85,7 +78,7 @@ class SafetyNode(Node):
         self.report_pub = self.create_publisher(SafetyReport, SAFETY_REPORT, TESTBED_QOS)
         self.create_subscription(TwistArray, CMD_REQUESTED, self.on_request, COMMAND_INPUT_QOS, raw=True,
                                  event_callbacks=warn_on_incompatible_qos(self, CMD_REQUESTED))
-        self.create_subscription(RobotPoses, POSES, self.on_poses, TESTBED_QOS)
+        self.create_subscription(RobotPoses, POSES, self.on_poses, TESTBED_QOS, raw=True)
         self.create_service(ArmSafety, SAFETY_ARM, self.on_arm)
         self.presence = presence.Presence(self, presence.alive_topic(presence.SAFETY), c.node_lease)
         self.create_timer(0.02, self.check_pending)
@@ -134,9 +127,13 @@ class SafetyNode(Node):
             self._logged.add(kind)
             self.get_logger().warning(text + " (logged once; every case is in safety_report)")
 
-    def on_poses(self, msg):
+    def on_poses(self, data):
         armed = self.armed
-        if not armed.run_id or msg.key != armed.poses_key or len(msg.x) != armed.number_of_robots:
+        try:
+            msg = cdr.ROBOT_POSES.parse(data, max_elements=armed.number_of_robots)
+        except cdr.CdrError:
+            msg = None   # not a RobotPoses of this run's size: not this run's poses either
+        if not armed.run_id or msg is None or msg.key != armed.poses_key or len(msg.x) != armed.number_of_robots:
             # A replayed bag, a stray publisher, or the end of an earlier run: not this run's poses.
             if armed.run_id:
                 self.warn_once("foreign_poses", "ignoring poses without this run's key (a replay or another "
@@ -263,14 +260,13 @@ class SafetyNode(Node):
         self.publish(request, ids, np.zeros(len(ids)), np.zeros(len(ids)), report, started)
 
     def publish(self, request, ids, v, w, report, started, requested_exceeds_limits=False):
-        out = TwistArray(step=request.step, requested_exceeds_limits=bool(requested_exceeds_limits),
-                         token=self.armed.safety_key)
-        out.header.stamp = self.get_clock().now().to_msg()
-        out.header.frame_id = "arena"
-        out.ids = [int(i) for i in ids]
-        out.twists = twists_of(np.asarray(v, dtype=float), np.asarray(w, dtype=float))
-        self.safe_pub.publish(out)
-        report.header = out.header
+        now = self.get_clock().now()
+        sec, nanosec = now.seconds_nanoseconds()
+        self.safe_pub.publish(cdr.TWIST_ARRAY.build(
+            sec=sec, nanosec=nanosec, frame_id="arena", token=self.armed.safety_key, step=request.step, ids=ids,
+            twists=cdr.twists(v, w), requested_exceeds_limits=bool(requested_exceeds_limits)))
+        report.header.stamp = now.to_msg()
+        report.header.frame_id = "arena"
         report.number_of_robots = len(ids)
         report.solve_time = time.perf_counter() - started
         report.dropped = DropCounts(**self.dropped)

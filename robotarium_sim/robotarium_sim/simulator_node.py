@@ -26,16 +26,18 @@ than `command_timeout` stops) or lockstep (exactly one step per accepted command
 commands come, so a run is deterministic). In lockstep a command array's `step` is the step it
 produces; one whose step was already taken is a re-send and is ignored, so a client may re-send
 safely when a message was lost before discovery completed (step 0 means "unnumbered": always taken).
+
+Poses and pose_array go out as CDR bytes made with numpy (robotarium_core.cdr): rclpy's message
+objects, one per robot for a PoseArray, cost more than the whole step at N = 20.
 """
 import array
-import math
 import re
 import secrets
 import sys
 import time
 
 import numpy as np
-from geometry_msgs.msg import Pose, PoseArray
+from geometry_msgs.msg import PoseArray
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -355,32 +357,16 @@ class SimulatorNode(Node):
 
     def publish_state(self):
         tb = self.testbed
-        stamp = self.get_clock().now().to_msg()
-        msg = RobotPoses()
-        msg.header.stamp = stamp
-        msg.header.frame_id = "arena"
-        msg.run_id = self.run_id
-        msg.key = self.poses_key
-        msg.step = tb.steps
-        msg.sim_time = tb.sim_time
-        msg.ids = array.array("I", range(tb.number_of_robots))
-        msg.x, msg.y, msg.theta = (to_float_array(row) for row in tb.poses)
-        self.poses_pub.publish(msg)
+        now = self.get_clock().now()
+        sec, nanosec = now.seconds_nanoseconds()
+        x, y, theta = tb.poses
+        self.poses_pub.publish(cdr.ROBOT_POSES.build(
+            sec=sec, nanosec=nanosec, frame_id="arena", run_id=self.run_id, key=self.poses_key, step=tb.steps,
+            sim_time=tb.sim_time, ids=np.arange(tb.number_of_robots), x=x, y=y, theta=theta))
         if self.pose_array_pub.get_subscription_count() > 0:
-            self.pose_array_pub.publish(self.pose_array(tb.poses, stamp))
-        self.publish_status(stamp)
-
-    @staticmethod
-    def pose_array(poses, stamp):
-        out = PoseArray()
-        out.header.stamp = stamp
-        out.header.frame_id = "arena"
-        for x, y, theta in poses.T:
-            pose = Pose()
-            pose.position.x, pose.position.y = float(x), float(y)
-            pose.orientation.z, pose.orientation.w = math.sin(theta / 2), math.cos(theta / 2)
-            out.poses.append(pose)
-        return out
+            self.pose_array_pub.publish(cdr.POSE_ARRAY.build(sec=sec, nanosec=nanosec, frame_id="arena",
+                                                             poses=cdr.planar_poses(x, y, theta)))
+        self.publish_status(now.to_msg())
 
     def publish_status_heartbeat(self):
         # Real-time runs publish status every tick; idle and lockstep (which may wait) once a second.
