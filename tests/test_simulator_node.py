@@ -244,3 +244,29 @@ def test_installed_for_ros2_run():
     assert os.access(script, os.X_OK)
     config = os.path.join(REPO, "install", "share", "robotarium_core", "config", "testbed.yaml")
     assert os.path.exists(config)
+
+
+def test_viewers_get_the_scene_at_the_viewer_rate_not_every_step(testbed):
+    from visualization_msgs.msg import Marker, MarkerArray
+    from robotarium_core.config import DEFAULT
+    from robotarium_core.topics import VIEWER_QOS
+    _, probe, safety = testbed
+    poses = probe.collect(RobotPoses, NS + "/poses")
+    scenes = probe.collect(MarkerArray, NS + "/markers", VIEWER_QOS)   # what RViz asks for by default
+    probe.wait_for_publishers()
+    started = start(probe, n=3, poses=LINE)
+    safety.wait_for_simulator()
+    steps = 120
+    for k in range(1, steps + 1):
+        lockstep(probe, safety, command(range(3), [0.1, 0.1, 0.1], [0.5, 0.0, -0.5], step=k), poses)
+    probe.spin_for(3.0 / DEFAULT.viewer_rate)   # a scene or more after the last step
+    assert 0 < len(scenes) < steps / 3, "%d scenes for %d lockstep steps" % (len(scenes), steps)
+    latest = scenes[-1].markers
+    assert latest[0].action == Marker.DELETEALL and all(m.header.frame_id == "arena" for m in latest)
+    bodies = sorted((m for m in latest if m.ns == "robots"), key=lambda m: m.id)
+    assert np.allclose([(m.pose.position.x, m.pose.position.y) for m in bodies], as_array(poses[-1])[:2].T)
+    trail = next(m for m in latest if m.ns == "trails")
+    assert len(trail.points) > 3 * 2                    # each robot's recent path, not just where it is
+    end(probe, started)
+    count = len(scenes)
+    assert probe.spin_until(lambda: len(scenes) > count and {m.ns for m in scenes[-1].markers[1:]} == {"arena"}, 5)

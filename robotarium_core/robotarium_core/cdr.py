@@ -130,6 +130,7 @@ class _Sequence:
 
 
 INT32, UINT32, UINT64, FLOAT64 = _Scalar("i"), _Scalar("I"), _Scalar("Q"), _Scalar("d", 0.0)
+FLOAT32 = _Scalar("f", 0.0)
 BOOL = _Scalar("?", False)
 STRING = _String()
 HEADER = (("sec", INT32), ("nanosec", UINT32), ("frame_id", STRING))   # std_msgs/Header
@@ -191,13 +192,26 @@ class Layout:
         return b"".join(self._writer(values).parts)
 
     def _writer(self, values):
+        writer = _Writer()
+        self._write(writer, values)
+        return writer
+
+    def _write(self, writer, values):
         unknown = set(values) - set(self.Message._fields)
         if unknown:
             raise TypeError("%s has no field %s" % (self.type_name, ", ".join(sorted(unknown))))
-        writer = _Writer()
         for name, kind in self.fields:
             kind.write(writer, values.get(name, kind.default))
-        return writer
+
+
+def build_sequence(layout, elements):
+    """The bytes of a message whose only field is a sequence of `layout` structs (a MarkerArray):
+    `elements` is a list of {field: value} dicts."""
+    writer = _Writer()
+    writer.put(_COUNT.pack(len(elements)))
+    for values in elements:
+        layout._write(writer, values)
+    return b"".join(writer.parts)
 
 
 TWIST_ARRAY = Layout("robotarium_msgs/msg/TwistArray", HEADER + (
@@ -221,6 +235,26 @@ ROBOT_POSES = Layout("robotarium_msgs/msg/RobotPoses", HEADER + (
 
 POSE_ARRAY = Layout("geometry_msgs/msg/PoseArray", HEADER + (
     ("poses", _Sequence(np.float64, 7)),      # position x, y, z, orientation x, y, z, w per robot
+))
+
+# visualization_msgs/Marker, nested structs flattened (pose, scale, color, lifetime, texture, mesh_file);
+# a MarkerArray is build_sequence(MARKER, markers).
+MARKER = Layout("visualization_msgs/msg/Marker", HEADER + (
+    ("ns", STRING), ("id", INT32), ("type", INT32), ("action", INT32),
+    ("x", FLOAT64), ("y", FLOAT64), ("z", FLOAT64),                                   # pose.position
+    ("qx", FLOAT64), ("qy", FLOAT64), ("qz", FLOAT64), ("qw", _Scalar("d", 1.0)),     # pose.orientation
+    ("scale_x", FLOAT64), ("scale_y", FLOAT64), ("scale_z", FLOAT64),
+    ("r", FLOAT32), ("g", FLOAT32), ("b", FLOAT32), ("a", FLOAT32),                   # color
+    ("lifetime_sec", INT32), ("lifetime_nanosec", UINT32), ("frame_locked", BOOL),
+    ("points", _Sequence(np.float64, 3)),                                            # geometry_msgs/Point[]
+    ("colors", _Sequence(np.float32, 4)),                                            # std_msgs/ColorRGBA[]
+    ("texture_resource", STRING),
+    ("texture_sec", INT32), ("texture_nanosec", UINT32), ("texture_frame_id", STRING),
+    ("texture_format", STRING), ("texture_data", _Sequence(np.uint8)),               # sensor_msgs/CompressedImage
+    ("uv_coordinates", _Sequence(np.float32, 2)),
+    ("text", STRING), ("mesh_resource", STRING),
+    ("mesh_filename", STRING), ("mesh_data", _Sequence(np.uint8)),                   # visualization_msgs/MeshFile
+    ("mesh_use_embedded_materials", BOOL),
 ))
 
 

@@ -65,6 +65,10 @@ FIELDS = {
     "client_lease": Field("s; a client gone this long (killed, crashed, network lost) loses its experiment", 0.1, 60.0,
                           used_by=(SIMULATOR,)),
     "node_lease": Field("s; a simulator, safety node or recorder gone this long is reported lost", 0.1, 60.0),
+    "viewer_rate": Field("Hz at which the simulator publishes the markers topic for viewers (RViz, Foxglove), "
+                         "while one subscribes", 0.0, 100.0, used_by=(SIMULATOR,)),
+    "trail_length": Field("s of testbed time of each robot's trail in the viewers", 0.0, 600.0, low_open=False,
+                          used_by=(SIMULATOR,)),
 }
 
 
@@ -120,6 +124,8 @@ class TestbedConfig:
     time_limit: float
     client_lease: float
     node_lease: float
+    viewer_rate: float
+    trail_length: float
 
     def __post_init__(self):
         for name in FIELDS:

@@ -51,11 +51,12 @@ from robotarium_msgs.msg import TestbedStatus
 from robotarium_core import presence
 from robotarium_core.config import DEFAULT, FIELDS
 from robotarium_core.node_tools import declare_parameter, run_node
-from robotarium_core.topics import DEFAULT_NAMESPACE, LATCHED, RECORDING
+from robotarium_core.topics import DEFAULT_NAMESPACE, LATCHED, MARKERS, RECORDING
 from robotarium_recording import bag
 
-# Our own announcement is not part of a run.
-EXCLUDED_TOPICS = {RECORDING}
+# Our own announcement is not part of a run; the viewers' markers are drawn from the poses (a subscription
+# here would make the simulator build them all the time, and they would fill the bag).
+EXCLUDED_TOPICS = {RECORDING, MARKERS}
 
 # Deep queues: at N = 50 and 30 Hz a topic carries 30 messages a second; nothing may be dropped
 # while a chunk is compressed.

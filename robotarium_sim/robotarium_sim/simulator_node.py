@@ -7,6 +7,9 @@ Topics (relative to the node's namespace, /robotarium by default):
   safety_report   robotarium_msgs/SafetyReport in:  counted as safety interventions
   poses           robotarium_msgs/RobotPoses   out: every step
   pose_array      geometry_msgs/PoseArray      out: every step, for viewers (built only when someone listens)
+  markers         visualization_msgs/MarkerArray out: the arena, robots (footprint, heading, id) and their
+                                                    trails (robotarium_core.markers), at `viewer_rate` Hz
+                                                    while someone listens (RViz, Foxglove: frame `arena`)
   status          robotarium_msgs/TestbedStatus out: every step, and once a second while idle or in lockstep
 Services:
   start_experiment robotarium_msgs/StartExperiment, end_experiment robotarium_msgs/EndExperiment
@@ -42,14 +45,16 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.task import Future
+from visualization_msgs.msg import MarkerArray
 from std_msgs.msg import String
 
 from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, TestbedStatus, TwistArray
 from robotarium_msgs.srv import ArmSafety, EndExperiment, StartExperiment
 
-from robotarium_core import cdr, model, presence
+from robotarium_core import cdr, markers, model, presence, scene
 from robotarium_core.node_tools import declare_config, run_node
 from robotarium_core.topics import (CMD_SAFE, COMMAND_INPUT_QOS, CONFIG, DEFAULT_NAMESPACE, END_EXPERIMENT, LATCHED,
+                                    MARKERS, VIEWER_QOS,
                                     POSE_ARRAY, POSES, RECORDING, SAFETY_ARM, SAFETY_REPORT, START_EXPERIMENT, STATUS,
                                     TESTBED_QOS, warn_on_incompatible_qos)
 
@@ -100,6 +105,9 @@ class SimulatorNode(Node):
 
         self.poses_pub = self.create_publisher(RobotPoses, POSES, TESTBED_QOS)
         self.pose_array_pub = self.create_publisher(PoseArray, POSE_ARRAY, 10)
+        # Viewers get the scene at viewer_rate, not every step (lockstep runs hundreds a second).
+        self.markers_pub = self.create_publisher(MarkerArray, MARKERS, VIEWER_QOS)
+        self.trails = scene.Trails(self.config.trail_length, self.config.time_step)
         self.status_pub = self.create_publisher(TestbedStatus, STATUS, TESTBED_QOS)
         # The configuration of the running experiment, for the recorder and the report.
         self.config_pub = self.create_publisher(String, CONFIG, LATCHED)
@@ -117,6 +125,7 @@ class SimulatorNode(Node):
         self.safety_watch = presence.Watch(self, presence.alive_topic(presence.SAFETY), self.config.node_lease,
                                            on_lost=self.on_safety_lost)
         self.create_timer(1.0, self.publish_status_heartbeat)
+        self.create_timer(1.0 / self.config.viewer_rate, self.publish_markers)
         self.create_timer(0.2, self.check_client)
         self.config_pub.publish(String(data=self.config.to_yaml()))
         self.get_logger().info("simulator ready in namespace %s" % self.get_namespace())
@@ -178,6 +187,7 @@ class SimulatorNode(Node):
         self.dropped_requested = DropCounts()
         self._logged_drops = set()
         self._clock_start = time.monotonic()
+        self.trails.reset()
         self.watch_client(run_id)
         if self.real_time:
             self._tick_timer = self.create_timer(1.0 / c.rate, self.tick)
@@ -366,7 +376,17 @@ class SimulatorNode(Node):
         if self.pose_array_pub.get_subscription_count() > 0:
             self.pose_array_pub.publish(cdr.POSE_ARRAY.build(sec=sec, nanosec=nanosec, frame_id="arena",
                                                              poses=cdr.planar_poses(x, y, theta)))
+        self.trails.add(tb.steps, tb.poses)
         self.publish_status(now.to_msg())
+
+    def publish_markers(self):
+        """The scene for viewers: nothing is built while nobody listens."""
+        if self.markers_pub.get_subscription_count() == 0:
+            return
+        tb = self.testbed
+        self.markers_pub.publish(markers.marker_array(   # serialized: published as it is
+            self.config, self.get_clock().now().nanoseconds, tb.poses if tb is not None else None,
+            trails=self.trails.paths() if tb is not None else ()))
 
     def publish_status_heartbeat(self):
         # Real-time runs publish status every tick; idle and lockstep (which may wait) once a second.
