@@ -48,8 +48,9 @@ model.count_collisions: two robot centres within robot_diameter):
     several ticks, or filtered at older poses, is not covered); (2) the simulator then moves each
     robot by one forward-Euler step of time_step (model.Testbed.step), after scaling its (v, w) by
     any factor in [0, 1] of its own (the wheel-limit thresholding of the node and of the simulator,
-    a stop, a command timeout); (3) the start poses are more than robot_diameter apart (the
-    simulator refuses others). Exact up to floating-point rounding (~1e-16 m a step).
+    a stop, a command timeout; command latency or wheel dynamics, as on real robots, are not
+    covered); (3) the start poses are more than robot_diameter apart (the simulator refuses
+    others). Exact up to floating-point rounding (~1e-16 m a step).
 
 Why it holds. The centre c_k of robot k with heading n_k = (cos t_k, sin t_k) moves in one step to
 c_k + T a_k v_k n_k (T = time_step, a_k in [0, 1] the later scaling); the turn rate only changes
