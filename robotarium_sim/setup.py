@@ -19,8 +19,6 @@ setup(
     entry_points={
         "console_scripts": [
             "simulator = robotarium_sim.simulator_node:main",
-            "recorder = robotarium_recording.recorder_node:main",
-            "replay = robotarium_recording.replay_node:main",
         ],
     },
 )
