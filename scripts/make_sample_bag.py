@@ -51,7 +51,7 @@ def main():
     parser.add_argument("--out", default=os.path.join(REPO, "bags", "sample_consensus"))
     args = parser.parse_args()
 
-    domain = unique_domain_id() + 100
+    domain = unique_domain_id()
     work = tempfile.mkdtemp(prefix="sample_bag_")
     nodes = [NodeProcess("robotarium_sim.simulator_node", domain, log_path=os.path.join(work, "simulator.log")),
              NodeProcess("robotarium_recording.recorder_node", domain, ros_args=["-p", "bags_dir:=%s" % work],

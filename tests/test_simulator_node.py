@@ -9,6 +9,7 @@ from geometry_msgs.msg import Twist
 
 from robotarium_msgs.msg import RobotPoses, TestbedStatus, TwistArray
 from robotarium_msgs.srv import EndExperiment, StartExperiment
+from robotarium_core import model
 from devtools.rosutil import REPO, NodeProcess, RosProbe, SafetyStandIn, node_env, unique_domain_id
 from robotarium_core.topics import TESTBED_QOS
 
@@ -270,3 +271,17 @@ def test_viewers_get_the_scene_at_the_viewer_rate_not_every_step(testbed):
     end(probe, started)
     count = len(scenes)
     assert probe.spin_until(lambda: len(scenes) > count and {m.ns for m in scenes[-1].markers[1:]} == {"arena"}, 5)
+
+
+def test_a_huge_finite_command_is_full_speed_on_its_arc_never_a_stop(testbed):
+    """1e308 on cmd_safe (from the safety node's key holder) once overflowed the thresholding into
+    a stop; it drives at the limits like any command beyond them."""
+    _, probe, safety = testbed
+    poses = probe.collect(RobotPoses, NS + "/poses")
+    probe.wait_for_publishers()
+    assert start(probe, n=2, poses=LINE[:, :2]).success
+    safety.wait_for_simulator()
+    p = as_array(lockstep(probe, safety, command([0, 1], [1e308, 1e308], [0.0, 1e308], step=1), poses))
+    assert p[0, 0] == -0.5 + 0.033 * 0.2                # straight on at 0.2 m/s
+    reach = model.threshold_keeping_arc(np.array([[1.0], [1.0]]))[0, 0]   # v = omega at the wheel limit
+    assert p[0, 1] == pytest.approx(0.033 * reach) and p[2, 1] == pytest.approx(0.033 * reach)

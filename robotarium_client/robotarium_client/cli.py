@@ -287,7 +287,14 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
     shutil.rmtree(work, ignore_errors=True)
 
     if results:
-        wait_until_recorded(run_dir)
+        if info.get("recording_stopped_at_step") is not None:
+            # The recorder is gone: nothing will close the bag. Make its metadata agree with its file.
+            from robotarium_recording.bag import recover_bag
+            recover_bag(run_dir)
+            say("the recorder was lost at step %d: %s holds the run up to there (recovered)"
+                % (info["recording_stopped_at_step"], run_dir))
+        else:
+            wait_until_recorded(run_dir)
         from robotarium_recording.results import write_results
         write_results(run_dir, progress=True, video=video)
     say("run %s: outputs in %s" % (info["run_id"], os.path.relpath(run_dir, cwd)))

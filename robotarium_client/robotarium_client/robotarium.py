@@ -251,6 +251,9 @@ class Robotarium(RobotariumABC):
             self._end_quietly()
             raise RuntimeError("No safety node listens on %s/cmd_requested: without it the robots cannot move. "
                                "Is the testbed complete (./robotarium up starts all of it)?" % self._ns)
+        # Until the simulator follows our presence, a crash of this process would free the testbed
+        # only after its discovery wait (10 s) instead of client_lease: wait for it (it takes moments).
+        self._spin_until(lambda: self._presence.publisher.get_subscription_count() > 0, STEP_TIMEOUT)
 
     def _watch_testbed(self):
         """Follow the presence of the testbed's nodes (robotarium_core.presence), with the testbed's lease."""

@@ -19,7 +19,9 @@ tail and metadata.yaml so that other readers open it too (like `ros2 bag reindex
 Messages decode with a rosbags typestore: Jazzy's standard types plus the schemas stored in the
 bag itself (so an old bag still decodes after our .msg files change).
 """
+import functools
 import glob
+import hashlib
 import os
 import re
 import struct
@@ -339,6 +341,11 @@ def write_metadata_file(bag_dir, metadata):
 
 # -- reading -----------------------------------------------------------------------------------
 
+@functools.lru_cache(maxsize=64)
+def _sha256(text):
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
 BagMessage = namedtuple("BagMessage", "topic type log_time publish_time data")
 TopicInfo = namedtuple("TopicInfo", "type count offered_qos")
 
@@ -472,12 +479,34 @@ class Bag:
 
     # -- the testbed's topics as arrays ----------------------------------------------------------
 
+    def own_keys(self):
+        """{topic suffix: SHA-256 of the key} that this run's own poses and cmd_safe arrays carry
+        (from the simulator's statuses of the run), so that foreign messages recorded alongside (a
+        replay, a stray publisher) are left out of poses() and commands(); {} for a bag recorded
+        before the keys existed (nothing is left out then)."""
+        if getattr(self, "_own_keys", None) is None:
+            run_id = ((self.metadata or {}).get("custom_data") or {}).get("run_id")
+            self._own_keys = {}
+            for status in self.statuses():
+                if status.state == 1 and getattr(status, "safety_key_sha256", "") and status.run_id == (
+                        run_id or status.run_id):
+                    self._own_keys = {"poses": status.poses_key_sha256, "cmd_safe": status.safety_key_sha256}
+                    break
+        return self._own_keys
+
+    def _is_own(self, suffix, key):
+        wanted = self.own_keys().get(suffix)
+        return wanted is None or _sha256(key) == wanted
+
     def poses(self):
         """The run's poses, one row per poses message: PoseTrack(steps, sim_time, stamp_ns, log_ns,
         ids, x, y, theta) with x, y, theta of shape (messages, N). Messages with another set of ids
-        than the first are left out (a run has a fixed set of robots)."""
+        than the first are left out (a run has a fixed set of robots), and so are poses without the
+        run's key (own_keys)."""
         rows = []
         for message, msg in self.decoded([self.topic("poses")]):
+            if not self._is_own("poses", getattr(msg, "key", "")):
+                continue
             rows.append((int(msg.step), float(msg.sim_time),
                          msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec, message.log_time,
                          np.asarray(msg.ids, dtype=np.int64), np.asarray(msg.x, dtype=float),
@@ -493,12 +522,14 @@ class Bag:
 
     def commands(self, suffix="cmd_safe"):
         """Command arrays of a TwistArray topic in recorded order: list of Command(step, stamp_ns,
-        log_ns, ids, v, omega) with numpy arrays."""
+        log_ns, ids, v, omega) with numpy arrays; on cmd_safe only the run's own (own_keys)."""
         name = self.topic(suffix, required=False)
         if name not in self.topics:
             return []
         out = []
         for message, msg in self.decoded([name]):
+            if not self._is_own(suffix, getattr(msg, "token", "")):
+                continue   # foreign: the simulator dropped it too
             out.append(Command(int(msg.step), msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec,
                                message.log_time, np.asarray(msg.ids, dtype=np.int64),
                                np.array([t.linear.x for t in msg.twists], dtype=float),
@@ -529,9 +560,14 @@ Command = namedtuple("Command", "step stamp_ns log_ns ids v omega requested_exce
 
 def recover_bag(path):
     """Make an unfinished recording (killed recorder) open in every reader, like `ros2 bag reindex`:
-    cut the MCAP file after its last complete record, give it a provisional end (no summary), and
-    rewrite metadata.yaml from what the file really holds. Returns the Bag; a no-op if complete."""
+    cut the MCAP file after its last complete record, give it a provisional end (no summary),
+    rewrite metadata.yaml from what the file really holds, and remove the temporary file a kill
+    in the middle of replacing metadata.yaml leaves. Returns the Bag; a no-op if complete.
+    Only for a bag no recorder writes any more."""
     bag = Bag(path)
+    leftover = os.path.join(bag.path, ".metadata.yaml.tmp")
+    if os.path.exists(leftover):
+        os.remove(leftover)
     if bag.complete and not bag.truncated:
         return bag
     for file_path in bag.files:

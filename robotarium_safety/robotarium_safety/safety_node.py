@@ -49,7 +49,7 @@ from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, TwistArray
 from robotarium_msgs.srv import ArmSafety
 from robotarium_safety.barrier_certificates import create_unicycle_barrier_certificate_with_centre_boundary
 from robotarium_core import cdr, model, presence
-from robotarium_core.node_tools import declare_config, run_node
+from robotarium_core.node_tools import declare_config, run_node, take_waiting
 from robotarium_core.topics import (CMD_REQUESTED, CMD_SAFE, COMMAND_INPUT_QOS, DEFAULT_NAMESPACE, POSES,
                                     SAFETY_ARM, SAFETY_REPORT, TESTBED_QOS, readers_matched,
                                     warn_on_incompatible_qos)
@@ -76,8 +76,8 @@ class SafetyNode(Node):
 
         self.safe_pub = self.create_publisher(TwistArray, CMD_SAFE, TESTBED_QOS)
         self.report_pub = self.create_publisher(SafetyReport, SAFETY_REPORT, TESTBED_QOS)
-        self.create_subscription(TwistArray, CMD_REQUESTED, self.on_request, COMMAND_INPUT_QOS, raw=True,
-                                 event_callbacks=warn_on_incompatible_qos(self, CMD_REQUESTED))
+        self.requests = self.create_subscription(TwistArray, CMD_REQUESTED, self.on_requests, COMMAND_INPUT_QOS,
+                                                 raw=True, event_callbacks=warn_on_incompatible_qos(self, CMD_REQUESTED))
         self.create_subscription(RobotPoses, POSES, self.on_poses, TESTBED_QOS, raw=True)
         self.create_service(ArmSafety, SAFETY_ARM, self.on_arm)
         self.presence = presence.Presence(self, presence.alive_topic(presence.SAFETY), c.node_lease)
@@ -147,14 +147,28 @@ class SafetyNode(Node):
             self.pending = None
             self.filter(request)
 
-    def on_request(self, data):
+    def on_requests(self, data):
+        """Everything waiting on cmd_requested at once (node_tools.take_waiting): foreign arrays are
+        dropped in microseconds; of the client's own, in real time only the newest counts (as on
+        the robots' firmware), in lockstep each is a step."""
+        valid = [request for request in map(self.check_request, [data, *take_waiting(self.requests)]) if request]
+        if self.armed.real_time:
+            valid = valid[-1:]
+        for request in valid:
+            self.on_request(request)
+
+    def check_request(self, data):
+        """The client's array as Commands, or None when it was dropped (and counted)."""
         armed = self.armed
         if not armed.run_id:
             return self.drop("foreign", "no experiment is running")
         try:
-            request = cdr.parse_commands(data, armed.number_of_robots, token=armed.token)
+            return cdr.parse_commands(data, armed.number_of_robots, token=armed.token)
         except cdr.CdrError as error:
             return self.drop(error.reason, str(error))
+
+    def on_request(self, request):
+        armed = self.armed
         if not armed.real_time and 0 < request.step <= self.last_step:
             return self.drop("stale", "step %d was forwarded already" % request.step)
         if self.held or not self.simulator_listens():
@@ -241,8 +255,11 @@ class SafetyNode(Node):
             changed = np.any(safe != requested, axis=0)
             if np.any(changed):
                 safe[:, changed] = model.threshold_keeping_arc(safe[:, changed], **self.config.limits)
-            status = SafetyReport.STATUS_SOLVED if np.any(safe != requested) else SafetyReport.STATUS_PASSTHROUGH
-        change = np.abs(safe - requested)
+            status = (SafetyReport.STATUS_SOLVED if np.any(safe != requested) else
+                      SafetyReport.STATUS_SATURATED if np.any(requested != self.commands) else
+                      SafetyReport.STATUS_PASSTHROUGH)
+        with np.errstate(over="ignore"):   # a request of 1e308 changed by 1e308
+            change = np.abs(safe - self.commands)
         report.status = status
         report.solver_status = info["status"]
         report.max_change = float(change.max()) if n else 0.0

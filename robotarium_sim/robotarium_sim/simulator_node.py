@@ -34,6 +34,7 @@ Poses and pose_array go out as CDR bytes made with numpy (robotarium_core.cdr): 
 objects, one per robot for a PoseArray, cost more than the whole step at N = 20.
 """
 import array
+import hashlib
 import re
 import secrets
 import sys
@@ -52,14 +53,19 @@ from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, TestbedSta
 from robotarium_msgs.srv import ArmSafety, EndExperiment, StartExperiment
 
 from robotarium_core import cdr, markers, model, presence, scene
-from robotarium_core.node_tools import declare_config, run_node
+from robotarium_core.node_tools import declare_config, run_node, take_waiting
 from robotarium_core.topics import (CMD_SAFE, COMMAND_INPUT_QOS, CONFIG, DEFAULT_NAMESPACE, END_EXPERIMENT, LATCHED,
                                     MARKERS, VIEWER_QOS,
                                     POSE_ARRAY, POSES, RECORDING, SAFETY_ARM, SAFETY_REPORT, START_EXPERIMENT, STATUS,
                                     TESTBED_QOS, warn_on_incompatible_qos)
 
 SAFETY_WAIT = 10.0          # s a start waits for the safety node to answer (discovery is slow on a loaded machine)
+ARM_RESEND = 1.0            # s before an unanswered ArmSafety request is sent again
 CLIENT_DISCOVERY_WAIT = 10.0  # s after a start for the client's presence to appear before it counts as lost
+
+
+def sha256(text):
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def drop_counts(counts):
@@ -92,6 +98,7 @@ class SimulatorNode(Node):
         self.recording = ""
         self.safety_interventions = 0
         self.commands_accepted = 0
+        self.last_command_step = 0   # the testbed's step when the last command was applied
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
         self.dropped_requested = DropCounts()   # the safety node's, from its safety_report
         self._logged_drops = set()
@@ -111,8 +118,8 @@ class SimulatorNode(Node):
         self.status_pub = self.create_publisher(TestbedStatus, STATUS, TESTBED_QOS)
         # The configuration of the running experiment, for the recorder and the report.
         self.config_pub = self.create_publisher(String, CONFIG, LATCHED)
-        self.create_subscription(TwistArray, CMD_SAFE, self.on_command, COMMAND_INPUT_QOS, raw=True,
-                                 event_callbacks=warn_on_incompatible_qos(self, CMD_SAFE))
+        self.commands = self.create_subscription(TwistArray, CMD_SAFE, self.on_commands, COMMAND_INPUT_QOS, raw=True,
+                                                 event_callbacks=warn_on_incompatible_qos(self, CMD_SAFE))
         self.create_subscription(SafetyReport, SAFETY_REPORT, self.on_safety_report, TESTBED_QOS)
         self.create_subscription(String, RECORDING, self.on_recording, LATCHED)
         # A start waits for the safety node's answer (a coroutine): in a group of its own, so that
@@ -180,9 +187,11 @@ class SimulatorNode(Node):
         self.experiment = name
         self.run_id = run_id
         self.token, self.safety_key, self.poses_key = token, safety_key, poses_key
+        self.key_hashes = (sha256(poses_key), sha256(safety_key))
         self.end_reason = ""
         self.safety_interventions = 0
         self.commands_accepted = 0
+        self.last_command_step = 0
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
         self.dropped_requested = DropCounts()
         self._logged_drops = set()
@@ -206,20 +215,26 @@ class SimulatorNode(Node):
         return response
 
     async def arm_safety(self, request):
-        """Hand the safety node the experiment to guard; True, or why it could not be done."""
+        """Hand the safety node the experiment to guard; True, or why it could not be done. The
+        request is sent again every ARM_RESEND s: a safety node started a moment ago may not have
+        matched it yet (and one killed a moment ago may still look present), and arming is the
+        same however often it is done."""
         deadline = time.monotonic() + SAFETY_WAIT
         while not self.arm_client.service_is_ready():
             if time.monotonic() > deadline:
                 return ("no safety node answers on %s within %.0f s: without it the robots cannot move. Is the "
                         "testbed complete (./robotarium up starts all of it)?" % (self.arm_client.srv_name, SAFETY_WAIT))
             await self.sleep(0.05)
-        future = self.arm_client.call_async(request)
-        while not future.done():
-            if time.monotonic() > deadline:
-                return "the safety node did not answer on %s within %.0f s." % (self.arm_client.srv_name, SAFETY_WAIT)
-            await self.sleep(0.01)
-        result = future.result()
-        return True if result.success else "the safety node refused the experiment: %s" % result.message
+        while time.monotonic() < deadline:
+            future = self.arm_client.call_async(request)
+            resend = time.monotonic() + ARM_RESEND
+            while not future.done() and time.monotonic() < min(resend, deadline):
+                await self.sleep(0.01)
+            if future.done():
+                result = future.result()
+                return True if result.success else "the safety node refused the experiment: %s" % result.message
+            self.arm_client.remove_pending_request(future)
+        return "the safety node did not answer on %s within %.0f s." % (self.arm_client.srv_name, SAFETY_WAIT)
 
     async def sleep(self, seconds):
         """Wait inside a coroutine callback while the executor goes on serving the others."""
@@ -248,9 +263,12 @@ class SimulatorNode(Node):
 
     def on_client_lost(self):
         if self.testbed is not None:
-            self.get_logger().warning("the client of %s is gone (no sign of it for %g s): ending the experiment"
-                                      % (self.run_id, self.config.client_lease))
-            self.end_experiment("client lost at step %d" % self.testbed.steps)
+            # The step of its last command: where its script stopped (in real time the testbed ticked on).
+            self.get_logger().warning("the client of %s is gone (no sign of it for %g s; its last command came at "
+                                      "step %d): ending the experiment at step %d" % (
+                                          self.run_id, self.config.client_lease, self.last_command_step,
+                                          self.testbed.steps))
+            self.end_experiment("client lost at step %d" % self.last_command_step)
 
     def on_safety_lost(self):
         if self.testbed is not None:
@@ -316,6 +334,12 @@ class SimulatorNode(Node):
 
     # -- commands ----------------------------------------------------------------------------
 
+    def on_commands(self, data):
+        """Everything waiting on cmd_safe at once (node_tools.take_waiting), so that a flood of
+        foreign arrays never fills the queue and pushes the safety node's out."""
+        for each in [data, *take_waiting(self.commands)]:
+            self.on_command(each)
+
     def on_command(self, data):
         tb = self.testbed
         if tb is None:
@@ -330,6 +354,7 @@ class SimulatorNode(Node):
         if problem is not None:
             return self.drop(problem, "step %d" % msg.step)
         self.commands_accepted += 1
+        self.last_command_step = tb.steps + (0 if self.real_time else 1)
         tb.set_commands(msg.ids, msg.v, msg.omega, now=time.monotonic(),
                         requested_exceeds_limits=msg.requested_exceeds_limits)
         if not self.real_time:
@@ -348,7 +373,9 @@ class SimulatorNode(Node):
     def on_safety_report(self, msg):
         if self.testbed is None:
             return
-        if msg.status not in (SafetyReport.STATUS_PASSTHROUGH, SafetyReport.STATUS_COUNTS_ONLY):
+        # (scaling a command to the actuator limits is the thresholding's work, not an intervention)
+        if msg.status not in (SafetyReport.STATUS_PASSTHROUGH, SafetyReport.STATUS_COUNTS_ONLY,
+                              SafetyReport.STATUS_SATURATED):
             self.safety_interventions += 1
         self.dropped_requested = msg.dropped
 
@@ -406,6 +433,8 @@ class SimulatorNode(Node):
         msg.dropped_cmd_requested = self.dropped_requested
         msg.safety_interventions = self.safety_interventions
         msg.end_reason = self.end_reason
+        if tb is not None:
+            msg.poses_key_sha256, msg.safety_key_sha256 = self.key_hashes
         if tb is None:
             msg.state = TestbedStatus.STATE_IDLE
         else:
