@@ -22,10 +22,11 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from robotarium_core import cdr
+from robotarium_core.topics import TESTBED_QOS, readers_matched
 from robotarium_msgs.msg import RobotPoses, TwistArray
 
 QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
-                 durability=DurabilityPolicy.TRANSIENT_LOCAL)   # what the testbed's inputs ask for
+                 durability=DurabilityPolicy.VOLATILE)
 HUGE = 100_000
 
 
@@ -60,11 +61,15 @@ def main(argv=None):
     ns = args.namespace.rstrip("/")
     topics = ["%s/cmd_requested" % ns, "%s/cmd_safe" % ns]
     publishers = {topic: node.create_publisher(TwistArray, topic, QOS) for topic in topics}
-    poses_pub = node.create_publisher(RobotPoses, ns + "/poses", QOS) if args.poses else None
-    # The safety node listens on cmd_requested, the simulator on cmd_safe (a recorder on both).
+    # (poses as the simulator offers them: the safety node's poses reader is transient-local)
+    poses_pub = node.create_publisher(RobotPoses, ns + "/poses", TESTBED_QOS) if args.poses else None
+    # The safety node listens on cmd_requested, the simulator on cmd_safe (a recorder on both):
+    # wait until every reader is matched, so that every array sent reaches each.
+    listeners = [(publishers[topics[0]], "safety"), (publishers[topics[1]], "simulator")]
+    if poses_pub is not None:
+        listeners.append((poses_pub, "safety"))
     deadline = time.monotonic() + 30
-    while not all(p.get_subscription_count() > 0 for p in publishers.values()) or (
-            poses_pub is not None and poses_pub.get_subscription_count() == 0):
+    while not all(readers_matched(node, publisher, name) for publisher, name in listeners):
         if time.monotonic() > deadline:
             raise SystemExit("flood: nobody listens on %s" % topics)
         time.sleep(0.05)

@@ -82,7 +82,7 @@ class Lab:
             {name: w.alive for name, w in self.watches.items()}
 
     def last_status(self, run_id):
-        self.probe.spin_for(0.0)
+        self.probe.spin_for(0.02)
         mine = [s for s in self.status if s.run_id == run_id]
         return mine[-1] if mine else None
 
@@ -235,22 +235,24 @@ def test_a_replay_into_a_live_run_moves_nothing(healthy, tmp_path):
     lab = healthy
     start = np.array([[-1.2, -0.6, 0.0, 0.6, 1.2, 0.0], [0.3, -0.3, 0.3, -0.3, 0.3, 0.8], [0.0] * 6])
     r = client(start)
-    args = [os.path.join(REPO, "bags", "sample_consensus"), "--rate", "2"]
+    args = [os.path.join(REPO, "bags", "sample_consensus"), "--rate", "2", "--loop"]
     if "--into-live" in open(replay_node.__file__).read():   # the replay refuses a live namespace unless told
         args.append("--into-live")
     replay = NodeProcess("robotarium_recording.replay_node", lab.domain, args=args, log_path=tmp_path / "replay.log")
+
+    def replayed_and_counted(status):
+        return dropped(status, "cmd_safe", "foreign") > 0 and dropped(status, "cmd_requested", "foreign") > 0
     try:
-        steps = 0
-        while replay.alive() and steps < 3000:
+        deadline = time.monotonic() + 30
+        while not (lab.last_status(r._run_id) and replayed_and_counted(lab.last_status(r._run_id))):
+            assert replay.alive() and time.monotonic() < deadline, replay.output()
             assert np.array_equal(drive(r, np.zeros(6), np.zeros(6)), start), "a replayed array moved a robot"
-            steps += 1
-            time.sleep(0.005)
-        assert replay.proc.wait(timeout=30) == 0, replay.output()
-        counted = lab.wait_status(r._run_id, lambda s: dropped(s, "cmd_safe", "foreign") > 0
-                                  and dropped(s, "cmd_requested", "foreign") > 0, 10)
-        assert counted is not None, lab.last_status(r._run_id)
+        for _ in range(100):   # and on, while it replays
+            assert np.array_equal(drive(r, np.zeros(6), np.zeros(6)), start), "a replayed array moved a robot"
+        assert replay.alive(), replay.output()
         assert r._latest.run_id == r._run_id and r._latest.key == r._poses_key
         r.call_at_scripts_end()
+        assert r.run_info["collisions"] == 0 and r.run_info["dropped"]["cmd_safe"]["foreign"] > 0
     finally:
         replay.close()
 

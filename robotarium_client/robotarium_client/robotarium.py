@@ -253,7 +253,8 @@ class Robotarium(RobotariumABC):
                                "Is the testbed complete (./robotarium up starts all of it)?" % self._ns)
         # Until the simulator follows our presence, a crash of this process would free the testbed
         # only after its discovery wait (10 s) instead of client_lease: wait for it (it takes moments).
-        self._spin_until(lambda: self._presence.publisher.get_subscription_count() > 0, STEP_TIMEOUT)
+        if self._spin_until(lambda: self._presence.publisher.get_subscription_count() > 0, STEP_TIMEOUT):
+            self._presence.announce()
 
     def _watch_testbed(self):
         """Follow the presence of the testbed's nodes (robotarium_core.presence), with the testbed's lease."""

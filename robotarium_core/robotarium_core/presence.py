@@ -14,7 +14,8 @@ requests (DDS's request/offer rule); writers offer a third of it, so an assertio
 two thirds of the lease before a loss is reported.
 
 The topics start with '_' (hidden: the recorder does not record them, so a replay never fakes a
-presence), and nothing is ever published on them.
+presence); nothing is published on them but one empty message a client sends once the testbed
+follows its presence (Presence.announce).
 """
 from rclpy.duration import Duration
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
@@ -42,6 +43,12 @@ class Presence:
         self.node = node
         self.publisher = node.create_publisher(Empty, topic, _qos(lease / 3),
                                                event_callbacks=PublisherEventCallbacks())
+
+    def announce(self):
+        """Say at once that this process is there: a sample asserts a writer's liveliness now, where
+        the automatic assertions come only every 2/3 of the lease (a process that dies before the
+        first one would otherwise never have been seen, and a Watch could not tell it is gone)."""
+        self.publisher.publish(Empty())
 
     def destroy(self):
         self.node.destroy_publisher(self.publisher)
