@@ -123,7 +123,8 @@ class Robotarium(RobotariumABC):
                          "steps": response.steps, "collisions": response.collisions,
                          "boundary_violations": response.boundary_violations,
                          "actuator_limit_iterations": response.actuator_limit_iterations,
-                         "real_time": self.sim_in_real_time, "number_of_robots": self.number_of_robots,
+                         "command_timeouts": response.command_timeouts, "real_time": self.sim_in_real_time,
+                         "number_of_robots": self.number_of_robots,
                          "end_reason": response.end_reason, "dropped": dropped,
                          "recording_stopped_at_step": self._recorder_lost_at}
         self._errors = {k: v for k, v in (("boundary", response.boundary_violations), ("collision", response.collisions),
@@ -255,6 +256,9 @@ class Robotarium(RobotariumABC):
         # only after its discovery wait (10 s) instead of client_lease: wait for it (it takes moments).
         if self._spin_until(lambda: self._presence.publisher.get_subscription_count() > 0, STEP_TIMEOUT):
             self._presence.announce()
+        # Likewise a node is reported lost only once we saw it there: wait for the simulator's and
+        # the safety node's first sign of life (moments; their presences assert every 0.17 s).
+        self._spin_until(lambda: self._watches["simulator"].seen and self._watches["safety"].seen, STEP_TIMEOUT)
 
     def _watch_testbed(self):
         """Follow the presence of the testbed's nodes (robotarium_core.presence), with the testbed's lease."""

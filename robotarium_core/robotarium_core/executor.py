@@ -155,7 +155,7 @@ class LeanExecutor(Executor):
                 try:
                     if not timer.handle.is_timer_ready():   # (rcl reports a cancelled timer ready)
                         continue
-                except InvalidHandle:
+                except (InvalidHandle, _rclpy.RCLError):   # destroyed by a callback of this very wait
                     continue
                 self._execute(timer, self._take_timer)
         for kind, take in (("subscription", self._take_subscription), ("guard_condition", self._take_guard_condition),
