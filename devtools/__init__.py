@@ -1,6 +1,7 @@
 """Tools shared by the tests, the benchmarks and the scripts (never by the packages themselves):
 real nodes in subprocesses on a DDS domain of their own (`rosutil`), the Robotarium's own simulator
-in its venv (`reference`), a script run with numpy seeded (`run_seeded`).
+in its venv (`reference`), a script run with numpy seeded (`run_seeded`), a flood of foreign
+command arrays (`flood`).
 
 Import them from the repository root (./robotarium puts it on PYTHONPATH for bench and scripts;
 tests/conftest.py does it for pytest)."""
