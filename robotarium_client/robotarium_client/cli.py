@@ -21,7 +21,7 @@ import time
 
 from robotarium_client import session
 from robotarium_client.testbed import LocalTestbed, namespace, repository_root, testbed_answers
-from robotarium_core import lifeline
+from robotarium_core import lifeline, model
 
 DEMO_SCRIPT = os.path.join("examples", "barrier_certificates.py")  # 8 robots swap places through the middle
 # Folders never searched for data files a script saved.
@@ -344,14 +344,22 @@ def _describe_status(msg):
     if msg is None:
         return "no testbed answers", None
     if msg.state != TestbedStatus.STATE_RUNNING:
-        return "a testbed answers: no experiment is running", {"running": False, "last_run_id": msg.run_id}
+        last = " (the last, %s, %s)" % (msg.run_id, msg.end_reason) if msg.run_id and msg.end_reason else ""
+        return ("a testbed answers: no experiment is running%s" % last,
+                {"running": False, "last_run_id": msg.run_id, "last_end_reason": msg.end_reason})
     since = _since(msg.run_id)
+    dropped = {name: {reason: int(getattr(counts, reason)) for reason in model.DROP_REASONS if getattr(counts, reason)}
+               for name, counts in (("cmd_requested", msg.dropped_cmd_requested), ("cmd_safe", msg.dropped_cmd_safe))}
     info = {"running": True, "experiment": msg.experiment, "run_id": msg.run_id, "mode": msg.mode,
             "number_of_robots": msg.number_of_robots, "step": msg.step, "sim_time": msg.sim_time,
-            "since": time.strftime("%Y-%m-%d %H:%M:%S", since) if since else None}
+            "since": time.strftime("%Y-%m-%d %H:%M:%S", since) if since else None, "dropped": dropped}
     text = "experiment %s running since %s: %d robots, %s, step %d (%.1f s of testbed time)" % (
         msg.run_id, time.strftime("%H:%M:%S", since) + " (%s)" % _ago(time.time() - time.mktime(since))
         if since else "?", msg.number_of_robots, msg.mode, msg.step, msg.sim_time)
+    foreign = ["%s: %s" % (name, ", ".join("%d %s" % (n, reason) for reason, n in counts.items()))
+               for name, counts in dropped.items() if counts]
+    if foreign:
+        text += "; arrays dropped on %s" % "; ".join(foreign)
     return text, info
 
 
