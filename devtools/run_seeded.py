@@ -9,11 +9,15 @@ import sys
 
 import numpy as np
 
-from robotarium_client import session
+try:
+    from robotarium_client import session
+except ImportError:   # the Robotarium's own simulator (bench_guide_scripts runs it with this too)
+    session = None
 
 seed, script = int(sys.argv[1]), os.path.abspath(sys.argv[2])
 sys.argv = [script] + sys.argv[3:]
-session.options.experiment_name = session.experiment_name_of(script)
+if session is not None:
+    session.options.experiment_name = session.experiment_name_of(script)
 sys.path.insert(0, os.path.dirname(script))
 np.random.seed(seed)
 runpy.run_path(script, run_name="__main__")

@@ -119,12 +119,20 @@ class LeanExecutor(Executor):
         if self._is_shutdown:
             return
         self._run_tasks()
+        timeout_ns = timeout_sec_to_nsec(timeout_sec)
+        deadline = None if timeout_ns < 0 else time.monotonic() + timeout_ns / 1e9
+        # A wait without the waitables ends when they are due: then wait again, with them.
+        while not self._wait_and_execute(deadline) and not self._is_shutdown:
+            if deadline is not None and time.monotonic() >= deadline:
+                return
+
+    def _wait_and_execute(self, deadline):
+        """One wait (until `deadline`, or until the waitables are due); runs what is ready and
+        says whether anything was."""
         now = time.monotonic()
         with_waitables = now >= self._waitables_due
-        timeout_ns = timeout_sec_to_nsec(timeout_sec)
-        if not with_waitables:   # wait no longer than until they are due
-            due_ns = int((self._waitables_due - now) * 1e9)
-            timeout_ns = due_ns if timeout_ns < 0 else min(timeout_ns, due_ns)
+        ends = [t for t in (deadline, None if with_waitables else self._waitables_due) if t is not None]
+        timeout_ns = int(max(0.0, min(ends) - now) * 1e9) if ends else -1
         snapshot = self._snapshot
         try:
             if snapshot is None:
@@ -136,10 +144,11 @@ class LeanExecutor(Executor):
         wait_set = snapshot.wait_set
         wait_set.wait(timeout_ns)
         if self._is_shutdown:
-            return
+            return True
         if not self._context.ok():
             raise ExternalShutdownException()
         ready = {kind: set(wait_set.get_ready_entities(kind)) for kind in _KINDS}
+        anything = any(ready.values())
         # The order of rclpy's executors: waitables, timers, subscriptions, guards, clients, services.
         if with_waitables:
             self._waitables_due = time.monotonic() + WAITABLES_PERIOD
@@ -149,6 +158,7 @@ class LeanExecutor(Executor):
                     continue
             except InvalidHandle:
                 continue
+            anything = True
             self._execute(waitable, self._take_waitable)
         for timer, pointer in snapshot.entries["timer"]:
             if pointer in ready["timer"]:
@@ -163,6 +173,7 @@ class LeanExecutor(Executor):
             for entity, pointer in snapshot.entries[kind]:
                 if pointer in ready[kind]:
                     self._execute(entity, take)
+        return anything
 
     def spin_once_until_future_complete(self, future, timeout_sec=None):
         self.spin_once(getattr(timeout_sec, "timeout", timeout_sec))
