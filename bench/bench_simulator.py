@@ -33,6 +33,7 @@ def start(probe, n, real_time):
         name="bench", number_of_robots=n, real_time=real_time, seed=1)))
     assert response.success, response.message
     probe.token = response.token
+    probe.poses_key = response.poses_key   # new for every experiment (two runs can share a run id)
     return response.run_id
 
 
@@ -45,7 +46,9 @@ def real_time_jitter(probe, n, seconds):
     start(probe, n, real_time=True)
     probe.spin_for(seconds)
     end(probe)
-    stamps = np.array([p.header.stamp.sec + p.header.stamp.nanosec * 1e-9 for p in poses if p.step > 0])
+    # (the subscription also gets the last poses of the lockstep run before: transient-local history)
+    stamps = np.array([p.header.stamp.sec + p.header.stamp.nanosec * 1e-9 for p in poses
+                       if p.step > 0 and p.key == probe.poses_key])
     periods = np.diff(stamps)
     jitter = np.abs(periods - 1 / 30)
     return periods.mean() * 1e3, np.percentile(jitter, 99) * 1e3, len(stamps)
@@ -56,7 +59,7 @@ def lockstep_rate(probe, n, steps):
     node = probe.node
     poses = node.create_subscription(RobotPoses, NS + "/poses", lambda data: None, TESTBED_QOS, raw=True)
     publisher = probe.safety.publisher
-    run_id = start(probe, n, real_time=False)
+    start(probe, n, real_time=False)
     probe.spin_until(lambda: publisher.get_subscription_count() > 0, 10)
     wait_set = rclpy_implementation.WaitSet(1, 0, 0, 0, 0, 0, probe.context.handle)
     newest = [-1]
@@ -67,7 +70,7 @@ def lockstep_rate(probe, n, steps):
         wait_set.wait(int(timeout * 1e9))
         while (taken := poses.handle.take_message(poses.msg_type, True)) is not None:
             msg = cdr.ROBOT_POSES.parse(taken[0])
-            if msg.run_id == run_id:   # not the last poses of an earlier run (transient-local history)
+            if msg.key == probe.poses_key:   # not the last poses of an earlier run (transient-local history)
                 newest[0] = msg.step
     ids, twists = np.arange(n), cdr.twists(np.full(n, 0.01), np.full(n, 0.1))
     key = probe.safety.armed.safety_key

@@ -388,13 +388,16 @@ class SimulatorNode(Node):
         tb = self.testbed
         if tb is None:
             return
+        # Stamped with the tick's own time: the step's computation (and whatever preempts it) is
+        # not the simulated world's, so the poses' stamps are as regular as the timer.
+        now = self.get_clock().now()
         tb.expire_commands(time.monotonic(), self.config.command_timeout)
         tb.step()
-        self.publish_state()
+        self.publish_state(now)
 
-    def publish_state(self):
+    def publish_state(self, now=None):
         tb = self.testbed
-        now = self.get_clock().now()
+        now = now or self.get_clock().now()
         sec, nanosec = now.seconds_nanoseconds()
         x, y, theta = tb.poses
         self.poses_pub.publish(cdr.ROBOT_POSES.build(
