@@ -11,6 +11,7 @@ from robotarium_msgs.msg import RobotPoses, TestbedStatus, TwistArray
 from robotarium_msgs.srv import EndExperiment, StartExperiment
 from robotarium_core import model
 from devtools.rosutil import REPO, NodeProcess, RosProbe, SafetyStandIn, node_env, unique_domain_id
+from robotarium_core.config import DEFAULT
 from robotarium_core.topics import TESTBED_QOS
 
 NS = "/robotarium"
@@ -93,6 +94,32 @@ def test_only_its_client_or_an_operator_ends_an_experiment(testbed):
         assert "--force" in refused.message
     forced = probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request(force=True))
     assert forced.success and forced.end_reason == "ended by an operator (end --force) at step 0"
+    assert "did not complete" in forced.report   # an operator's end interrupts the run
+
+
+def test_how_a_run_ended_is_in_the_closing_status_and_only_a_completed_run_is_estimated(testbed):
+    _, probe, _ = testbed
+    status = probe.collect(TestbedStatus, NS + "/status")
+    for outcome, detail in ((TestbedStatus.OUTCOME_SCRIPT_ERROR, "the script raised KeyError: 'goal' at step 0"),
+                            (TestbedStatus.OUTCOME_NONE, "")):
+        started = start(probe, n=2, poses=LINE[:, :2], name="ending")
+        assert started.success
+        ended = probe.call(EndExperiment, NS + "/end_experiment",
+                           EndExperiment.Request(token=started.token, outcome=outcome, detail=detail))
+        assert ended.success
+        completed = outcome == TestbedStatus.OUTCOME_NONE   # an empty request: call_at_scripts_end
+        assert ("Acceptance of your experiment is likely" in ended.report) == completed
+        assert ("did not complete" in ended.report) != completed
+        assert probe.spin_until(lambda: status and status[-1].state == TestbedStatus.STATE_IDLE
+                                and status[-1].run_id == ended.run_id, 5)
+        closing = status[-1]
+        want = TestbedStatus.OUTCOME_COMPLETED if completed else outcome
+        assert (closing.outcome, closing.outcome_detail) == (want, detail)
+        # a new experiment clears it until it ends
+        following = start(probe, n=2, poses=LINE[:, :2], name="next")
+        assert probe.spin_until(lambda: status[-1].state == TestbedStatus.STATE_RUNNING, 5)
+        assert status[-1].outcome == TestbedStatus.OUTCOME_NONE
+        end(probe, following)
 
 
 @pytest.mark.parametrize("n, poses, words", [
@@ -225,10 +252,15 @@ def test_safety_interventions_are_counted(testbed):
     assert start(probe, n=2, poses=LINE[:, :2]).success
     publisher = probe.node.create_publisher(SafetyReport, NS + "/safety_report", TESTBED_QOS)
     assert probe.spin_until(lambda: publisher.get_subscription_count() > 0, 10)
-    for state in (SafetyReport.STATUS_PASSTHROUGH, SafetyReport.STATUS_SOLVED, SafetyReport.STATUS_STOP_NO_POSES,
-                  SafetyReport.STATUS_PASSTHROUGH):
-        publisher.publish(SafetyReport(status=state))
+    # An intervention: a stop, or a change beyond intervention_tolerance (1e-3), not merely a solved QP.
+    tolerance = DEFAULT.intervention_tolerance
+    for state, change in ((SafetyReport.STATUS_PASSTHROUGH, 0.0), (SafetyReport.STATUS_SOLVED, 0.5 * tolerance),
+                          (SafetyReport.STATUS_SOLVED, 0.2), (SafetyReport.STATUS_STOP_NO_POSES, 0.0),
+                          (SafetyReport.STATUS_PASSTHROUGH, 0.0)):
+        publisher.publish(SafetyReport(status=state, max_change=change))
     assert probe.spin_until(lambda: status and status[-1].safety_interventions == 2, 5)
+    probe.spin_for(0.3)
+    assert status[-1].safety_interventions == 2
 
 
 def test_invalid_parameter_stops_the_node_with_a_clear_error(tmp_path):

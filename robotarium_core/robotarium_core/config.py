@@ -60,6 +60,8 @@ FIELDS = {
                                     0.0, 1.0, used_by=(SAFETY,)),
     "pose_timeout": Field("s; commands filtered with poses older than this become a stop", 0.0, used_by=(SAFETY,)),
     "lockstep_wait": Field("s a lockstep command waits for the poses it was computed from", 0.0, used_by=(SAFETY,)),
+    "intervention_tolerance": Field("m/s or rad/s; a safe command further than this from the requested one is "
+                                    "a safety intervention", 0.0, 1.0, low_open=False),
     "time_limit": Field("s of testbed time after which the client ends an experiment (0: no limit)", 0.0,
                         low_open=False, used_by=(CLIENT,)),
     "client_lease": Field("s; a client gone this long (killed, crashed, network lost) loses its experiment", 0.1, 60.0,
@@ -121,6 +123,7 @@ class TestbedConfig:
     collision_barrier_rate: float
     pose_timeout: float
     lockstep_wait: float
+    intervention_tolerance: float
     time_limit: float
     client_lease: float
     node_lease: float

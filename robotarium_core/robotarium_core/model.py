@@ -219,8 +219,14 @@ def check_commands(ids, v, w, number_of_robots):
     return None
 
 
-def debug_report(iterations, boundary_violations, collisions, actuator_limit_iterations, time_step=TIME_STEP):
-    """The text rps.Robotarium.call_at_scripts_end() prints, character for character."""
+NOT_COMPLETED = "The run did not complete, so there is no acceptance estimate.\n"
+
+
+def debug_report(iterations, boundary_violations, collisions, actuator_limit_iterations, time_step=TIME_STEP,
+                 completed=True):
+    """The text rps.Robotarium.call_at_scripts_end() prints, character for character, for a completed
+    run. A run that did not complete (an error, an interruption, no call_at_scripts_end) gets the
+    same counts but never the acceptance estimate: NOT_COMPLETED takes its place."""
     lines = ["##### DEBUG OUTPUT #####\n",
              "Your simulation will take approximately {0} real seconds when deployed on the Robotarium. \n\n"
              .format(int(np.ceil(iterations * time_step)))]
@@ -233,8 +239,10 @@ def debug_report(iterations, boundary_violations, collisions, actuator_limit_ite
         if actuator_limit_iterations:
             lines.append("\t Simulation had {0} iteration(s) where the actuator limits were exceeded.\n"
                          .format(actuator_limit_iterations))
-    else:
+    elif completed:
         lines.append("No errors in your simulation! Acceptance of your experiment is likely!\n")
+    if not completed:
+        lines.append(("\n" if lines[-1].endswith(".\n") and not lines[-1].endswith("\n\n") else "") + NOT_COMPLETED)
     return "".join(lines)
 
 
@@ -304,6 +312,6 @@ class Testbed:
     def sim_time(self):
         return self.steps * self.time_step
 
-    def report(self):
+    def report(self, completed=True):
         return debug_report(self.steps, self.boundary_violations, self.collisions, self.actuator_limit_iterations,
-                            self.time_step)
+                            self.time_step, completed)

@@ -33,6 +33,10 @@ TESTBED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=
 # (ros2 topic pub's default, rclpy's, rclcpp's).
 COMMAND_INPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                                durability=DurabilityPolicy.VOLATILE)
+# What the script drew on r.axes, change by change (robotarium_recording.drawing): a deeper history,
+# so that a recorder matching late still gets the first drawing of a fast lockstep run.
+DRAWING_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 # A topic that keeps only its last message for late subscribers (announcements, the run's configuration).
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -50,6 +54,7 @@ SAFETY_REPORT = "safety_report"   # SafetyReport
 RECORDING = "recording"           # std_msgs/String: recorder -> simulator, where the run is recorded
 CONFIG = "config"                 # std_msgs/String, latched: the running experiment's TestbedConfig as YAML
 SAFETY_ARM = "safety/arm"         # ArmSafety: simulator -> safety node, the experiment to guard and its secrets
+DRAWING = "drawing"               # std_msgs/String, JSON: client -> recorder, what the script drew on r.axes
 START_EXPERIMENT = "start_experiment"
 END_EXPERIMENT = "end_experiment"
 

@@ -258,15 +258,19 @@ class SafetyNode(Node):
             status = (SafetyReport.STATUS_SOLVED if np.any(safe != requested) else
                       SafetyReport.STATUS_SATURATED if np.any(requested != self.commands) else
                       SafetyReport.STATUS_PASSTHROUGH)
-        with np.errstate(over="ignore"):   # a request of 1e308 changed by 1e308
-            change = np.abs(safe - self.commands)
+        change = np.abs(safe - requested)   # scaling to the limits alone is no change
         report.status = status
         report.solver_status = info["status"]
         report.max_change = float(change.max()) if n else 0.0
-        report.robots_changed = int(np.count_nonzero(change.max(axis=0) > 1e-6))
+        report.robots_changed = int(np.count_nonzero(change.max(axis=0) > self.config.intervention_tolerance))
         self.publish(request, np.arange(n), safe[0], safe[1], report, started, over_limits)
 
     def send_stop(self, request, report, status, started):
+        # How far the stop is from what was asked: the largest finite requested speed.
+        requested = np.abs(np.concatenate((np.asarray(request.v, dtype=float), np.asarray(request.omega, dtype=float))))
+        requested = requested[np.isfinite(requested)]
+        report.max_change = float(requested.max()) if requested.size else 0.0
+        report.robots_changed = len(request.v)
         if self.poses is not None:
             ids = np.arange(self.poses.shape[1])  # stop every robot we know of
             self.commands[:] = 0.0

@@ -4,7 +4,8 @@ Topics (relative to the node's namespace, /robotarium by default):
   cmd_safe        robotarium_msgs/TwistArray   in:  the safety node's commands (the only command input), read
                                                     serialized: foreign, oversized and malformed arrays are
                                                     dropped from their first bytes (robotarium_core.cdr)
-  safety_report   robotarium_msgs/SafetyReport in:  counted as safety interventions
+  safety_report   robotarium_msgs/SafetyReport in:  counted as safety interventions (a change beyond
+                                                    intervention_tolerance, or a stop)
   poses           robotarium_msgs/RobotPoses   out: every step
   pose_array      geometry_msgs/PoseArray      out: every step, for viewers (built only when someone listens)
   markers         visualization_msgs/MarkerArray out: the arena, robots (footprint, heading, id) and their
@@ -52,7 +53,7 @@ from std_msgs.msg import String
 from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, TestbedStatus, TwistArray
 from robotarium_msgs.srv import ArmSafety, EndExperiment, StartExperiment
 
-from robotarium_core import cdr, markers, model, presence, scene
+from robotarium_core import cdr, markers, model, outcomes, presence, scene
 from robotarium_core.node_tools import declare_config, run_node, take_waiting
 from robotarium_core.topics import (CMD_SAFE, COMMAND_INPUT_QOS, CONFIG, DEFAULT_NAMESPACE, END_EXPERIMENT, LATCHED,
                                     MARKERS, VIEWER_QOS,
@@ -87,6 +88,15 @@ def copy_counters(testbed, target):
     target.command_timeouts = testbed.command_timeouts
 
 
+STOPS = (SafetyReport.STATUS_STOP_NO_POSES, SafetyReport.STATUS_STOP_SOLVER_FAILED, SafetyReport.STATUS_STOP_BAD_INPUT)
+
+
+def is_intervention(report, tolerance):
+    """A safety intervention (SafetyReport.msg): a stop, or a change beyond the tolerance."""
+    # (scaling a command to the actuator limits is the thresholding's work, not an intervention)
+    return report.status in STOPS or (report.status == SafetyReport.STATUS_SOLVED and report.max_change > tolerance)
+
+
 class SimulatorNode(Node):
     def __init__(self):
         super().__init__("simulator", namespace=DEFAULT_NAMESPACE)
@@ -96,6 +106,7 @@ class SimulatorNode(Node):
         self.experiment = ""
         self.run_id = ""
         self.recording = ""
+        self.outcome, self.outcome_detail = TestbedStatus.OUTCOME_NONE, ""   # how the last experiment ended
         self.safety_interventions = 0
         self.commands_accepted = 0
         self.last_command_step = 0   # the testbed's step when the last command was applied
@@ -190,6 +201,7 @@ class SimulatorNode(Node):
         self.key_hashes = (sha256(poses_key), sha256(safety_key))
         self.end_reason = ""
         self.safety_interventions = 0
+        self.outcome, self.outcome_detail = TestbedStatus.OUTCOME_NONE, ""
         self.commands_accepted = 0
         self.last_command_step = 0
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
@@ -268,7 +280,10 @@ class SimulatorNode(Node):
                                       "step %d): ending the experiment at step %d" % (
                                           self.run_id, self.config.client_lease, self.last_command_step,
                                           self.testbed.steps))
-            self.end_experiment("client lost at step %d" % self.last_command_step)
+            self.end_experiment("client lost at step %d" % self.last_command_step, outcome=outcomes.CLIENT_LOST,
+                                detail="the testbed ended it at step %d: its client was gone for %g s (its last "
+                                "command came at step %d)" % (self.testbed.steps, self.config.client_lease,
+                                                              self.last_command_step))
 
     def on_safety_lost(self):
         if self.testbed is not None:
@@ -290,11 +305,15 @@ class SimulatorNode(Node):
             return response
         reason = ("ended by its client at step %d" if request.token == self.token
                   else "ended by an operator (end --force) at step %d") % self.testbed.steps
-        return self.end_experiment(reason, response)
+        outcome, detail = outcomes.of_request(request.outcome), request.detail
+        if request.token != self.token and request.outcome == outcomes.NONE:
+            outcome, detail = outcomes.INTERRUPTED, "interrupted: %s" % reason
+        return self.end_experiment(reason, response, outcome, detail)
 
-    def end_experiment(self, reason, response=None):
+    def end_experiment(self, reason, response=None, outcome=outcomes.INTERRUPTED, detail=""):
         """End the running experiment (robots stop, counters frozen, the safety node disarmed) for
-        `reason`; fills and returns an EndExperiment response."""
+        `reason` (who ended it); `outcome` and `detail` say how the run ended (robotarium_core.outcomes),
+        in the IDLE status that closes it. Fills and returns an EndExperiment response."""
         response = response or EndExperiment.Response()
         if self._tick_timer is not None:
             self.destroy_timer(self._tick_timer)
@@ -308,7 +327,7 @@ class SimulatorNode(Node):
         response.run_id = self.run_id
         response.steps = tb.steps
         copy_counters(tb, response)
-        response.report = tb.report()
+        response.report = tb.report(completed=outcome == outcomes.COMPLETED)
         response.recording = self.recording
         response.end_reason = reason
         response.dropped_cmd_safe = drop_counts(self.dropped)
@@ -317,7 +336,8 @@ class SimulatorNode(Node):
         self.publish_status()  # the final counters, still marked running, so recorders keep them
         self.testbed = None
         self.token = self.safety_key = self.poses_key = ""
-        self.publish_status()
+        self.outcome, self.outcome_detail = outcome, detail
+        self.publish_status()   # IDLE, with who ended the run and how it ended
         self.disarm_safety()
         self.get_logger().info(response.message)
         return response
@@ -328,7 +348,9 @@ class SimulatorNode(Node):
         every subscriber, so the recorder records the end and closes the run."""
         if self.testbed is not None:
             self.get_logger().warning("ending experiment %s: %s" % (self.run_id, reason))
-            self.end_experiment("the testbed stopped at step %d (%s)" % (self.testbed.steps, reason))
+            steps = self.testbed.steps
+            self.end_experiment("the testbed stopped at step %d (%s)" % (steps, reason), outcome=outcomes.INTERRUPTED,
+                                detail="interrupted: the testbed was stopped at step %d (%s)" % (steps, reason))
             self.status_pub.wait_for_all_acked(Duration(seconds=1.0))
         return None
 
@@ -373,9 +395,7 @@ class SimulatorNode(Node):
     def on_safety_report(self, msg):
         if self.testbed is None:
             return
-        # (scaling a command to the actuator limits is the thresholding's work, not an intervention)
-        if msg.status not in (SafetyReport.STATUS_PASSTHROUGH, SafetyReport.STATUS_COUNTS_ONLY,
-                              SafetyReport.STATUS_SATURATED):
+        if is_intervention(msg, self.config.intervention_tolerance):
             self.safety_interventions += 1
         self.dropped_requested = msg.dropped
 
@@ -438,6 +458,7 @@ class SimulatorNode(Node):
         msg.end_reason = self.end_reason
         if tb is not None:
             msg.poses_key_sha256, msg.safety_key_sha256 = self.key_hashes
+        msg.outcome, msg.outcome_detail = self.outcome, self.outcome_detail
         if tb is None:
             msg.state = TestbedStatus.STATE_IDLE
         else:

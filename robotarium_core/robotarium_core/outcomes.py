@@ -1,0 +1,42 @@
+"""How a run ended. Plain Python.
+
+The numbers are TestbedStatus.OUTCOME_* (robotarium_msgs; tests/test_outcomes.py checks that they
+agree): the simulator keeps the outcome an end_experiment request gives in the IDLE status that
+closes the run, so the recording itself says how the run ended. One more has no message value,
+because only the report can tell it: a recording that ends while its experiment was still running.
+"""
+NONE, COMPLETED, SCRIPT_ERROR, INTERRUPTED, NO_END, TIME_LIMIT, CLIENT_LOST, TESTBED_LOST = range(8)
+UNFINISHED = 100     # the recording ends while the experiment was still running
+
+# Short names (run.json's "outcome") and what each means, for people.
+NAMES = {COMPLETED: "completed", SCRIPT_ERROR: "script_error", INTERRUPTED: "interrupted", NO_END: "no_end",
+         TIME_LIMIT: "time_limit", CLIENT_LOST: "client_lost", TESTBED_LOST: "testbed_lost",
+         UNFINISHED: "unfinished"}
+PHRASES = {
+    COMPLETED: "completed: the script called call_at_scripts_end()",
+    SCRIPT_ERROR: "the script raised an exception",
+    INTERRUPTED: "interrupted",
+    NO_END: "the script ended without calling call_at_scripts_end()",
+    TIME_LIMIT: "stopped at the time limit",
+    CLIENT_LOST: "the testbed ended it: its client went away",
+    TESTBED_LOST: "the testbed was lost",
+    UNFINISHED: "the recording ends while the experiment was still running (its client or the testbed went away)",
+}
+
+# Exit codes of `./robotarium run` (README): 0 only for a completed run. An interrupted run exits
+# with 128 + the signal's number, as a shell reports it (130 for Ctrl-C); EXIT_CODES has SIGINT's.
+EXIT_CODES = {COMPLETED: 0, SCRIPT_ERROR: 1, NO_END: 3, TESTBED_LOST: 4, CLIENT_LOST: 4, UNFINISHED: 4,
+              TIME_LIMIT: 5, INTERRUPTED: 130}
+USAGE_ERROR = 2   # the command line itself was wrong (no such script, a bad option)
+
+
+def of_request(outcome):
+    """The outcome an end_experiment request means (an empty request: the script completed)."""
+    return COMPLETED if outcome == NONE else int(outcome)
+
+
+def first_line(outcome, detail=""):
+    """The report's first line: how the run ended."""
+    if outcome == COMPLETED:
+        return "Run completed%s." % (": " + detail if detail else "")
+    return "Run did not complete: %s." % (detail or PHRASES.get(outcome, "unknown outcome %s" % outcome)).rstrip(".")
