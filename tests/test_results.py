@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from robotarium_core import model
-from robotarium_recording import results
+from robotarium_recording import pictures, results
 from robotarium_recording.bag import Bag
 from devtools.rosutil import REPO
 from test_recorder import stack  # noqa: F401  (fixture: simulator + recorder on a private domain)
@@ -43,11 +43,12 @@ def test_report_from_the_bag_equals_the_live_report_and_results_are_written(stac
     paths = results.write_results(ended.recording, progress=False, out_dir=str(tmp_path / "out"))
     with open(paths["report"]) as f:
         text = f.read()
-    assert text.startswith(ended.report) and "agree with the testbed's counters" in text
+    assert text.startswith("Run completed.\n\n" + ended.report) and "agree with the testbed's counters" in text
     image = matplotlib.image.imread(paths["trajectories"])
     assert image.shape[0] > 300 and image.shape[1] > 500 and image[..., :3].std() > 0.01
     frames, seconds = imageio_ffmpeg.count_frames_and_secs(paths["video"])
     assert paths["video"].endswith(".mp4") and frames == steps + 1
+    assert seconds == pytest.approx((steps + 1) * model.TIME_STEP, abs=0.05)   # experiment time
 
 
 def test_report_command_on_the_sample_run(tmp_path, capsys):
@@ -55,7 +56,7 @@ def test_report_command_on_the_sample_run(tmp_path, capsys):
     shutil.copytree(SAMPLE, bag)
     assert results.main([str(bag)]) == 0
     out, err = capsys.readouterr()
-    assert out.startswith("##### DEBUG OUTPUT #####") and "agree with the testbed's counters" in out
+    assert out.startswith("Run completed.\n\n##### DEBUG OUTPUT #####") and "agree with the testbed's counters" in out
     assert "rendering run.mp4" in err and "100%" in err                       # progress on stderr
     steps = len(Bag(str(bag)).poses().steps)
     assert imageio_ffmpeg.count_frames_and_secs(str(bag / "run.mp4"))[0] == steps
@@ -66,7 +67,8 @@ def test_report_command_on_the_sample_run(tmp_path, capsys):
 def test_gif_when_no_video_encoder(tmp_path):
     from PIL import Image
     track = Bag(SAMPLE).poses()
-    path = results.render_video(track, str(tmp_path), "gif", progress=False, fmt="gif")
+    bag = Bag(SAMPLE)
+    path = pictures.render_video(track, bag.drawings(), bag.config(), str(tmp_path), "gif", progress=False, fmt="gif")
     assert path.endswith("run.gif")
     with Image.open(path) as gif:
         assert gif.n_frames == math.ceil(len(track.steps) / 2)

@@ -49,7 +49,7 @@ def _signal_group(process, sig):
 
 class Interruption:
     """SIGINT, SIGTERM and SIGHUP, caught while installed: the first is remembered and forwarded
-    to the script (watch()) as SIGINT, once (its Robotarium then ends the experiment); a script
+    to the script (watch()), once (the runner then ends its experiment saying how); a script
     still running SCRIPT_GRACE seconds later, or at a second signal, is killed. The command then
     stops what it started as after any run."""
 
@@ -88,7 +88,7 @@ class Interruption:
         if self.count > 1:
             _signal_group(process, signal.SIGKILL)
         elif self._timer is None:
-            _signal_group(process, signal.SIGINT)
+            _signal_group(process, self.signum)   # the runner names it in the report (SIGINT: Ctrl-C)
             self._timer = threading.Timer(SCRIPT_GRACE, _signal_group, (process, signal.SIGKILL))
             self._timer.daemon = True
             self._timer.start()
@@ -177,37 +177,194 @@ def wait_until_recorded(run_dir, timeout=15.0):
     return False
 
 
-def run_script(script, script_args=(), real_time=None, record=True, bags_dir=None, results=True, video=True,
-               local_testbed=True, config_file=None, time_limit=None):
-    """Run an experiment script against the testbed (starting one here if none answers and
-    `local_testbed` allows it). SIGINT, SIGTERM and SIGHUP stop the script and this testbed
-    (Interruption); the results are then made as for any run that did not complete.
+# -- before a testbed is started: can the script run at all? ---------------------------------------
 
-    Returns (exit code, run info dict or None, run folder or None).
+def _close_module_name(name):
+    """An installed top-level module whose name is close to `name` (an import typo), or None."""
+    import difflib
+    import pkgutil
+    names = set(sys.builtin_module_names) | {m.name for m in pkgutil.iter_modules()}
+    match = difflib.get_close_matches(name, sorted(names), n=1, cutoff=0.75)
+    return match[0] if match else None
+
+
+def check_script(script):
+    """Compile the script and find the modules its top-level import statements name, as `python
+    SCRIPT` would meet them (the script's folder first on sys.path), without running it. Returns
+    None, or (detail, message): a syntax error or an import typo fails here, before a testbed is
+    started, with the message python would print."""
+    import ast
+    import importlib.util
+    import tokenize
+    try:
+        with tokenize.open(script) as f:
+            source = f.read()
+        tree = ast.parse(source, filename=script)
+        compile(tree, script, "exec", dont_inherit=True)
+    except (SyntaxError, ValueError, UnicodeDecodeError) as error:
+        import traceback
+        text = "".join(traceback.format_exception_only(type(error), error))
+        where = " (line %d of %s)" % (error.lineno, os.path.basename(script)) if getattr(error, "lineno", None) else ""
+        return "could not be compiled: %s%s" % (session.describe_exception(error), where), text
+    lines = source.splitlines()
+    sys.path.insert(0, os.path.dirname(script))
+    try:
+        for node in tree.body:   # top-level imports only: those in functions or try blocks may be optional
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names = [node.module]
+            else:
+                continue
+            for name in names:
+                try:
+                    found = importlib.util.find_spec(name) is not None
+                    error = "No module named %r" % name
+                except ModuleNotFoundError as missing:
+                    found, error = False, str(missing)
+                except Exception as failed:   # noqa: BLE001 - a parent package that fails to import
+                    found, error = False, session.describe_exception(failed)
+                if not found:
+                    top = name.split(".")[0]
+                    close = _close_module_name(top) if "No module named" in error else None
+                    hint = " Did you mean %r?" % close if close and close != top else ""
+                    text = '  File "%s", line %d\n    %s\nModuleNotFoundError: %s%s\n' % (
+                        script, node.lineno, lines[node.lineno - 1].strip(), error, hint)
+                    return ("could not import %s: ModuleNotFoundError: %s (line %d of %s)%s"
+                            % (name, error, node.lineno, os.path.basename(script), hint)), text
+    finally:
+        sys.path.remove(os.path.dirname(script))
+    return None
+
+
+# -- the run folder -----------------------------------------------------------------------------------
+
+HINTS = {
+    "script_error": "the traceback above (also in log.txt) shows where the script failed; fix it and run it again",
+    "interrupted": "the experiment was ended where it was; the results cover the steps that ran",
+    "no_end": "end the script with r.call_at_scripts_end(): the Robotarium needs it to finish an experiment",
+    "testbed_lost": ("the testbed stopped answering; when ./robotarium started it, its node logs are in "
+                     "log/testbed/, otherwise look at the machine running ./robotarium up"),
+    "client_lost": "the testbed ended the experiment because it stopped hearing from the script",
+    "time_limit": "the experiment reached its time limit",
+}
+
+
+def new_run_folder(results_dir, name):
+    """results/<name>_<YYYYmmdd-HHMMSS>[_k]: a fresh folder for a run that has no recording here."""
+    os.makedirs(results_dir, exist_ok=True)
+    base = os.path.join(results_dir, "%s_%s" % (name, time.strftime("%Y%m%d-%H%M%S")))
+    for k in range(1000):
+        path = base if k == 0 else "%s_%d" % (base, k)
+        try:
+            os.makedirs(path)
+            return path
+        except FileExistsError:
+            continue
+    raise RuntimeError("no free folder name for %s" % base)
+
+
+def write_unrecorded_results(run_dir, run, testbed_report=""):
+    """report.txt and index.html for a run with no recording here (it never started, or it was
+    recorded on another machine): how it ended, and the testbed's debug report if there is one."""
+    from robotarium_core import outcomes
+    from robotarium_recording.page import write_page
+    outcome = {name: value for value, name in outcomes.NAMES.items()}.get(run["outcome"], outcomes.UNFINISHED)
+    lines = [outcomes.first_line(outcome, run.get("detail", "")), ""]
+    if testbed_report:
+        lines += [testbed_report.rstrip("\n"), "", "(the run was recorded on the testbed's machine, not here)"]
+    else:
+        lines.append("No experiment ran on a testbed, so there is no debug report.")
+    with open(os.path.join(run_dir, "report.txt"), "w", encoding="utf-8") as f:
+        f.write("\n".join(lines) + "\n")
+    write_page(run_dir, run=run)
+
+
+def finish_run_folder(run_dir, run, script, log_path, saved, cwd):
+    """Copy the script, the log and the data files into the run folder and write run.json."""
+    shutil.copy2(script, os.path.join(run_dir, os.path.basename(script)))
+    shutil.copy2(log_path, os.path.join(run_dir, "log.txt"))
+    if saved:
+        data_dir = os.path.join(run_dir, "data")
+        os.makedirs(data_dir, exist_ok=True)
+        for path in saved:
+            shutil.copy2(path, os.path.join(data_dir, os.path.relpath(path, cwd).replace(os.sep, "__")))
+    with open(os.path.join(run_dir, "run.json"), "w") as f:
+        json.dump(run, f, indent=2)
+
+
+def print_summary(run_dir, run, cwd):
+    """The closing lines: how the run ended, a hint for a failure, and (last) where everything is."""
+    with open(os.path.join(run_dir, "report.txt"), encoding="utf-8") as f:
+        first = f.readline().strip()
+    say(first)
+    if run["outcome"] != "completed" and run["outcome"] in HINTS:
+        say("hint: " + HINTS[run["outcome"]])
+    relative = os.path.relpath(run_dir, cwd)
+    shown = run_dir if relative.startswith("..") else relative
+    say("files: " + ", ".join(sorted(os.listdir(run_dir))))
+    say("results in %s (open %s in a browser)" % (shown, os.path.join(shown, "index.html")))
+
+
+def run_script(script, script_args=(), real_time=None, record=True, bags_dir=None, results=True, video=True,
+               local_testbed=True, config_file=None, time_limit=None, results_dir=None):
+    """Run an experiment script against the testbed (starting one here if none answers and
+    `local_testbed` allows it). Whatever happens, the run folder gets the log, the report, the
+    results page and run.json (with the plot and the video when the run was recorded here); a
+    script that cannot be compiled or imported fails before a testbed is started. SIGINT, SIGTERM
+    and SIGHUP stop the script and this testbed (Interruption); the results are then made as for
+    any run that did not complete.
+
+    Returns (exit code, run.json dict or None, run folder or None).
     """
+    from robotarium_core import outcomes
     script = os.path.abspath(script)
     if not os.path.isfile(script):
         say("no such script: %s" % script)
-        return 2, None, None
+        return outcomes.USAGE_ERROR, None, None
+    cwd = os.getcwd()
+    results_dir = os.path.abspath(results_dir or os.path.join(repository_root(), "results"))
+    started_at = time.strftime("%Y-%m-%d %H:%M:%S")
+
+    problem = check_script(script)
+    if problem is not None:
+        detail, text = problem
+        print(text, end="", file=sys.stderr, flush=True)
+        run = {"run_id": "", "outcome": "script_error", "detail": "the script %s; no testbed was started" % detail,
+               "step": 0, "exit_code": outcomes.EXIT_CODES[outcomes.SCRIPT_ERROR], "runs": [], "script": script,
+               "started": started_at, "wall_time": 0.0}
+        run_dir = new_run_folder(results_dir, session.experiment_name_of(script))
+        work = tempfile.mkdtemp(prefix="robotarium-run-")
+        log_path = os.path.join(work, "log.txt")
+        with open(log_path, "w") as log:
+            log.write(text)
+        finish_run_folder(run_dir, run, script, log_path, [], cwd)
+        shutil.rmtree(work, ignore_errors=True)
+        write_unrecorded_results(run_dir, run)
+        print_summary(run_dir, run, cwd)
+        return run["exit_code"], run, run_dir
+
     interruption = Interruption()
     try:
         return _run_script(script, script_args, real_time, record, bags_dir, results, video, local_testbed,
-                           config_file, time_limit, interruption)
+                           config_file, time_limit, interruption, results_dir, started_at)
     finally:
         interruption.restore()
 
 
 def _run_script(script, script_args, real_time, record, bags_dir, results, video, local_testbed, config_file,
-                time_limit, interruption):
+                time_limit, interruption, results_dir, started_at):
+    from robotarium_core import outcomes
     ns = namespace()
     testbed = None
+    name = session.experiment_name_of(script)
     # Without local_testbed a testbed is known to be up (or coming up): wait for it, never start one.
     if testbed_answers(ns, timeout=3.0 if local_testbed else 60.0):
         say("using the testbed that answers in %s" % ns)
     elif not local_testbed:
         say("no testbed answers in %s on ROS_DOMAIN_ID %s (--no-local-testbed forbids starting one); "
             "start it with ./robotarium up" % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
-        return 2, None, None
+        return outcomes.EXIT_CODES[outcomes.TESTBED_LOST], None, None
     elif interruption.signum is None:
         testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file).start()
         say("no testbed answers in %s: started one on this machine for this run (logs in %s)"
@@ -216,8 +373,7 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
     info_path = os.path.join(work, "run.json")
     log_path = os.path.join(work, "log.txt")
     # The testbed is up (found or started above): the script waits for it, never starts another.
-    options = session.RunOptions(real_time=real_time, local_testbed=False, namespace=ns,
-                                 experiment_name=session.experiment_name_of(script),
+    options = session.RunOptions(real_time=real_time, local_testbed=False, namespace=ns, experiment_name=name,
                                  progress_interval=session.progress_from_environment(10.0), time_limit=time_limit,
                                  config_file=os.path.abspath(config_file) if config_file else None)
     env = dict(os.environ, PYTHONUNBUFFERED="1")
@@ -245,48 +401,49 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
         if testbed is not None:
             testbed.stop()  # the simulator ends an experiment still running; the recorder closes the bag
         interruption.restore()   # from here on (results, video) a signal acts as usual
-    if interruption.signum is not None:
-        say("interrupted (%s): %s%s" % (
-            interruption.name, "the script was stopped" if code is not None else "before the script started",
-            " and the testbed this run started was stopped" if testbed is not None else ""))
-        code = interruption.exit_code
-    if not os.path.exists(log_path):
+    if code is None:
+        say("interrupted (%s) before the script started%s" % (
+            interruption.name, "; the testbed this run started was stopped" if testbed is not None else ""))
         shutil.rmtree(work, ignore_errors=True)
-        return code, None, None
+        return interruption.exit_code, None, None
+    wall_time = round(time.time() - started, 3)
 
-    info = None
-    if os.path.exists(info_path):
+    try:
         with open(info_path) as f:
-            info = json.load(f)
-    if info is None:
-        if interruption.signum is None:
-            say("the script did not end its experiment (no call_at_scripts_end?); exit code %d" % code)
-        shutil.rmtree(work, ignore_errors=True)
-        return code or 1, None, None
+            run = json.load(f)
+    except (OSError, ValueError):   # the script's process died before it could say anything
+        if interruption.signum is not None:
+            died, exit_code = "interrupted by %s and killed" % interruption.name, interruption.exit_code
+        elif code < 0:
+            died, exit_code = "killed by %s" % signal.Signals(-code).name, 128 - code
+        else:
+            died, exit_code = "exit code %d" % code, code or 1
+        run = {"outcome": "interrupted" if code < 0 else "script_error",
+               "detail": "the script's process ended (%s) before it could end its experiment" % died,
+               "step": 0, "exit_code": exit_code, "runs": []}
+    if interruption.signum is not None:
+        say("interrupted (%s): the script was stopped%s" % (
+            interruption.name, " and the testbed this run started was stopped" if testbed is not None else ""))
+    info = run["runs"][-1] if run["runs"] else {}
+    run.update(run_id=info.get("run_id", ""), script=script, started=started_at, wall_time=wall_time)
+    saved = [p for p, mtime in _snapshot(cwd).items() if before.get(p) != mtime and mtime / 1e9 >= started - 1]
 
     run_dir = info.get("recording") or ""
-    if not run_dir:
+    if info.get("run_id") and not run_dir:
         # A very short run can end before the recorder's announcement of its folder arrived.
         guess = os.path.join(bags_dir or os.path.join(repository_root(), "bags"), info["run_id"])
         run_dir = guess if os.path.isdir(guess) else ""
-    if not run_dir or not os.path.isdir(run_dir):
-        # Recorded on another machine (or not at all): keep the local outputs in results/<run id>/.
-        run_dir = os.path.join(repository_root(), "results", info["run_id"])
+    recorded = bool(run_dir) and os.path.isdir(run_dir) and results
+    if not recorded:
+        # Not recorded here (another machine's testbed, no recorder, or no experiment at all):
+        # keep the local outputs in results/<run id>/.
+        run_dir = (os.path.join(results_dir, info["run_id"]) if info.get("run_id")
+                   else new_run_folder(results_dir, name))
         os.makedirs(run_dir, exist_ok=True)
-        results = False
-    shutil.copy2(script, os.path.join(run_dir, os.path.basename(script)))
-    shutil.copy2(log_path, os.path.join(run_dir, "log.txt"))
-    with open(os.path.join(run_dir, "run.json"), "w") as f:
-        json.dump(dict(info, script=script, exit_code=code, wall_time=round(time.time() - started, 3)), f, indent=2)
-    saved = [p for p, mtime in _snapshot(cwd).items() if before.get(p) != mtime and mtime / 1e9 >= started - 1]
-    if saved:
-        data_dir = os.path.join(run_dir, "data")
-        os.makedirs(data_dir, exist_ok=True)
-        for path in saved:
-            shutil.copy2(path, os.path.join(data_dir, os.path.relpath(path, cwd).replace(os.sep, "__")))
+    finish_run_folder(run_dir, run, script, log_path, saved, cwd)
     shutil.rmtree(work, ignore_errors=True)
 
-    if results:
+    if recorded:
         if info.get("recording_stopped_at_step") is not None:
             # The recorder is gone: nothing will close the bag. Make its metadata agree with its file.
             from robotarium_recording.bag import recover_bag
@@ -294,13 +451,19 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
             say("the recorder was lost at step %d: %s holds the run up to there (recovered)"
                 % (info["recording_stopped_at_step"], run_dir))
         else:
-            wait_until_recorded(run_dir)
+            # A lost testbed may never close the bag: then take what is on disk after a short wait.
+            wait_until_recorded(run_dir, timeout=15.0 if info.get("ended") else 3.0)
         from robotarium_recording.results import write_results
-        write_results(run_dir, progress=True, video=video)
-    say("run %s: outputs in %s" % (info["run_id"], os.path.relpath(run_dir, cwd)))
-    for name in sorted(os.listdir(run_dir)):
-        print("    %s" % name, file=sys.stderr)
-    return code, info, run_dir
+        try:
+            write_results(run_dir, progress=True, video=video, run=run)
+        except Exception as error:   # noqa: BLE001 - say so, keep the folder
+            say("could not make the results from the recording (%s); see %s"
+                % (session.describe_exception(error), run_dir))
+            write_unrecorded_results(run_dir, run, info.get("report", ""))
+    else:
+        write_unrecorded_results(run_dir, run, info.get("report", ""))
+    print_summary(run_dir, run, cwd)
+    return run["exit_code"], run, run_dir
 
 
 def cmd_run(args):
@@ -308,7 +471,7 @@ def cmd_run(args):
     code, _, _ = run_script(args.script, args.script_args, real_time=real_time, record=not args.no_record,
                             bags_dir=args.bags_dir, video=not args.no_video,
                             local_testbed=not args.no_local_testbed, config_file=args.config,
-                            time_limit=args.time_limit)
+                            time_limit=args.time_limit, results_dir=args.results_dir)
     return code
 
 
@@ -450,14 +613,27 @@ def cmd_end(args):
     return 0
 
 
-def cmd_replay(args):
+def cmd_replay(argv):
     from robotarium_recording.replay_node import main as replay_main
-    return replay_main(args.rest)
+    return replay_main(argv)
 
 
-def cmd_report(args):
+def cmd_report(argv):
     from robotarium_recording.results import main as report_main
-    return report_main(args.rest)
+    return report_main(argv)
+
+
+# Commands whose own parser (shared with `ros2 run`) reads all their arguments, --help included.
+DELEGATED = {"replay": (cmd_replay, "republish a recorded run (in experiment time; --figure draws it)"),
+             "report": (cmd_report, "recompute the results of a recorded run (report, plot, video, page)")}
+
+RUN_EPILOG = """\
+whatever happens, the run folder (the last line printed names it) gets log.txt, report.txt (its first
+line says how the run ended), run.json, index.html, and from a recording made here trajectories.png and
+run.mp4. Exit codes: 0 the run completed (call_at_scripts_end); 1 the script raised an exception or
+could not be compiled or imported (then no testbed is started); 2 a bad command line; 3 the script
+ended without call_at_scripts_end(); 4 no testbed, or the testbed was lost mid-run; 5 the time limit;
+128 + N interrupted by signal N (130: Ctrl-C, 143: SIGTERM, 129: SIGHUP)."""
 
 
 def _seconds(text):
@@ -472,6 +648,9 @@ def _seconds(text):
 
 
 def main(argv=None):
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in DELEGATED:
+        return DELEGATED[argv[0]][0](argv[1:]) or 0
     parser = argparse.ArgumentParser(prog="./robotarium", description="The Robotarium testbed on ROS 2.")
     sub = parser.add_subparsers(dest="command", required=True)
 
@@ -481,7 +660,8 @@ def main(argv=None):
     up.add_argument("--config", help="the testbed configuration file (default: robotarium_core's testbed.yaml)")
     up.set_defaults(func=cmd_up)
 
-    run = sub.add_parser("run", help="run a Robotarium script against the testbed")
+    run = sub.add_parser("run", help="run a Robotarium script against the testbed", epilog=RUN_EPILOG,
+                         formatter_class=argparse.RawDescriptionHelpFormatter)
     run.add_argument("script")
     run.add_argument("script_args", nargs=argparse.REMAINDER, help="arguments passed to the script")
     mode = run.add_mutually_exclusive_group()
@@ -497,6 +677,8 @@ def main(argv=None):
     run.add_argument("--bags-dir", help="(local testbed only) where runs are recorded (default: bags/)")
     run.add_argument("--config", help="(local testbed only) the testbed configuration file "
                                       "(default: robotarium_core's testbed.yaml)")
+    run.add_argument("--results-dir", help="where runs not recorded here keep their results "
+                                           "(default: results/)")
     run.add_argument("--no-local-testbed", action="store_true",
                      help="never start a testbed here: wait up to 60 s for one to answer (./robotarium up)")
     run.set_defaults(func=cmd_run)
@@ -535,11 +717,8 @@ def main(argv=None):
     demo.add_argument("--no-video", action="store_true", help="skip rendering the video of the run")
     demo.set_defaults(func=cmd_demo)
 
-    for name, func, text in (("replay", cmd_replay, "republish a recorded run"),
-                             ("report", cmd_report, "recompute the results of a recorded run")):
-        p = sub.add_parser(name, help=text, add_help=False)
-        p.add_argument("rest", nargs=argparse.REMAINDER)
-        p.set_defaults(func=func)
+    for name, (_, text) in DELEGATED.items():
+        sub.add_parser(name, help=text + " (see ./robotarium %s --help)" % name)
 
     args = parser.parse_args(argv)
     if args.command == "run":

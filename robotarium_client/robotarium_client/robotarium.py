@@ -33,7 +33,7 @@ import numpy as np
 from robotarium_client import session
 from robotarium_client.progress import StepProgress
 from robotarium_client.robotarium_abc import RobotariumABC
-from robotarium_core import cdr, model
+from robotarium_core import cdr, model, outcomes
 from robotarium_core.config import DEFAULT, TestbedConfig
 from robotarium_core.model import RobotariumError
 
@@ -41,6 +41,15 @@ STARTUP_WAIT = 60.0   # s for a testbed started here to come up
 EXIT_TIME_LIMIT = 5   # exit code of a script stopped at the time limit (README: exit codes)
 STEP_TIMEOUT = 10.0   # s without poses after a step() before we give up with an explanation
 CONFIG_WAIT = 2.0     # s for the testbed's latched configuration once its services answer
+
+
+class TestbedLost(RuntimeError):
+    """The testbed stopped answering in the middle of an experiment (a node gone, no poses)."""
+    __test__ = False  # not a pytest class
+
+
+class EndedByTestbed(RuntimeError):
+    """The testbed ended the experiment (an operator's ./robotarium end --force, a stopped testbed)."""
 
 
 class TimeLimitReached(SystemExit):
@@ -68,7 +77,7 @@ class Robotarium(RobotariumABC):
         self._options = options
         self._node = None
         self._local_testbed = None
-        self._report = None
+        self._recording = ""   # the recorder's folder for this run, from its announcement
         self.run_info = None   # set when the experiment ended: run id, recording, report, counters
         self._progress = StepProgress(options.progress_interval, self.time_step,
                                       "real time" if self.sim_in_real_time else "lockstep")
@@ -78,6 +87,7 @@ class Robotarium(RobotariumABC):
         self._time_limit = float(limit) if limit and float(limit) > 0 else None
         self._start_experiment()
         session.robotaria.append(self)
+        session.remember_uncaught_exceptions()
         atexit.register(self._end_quietly)
         self._make_figure()
 
@@ -103,23 +113,27 @@ class Robotarium(RobotariumABC):
         note = ("Stopped at the time limit: %g s of testbed time (step %d, %.2f s); the rest of the script "
                 "did not run." % (self._time_limit, step, sim_time))
         self._ended = True
-        self._report = note + "\n" + self._end()
+        self._record_drawing(self._iterations)
+        self._report = note + "\n" + self._end(outcomes.TIME_LIMIT, note)
         self.run_info["time_limit"] = {"limit": self._time_limit, "step": step, "sim_time": sim_time, "note": note}
         print(self._report, end="")
         self._after_report()
         raise TimeLimitReached(note)
 
-    def _end(self):
+    def _end(self, outcome=outcomes.COMPLETED, detail=""):
         from robotarium_msgs.srv import EndExperiment
         self._check_testbed()
-        response = self._call(self._end_client, EndExperiment.Request(token=self._token))
+        # A testbed that was lost is asked briefly: it may be back, but nobody should wait for it.
+        response = self._call(self._end_client, EndExperiment.Request(token=self._token, outcome=outcome, detail=detail),
+                              timeout=3.0 if outcome == outcomes.TESTBED_LOST else 30.0)
         if not response.success:
             self._check_testbed()   # ended meanwhile (lost, or by an operator): say so rather than "no experiment"
             raise RuntimeError("The testbed could not end the experiment: %s" % response.message)
         dropped = {name: {reason: int(getattr(counts, reason)) for reason in model.DROP_REASONS}
                    for name, counts in (("cmd_requested", response.dropped_cmd_requested),
                                         ("cmd_safe", response.dropped_cmd_safe))}
-        self.run_info = {"run_id": response.run_id, "recording": response.recording, "report": response.report,
+        self.run_info = {"run_id": response.run_id, "recording": response.recording or self._announced_recording(),
+                         "report": response.report, "outcome": outcomes.NAMES[outcome], "detail": detail, "ended": True,
                          "steps": response.steps, "collisions": response.collisions,
                          "boundary_violations": response.boundary_violations,
                          "actuator_limit_iterations": response.actuator_limit_iterations,
@@ -130,6 +144,17 @@ class Robotarium(RobotariumABC):
         self._errors = {k: v for k, v in (("boundary", response.boundary_violations), ("collision", response.collisions),
                                           ("actuator", response.actuator_limit_iterations)) if v}
         return response.report
+
+    def _announced_recording(self):
+        """The recorder's folder for this run if it announced one (its name starts with the run id)."""
+        ok = self._run_id and os.path.basename(self._recording).startswith(self._run_id)
+        return self._recording if ok else ""
+
+    def partial_run_info(self):
+        """What is known of a run whose end the testbed never confirmed (a lost testbed)."""
+        return {"run_id": self._run_id or "", "recording": self._announced_recording(), "report": "",
+                "steps": self._iterations,
+                "real_time": self.sim_in_real_time, "number_of_robots": self.number_of_robots, "ended": False}
 
     def _after_report(self):
         info = self.run_info
@@ -160,8 +185,8 @@ class Robotarium(RobotariumABC):
         from robotarium_client.testbed import LocalTestbed, security_enabled
         from std_msgs.msg import String
 
-        from robotarium_core.topics import (CMD_REQUESTED, CONFIG, END_EXPERIMENT, LATCHED, POSES, START_EXPERIMENT,
-                                            STATUS, TESTBED_QOS)
+        from robotarium_core.topics import (CMD_REQUESTED, CONFIG, DRAWING, DRAWING_QOS, END_EXPERIMENT, LATCHED, POSES,
+                                            RECORDING, START_EXPERIMENT, STATUS, TESTBED_QOS)
         from robotarium_msgs.msg import RobotPoses, TestbedStatus, TwistArray
         from robotarium_msgs.srv import EndExperiment, StartExperiment
 
@@ -171,6 +196,7 @@ class Robotarium(RobotariumABC):
         self._presence = None
         self._watches = {}
         self._failure = None          # why the experiment cannot go on (a node lost, ended by someone else)
+        self._failure_kind = TestbedLost
         self._recorder_lost_at = None
         self._context = Context()
         # With DDS Security (sros2/README.md) a script runs in the client enclave of the policy.
@@ -184,8 +210,12 @@ class Robotarium(RobotariumABC):
         self._command_pub = self._node.create_publisher(TwistArray, CMD_REQUESTED, TESTBED_QOS)
         self._node.create_subscription(RobotPoses, POSES, self._on_poses, TESTBED_QOS, raw=True)
         self._node.create_subscription(TestbedStatus, STATUS, self._on_status, TESTBED_QOS)
+        # Made now, not at the first drawing: the recorder discovers it while the experiment starts.
+        self._drawing_pub = self._node.create_publisher(String, DRAWING, DRAWING_QOS)
+        self._drawing_message = String()
         self._testbed_config = None
         self._node.create_subscription(String, CONFIG, self._on_config, LATCHED)
+        self._node.create_subscription(String, RECORDING, self._on_recording, LATCHED)
         self._start_client = self._node.create_client(StartExperiment, START_EXPERIMENT)
         self._end_client = self._node.create_client(EndExperiment, END_EXPERIMENT)
 
@@ -210,6 +240,9 @@ class Robotarium(RobotariumABC):
 
     def _on_config(self, msg):
         self._testbed_config = msg.data
+
+    def _on_recording(self, msg):
+        self._recording = msg.data   # the recorder announces each run's folder, and "" when it closed it
 
     def _adopt_testbed_config(self):
         """Take the testbed's configuration (its latched `config` topic) for the constants and the
@@ -279,6 +312,7 @@ class Robotarium(RobotariumABC):
                       "what was recorded until then stays readable." % step, file=sys.stderr)
             return
         what = {"simulator": "The simulator", "safety": "The safety node"}[who]
+        self._failure_kind = self._failure_kind if self._failure else TestbedLost
         self._failure = self._failure or (
             "%s is gone (no sign of it for %g s) at step %d: the experiment cannot go on%s. Node logs are in "
             "log/testbed/ when ./robotarium started the testbed." % (
@@ -288,13 +322,14 @@ class Robotarium(RobotariumABC):
     def _on_status(self, msg):
         from robotarium_msgs.msg import TestbedStatus
         if msg.run_id == self._run_id and msg.state == TestbedStatus.STATE_IDLE and not self._ended:
+            self._failure_kind = self._failure_kind if self._failure else EndedByTestbed
             self._failure = self._failure or ("The experiment was ended by the testbed: %s." % (
                 msg.end_reason or "no reason given"))
 
     def _check_testbed(self):
         """Raise RuntimeError when the experiment cannot go on (a node lost, ended by someone else)."""
         if self._failure is not None:
-            raise RuntimeError(self._failure)
+            raise self._failure_kind(self._failure)
 
     def _safety_node_matched(self):
         from robotarium_core.topics import readers_matched
@@ -315,12 +350,18 @@ class Robotarium(RobotariumABC):
         self._command_pub.publish(cdr.TWIST_ARRAY.build(sec=sec, nanosec=nanosec, frame_id="arena", token=self._token,
                                                         step=step, ids=self._ids, twists=cdr.twists(v, w)))
 
+    def _publish_drawing(self, message):
+        from robotarium_recording.drawing import encode
+        if self._node is not None:
+            self._drawing_message.data = encode(message)
+            self._drawing_pub.publish(self._drawing_message)
+
     def _wait_for_step(self, target):
         arrived = self._spin_until(lambda: self._failure is not None or (
             self._latest is not None and self._latest.step >= target), STEP_TIMEOUT)
         self._check_testbed()
         if not arrived:
-            raise RuntimeError(
+            raise TestbedLost(
                 "The testbed sent no poses for step %d within %.0f s. Is the safety node running (robots cannot "
                 "move without it)? Node logs are in log/testbed/<namespace>_<domain>_<pid>/ when ./robotarium started "
                 "the testbed (./robotarium status lists the testbeds of this machine)."
@@ -340,22 +381,26 @@ class Robotarium(RobotariumABC):
 
     def _call(self, client, request, timeout=30.0):
         if not client.wait_for_service(timeout_sec=timeout):
-            raise RuntimeError("The testbed's %s service is gone." % client.srv_name)
+            raise TestbedLost("The testbed's %s service is gone." % client.srv_name)
         future = client.call_async(request)
         if not self._spin_until(future.done, timeout):
-            raise RuntimeError("The testbed's %s service did not answer within %.0f s." % (client.srv_name, timeout))
+            raise TestbedLost("The testbed's %s service did not answer within %.0f s." % (client.srv_name, timeout))
         return future.result()
 
     def _end_quietly(self):
-        """At exit without call_at_scripts_end (or on an error): free the testbed for the next run."""
+        """At exit without call_at_scripts_end (a script run with plain python that raised or just
+        ended; ./robotarium run ends it before, saying how): free the testbed for the next run,
+        saying how the run ended."""
         if not self._ended and self._node is not None:
             self._ended = True
             simulator = self._watches.get("simulator")
             # (a testbed whose service is gone has ended the experiment itself, or is gone with it)
             if self._token and not (simulator is not None and simulator.lost) and self._end_client.service_is_ready():
+                outcome, detail = session.outcome_of_uncaught(self._iterations)
                 try:
                     from robotarium_msgs.srv import EndExperiment
-                    self._call(self._end_client, EndExperiment.Request(token=self._token), timeout=5.0)
+                    self._call(self._end_client, EndExperiment.Request(token=self._token, outcome=outcome,
+                                                                       detail=detail), timeout=5.0)
                 except Exception:
                     pass
         self._shutdown()

@@ -7,10 +7,11 @@ backend subclass supplies the testbed: `_start`, `_advance` and `_end` (robotari
 talks to the ROS 2 testbed over DDS).
 """
 import abc
+import sys
 
 import numpy as np
 
-from robotarium_core import model
+from robotarium_core import model, outcomes
 from robotarium_core.config import DEFAULT
 from robotarium_core.model import RobotariumError
 
@@ -63,8 +64,10 @@ class RobotariumABC(abc.ABC):
         self._checked_poses_already = False
         self._iterations = 0
         self._ended = False
+        self._report = None   # the debug report, once the testbed ended the experiment
         self._errors = {}   # as rps: {"boundary": n, "collision": n, "actuator": n}, filled at the end
         self.figure, self.axes = [], []
+        self._arena_figure = self._drawing = None
 
     def _use_config(self, config):
         """The constants of rps, from the testbed configuration (a backend passes the testbed's own)."""
@@ -80,11 +83,30 @@ class RobotariumABC(abc.ABC):
         self.max_wheel_velocity = config.max_wheel_velocity
 
     def _make_figure(self):
-        """The arena figure (r.figure, r.axes) when show_figure is True; call once the poses are known."""
+        """The arena figure (r.figure, r.axes) when show_figure is True; call once the poses are known.
+        What the script then draws on r.axes is watched, so that the video of the run shows it."""
+        self._arena_figure = self._drawing = None
         if self.show_figure:
-            from robotarium_client.figure import ArenaFigure
-            self._arena_figure = ArenaFigure(self.boundaries, self.robot_radius, self.poses)
+            from robotarium_client.figure import live_figure
+            from robotarium_recording.drawing import DrawingWatcher
+            self._arena_figure = live_figure(self.config.arena, self.robot_radius, self.poses)
             self.figure, self.axes = self._arena_figure.figure, self._arena_figure.axes
+            self._drawing = DrawingWatcher(self.axes, self._arena_figure.own_artists)
+
+    def _record_drawing(self, step):
+        """Hand what the script changed on r.axes since the last call to the backend, as drawn for
+        the poses of `step`. Never lets a drawing problem stop the experiment."""
+        if self._drawing is None:
+            return
+        try:
+            message = self._drawing.changes(step)
+        except Exception as error:   # noqa: BLE001 - the experiment matters more than its picture
+            print("[robotarium] the video will not show the script's drawing (%s: %s)"
+                  % (type(error).__name__, error), file=sys.stderr)
+            self._drawing = None
+            return
+        if message is not None:
+            self._publish_drawing(message)
 
     # -- the rps API ---------------------------------------------------------------------------
 
@@ -133,10 +155,13 @@ class RobotariumABC(abc.ABC):
                                   "Robotarium to run another.")
         self._called_step_already = True
         self._checked_poses_already = False
+        self._record_drawing(self._iterations)   # drawn by the script for the poses it last got
         self._iterations += 1
         self.poses = self._advance(self.velocities)
-        if self.show_figure:
+        if self._arena_figure is not None:
             self._arena_figure.update(self.poses)
+            if self._arena_figure.interactive:
+                self._arena_figure.show()
 
     def call_at_scripts_end(self):
         """End the experiment and print the debug report, as rps does (again if called again)."""
@@ -144,9 +169,21 @@ class RobotariumABC(abc.ABC):
             print(self._report, end="")
             return
         self._ended = True
+        self._record_drawing(self._iterations)
         self._report = self._end()
         print(self._report, end="")
         self._after_report()
+
+    def _finish(self, outcome, detail=""):
+        """End an experiment that did not reach call_at_scripts_end (the script raised, was
+        interrupted or simply ended), saying how (robotarium_core.outcomes); prints nothing.
+        Returns the debug report, or None if the experiment had ended already."""
+        if self._report is not None:
+            return None
+        self._ended = True
+        self._record_drawing(self._iterations)
+        self._report = self._end(outcome, detail)
+        return self._report
 
     # -- what a backend supplies ---------------------------------------------------------------------
 
@@ -155,8 +192,12 @@ class RobotariumABC(abc.ABC):
         """Apply `velocities` (2 x N) for one step and return the poses (3 x N) that follow."""
 
     @abc.abstractmethod
-    def _end(self):
-        """End the experiment; return the debug report text."""
+    def _end(self, outcome=outcomes.COMPLETED, detail=""):
+        """End the experiment saying how it ended (robotarium_core.outcomes); return the debug report text."""
+
+    def _publish_drawing(self, message):
+        """Keep a DrawingWatcher message (what the script drew) with the run; a backend without a
+        recording may ignore it."""
 
     def _after_report(self):
         """What a backend prints after the debug report (e.g. where the run was recorded)."""

@@ -3,12 +3,20 @@
     python -m robotarium_client.runner OPTIONS_JSON RUN_INFO_JSON SCRIPT [ARGS...]
 
 It sets robotarium_client.session.options (the run's choices, explicitly: no environment
-variables), runs SCRIPT as `python SCRIPT ARGS` would (as __main__, its folder first on
-sys.path), and afterwards writes what the script's last Robotarium reported when it ended (run
-id, recording, report, counters) to RUN_INFO_JSON, for the command line to collect the results.
+variables) and runs SCRIPT as `python SCRIPT ARGS` would (as __main__, its folder first on
+sys.path). However the script ends - call_at_scripts_end(), an exception, Ctrl-C or a signal,
+a lost testbed, or simply its last line without call_at_scripts_end() - it ends every experiment
+still running, telling the testbed how the run ended (so the recording says it), and writes
+RUN_INFO_JSON for the command line to collect the results:
 
-Stopping: SIGINT, SIGTERM and SIGHUP raise KeyboardInterrupt in the script (its Robotarium's exit
-handler then ends the experiment). `./robotarium run` starts this process in a process group of
+    {"outcome": "script_error", "detail": "the script raised KeyError: 'goal' at step 12 (line 9 of go.py)",
+     "step": 12, "exit_code": 1, "runs": [what each Robotarium's testbed said when it ended]}
+
+The traceback is printed as Python prints it (from the script's own frames), so the run's log
+has it. Exit code: robotarium_core.outcomes.EXIT_CODES (128 + the signal for an interruption).
+
+Stopping: SIGINT raises KeyboardInterrupt in the script, SIGTERM and SIGHUP session.Interrupted
+(so the report names the signal). `./robotarium run` starts this process in a process group of
 its own and forwards the signals it gets, once; and it hands this process its lifeline
 (robotarium_core.lifeline): if `./robotarium run` is killed outright, the script is interrupted the
 same way (its Robotarium ends the experiment on a testbed that outlives `run`; one that `run`
@@ -21,37 +29,123 @@ import runpy
 import signal
 import sys
 import threading
+import traceback
 
 from robotarium_client import session
-from robotarium_core import lifeline
+from robotarium_core import lifeline, outcomes
 
 ORPHAN_EXIT = 1.5
+orphaned = []   # set when ./robotarium run is gone: the interruption is said to be that
 
 
 def _orphaned():
     # (nothing printed: the output went to the process that is gone)
+    orphaned.append(True)
     timer = threading.Timer(ORPHAN_EXIT, os._exit, (128 + signal.SIGKILL,))
     timer.daemon = True   # it still fires while exit handlers run
     timer.start()
     _thread.interrupt_main(signal.SIGINT)
 
+SIGNAL_EXIT = {signal.SIGINT: 128 + signal.SIGINT, signal.SIGTERM: 128 + signal.SIGTERM,
+               signal.SIGHUP: 128 + signal.SIGHUP}
+
+
+def _raise_interrupted(signum, frame):
+    raise session.Interrupted(signal.Signals(signum).name)
+
+
+def print_traceback(exc, script):
+    """The traceback as `python SCRIPT` prints it: frames from the script on, not the runner's."""
+    tb = exc.__traceback__
+    while tb is not None and os.path.abspath(tb.tb_frame.f_code.co_filename) != script:
+        tb = tb.tb_next
+    traceback.print_exception(type(exc), exc, tb or exc.__traceback__, file=sys.stderr)
+    sys.stderr.flush()
+
+
+def where_in_script(exc, script):
+    """'line 57 of go.py': the script's last line in the traceback ('' if none)."""
+    line = None
+    for frame, lineno in traceback.walk_tb(exc.__traceback__):
+        if os.path.abspath(frame.f_code.co_filename) == script:
+            line = lineno
+    return "" if line is None else "line %d of %s" % (line, os.path.basename(script))
+
+
+def run(script, script_args):
+    """Run the script; returns (outcome, detail, exit code)."""
+    sys.argv = [script, *script_args]
+    sys.path.insert(0, os.path.dirname(script))
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(signum, _raise_interrupted)
+    try:
+        runpy.run_path(script, run_name="__main__")
+    except SystemExit as exit_:
+        code = exit_.code
+        if code is not None and not isinstance(code, int):
+            print(code, file=sys.stderr)   # sys.exit("message") prints it, as python does
+            code = 1
+        return None, "", code or 0
+    except BaseException as exc:   # noqa: BLE001 - every way a script can end is reported
+        print_traceback(exc, script)
+        step = session.robotaria[-1]._iterations if session.robotaria else 0
+        if orphaned and isinstance(exc, KeyboardInterrupt):
+            exc = session.Interrupted("the loss of ./robotarium run (its lifeline closed)")
+        outcome, detail = session.failure_of(exc, step, where_in_script(exc, script))
+        if outcome == outcomes.INTERRUPTED:   # 128 + the signal, as a shell reports it
+            code = 128 + getattr(signal, getattr(exc, "signal_name", "SIGINT"), signal.SIGKILL)
+        else:
+            code = outcomes.EXIT_CODES[outcome]
+        return outcome, detail, code
+    return None, "", 0
+
+
+def finish(outcome, detail, code):
+    """End every experiment still running, saying how; returns (outcome, detail, code, runs)."""
+    step = session.robotaria[-1]._iterations if session.robotaria else 0
+    if outcome is None:   # the script's code ran to its end (or sys.exit)
+        if not session.robotaria:
+            outcome, detail = outcomes.NO_END, "the script never started an experiment (it made no Robotarium)"
+        elif all(r.run_info is not None for r in session.robotaria):
+            # ended by call_at_scripts_end() (completed), or at the time limit (TimeLimitReached)
+            last = session.robotaria[-1].run_info
+            outcome = {name: value for value, name in outcomes.NAMES.items()}.get(last.get("outcome"), outcomes.COMPLETED)
+            detail = last.get("detail", "")
+        elif code:
+            outcome, detail = outcomes.SCRIPT_ERROR, "the script exited with status %s at step %d" % (code, step)
+        else:
+            outcome, detail = outcomes.NO_END, ("the script ended without calling r.call_at_scripts_end() "
+                                                "(step %d)" % step)
+        if outcome != outcomes.COMPLETED and not code:
+            code = outcomes.EXIT_CODES[outcome]
+    runs = []
+    for robotarium in session.robotaria:
+        if robotarium.run_info is None:
+            try:
+                robotarium._finish(outcome, detail)
+            except BaseException as error:   # noqa: BLE001 - a lost testbed cannot be told
+                print("[robotarium] could not end the experiment on the testbed (%s)"
+                      % session.describe_exception(error), file=sys.stderr)
+        runs.append(robotarium.run_info or robotarium.partial_run_info())
+    return outcome, detail, code, runs
+
 
 def main(argv):
     options_json, run_info_path, script, *script_args = argv
-    for name in ("SIGTERM", "SIGHUP"):
-        signal.signal(getattr(signal, name), signal.default_int_handler)
     lifeline.watch(_orphaned)
     session.options = session.RunOptions.from_json(options_json)
-    sys.argv = [script, *script_args]
-    sys.path.insert(0, os.path.dirname(os.path.abspath(script)))
-    try:
-        runpy.run_path(script, run_name="__main__")
-    finally:
-        ended = [r.run_info for r in session.robotaria if r.run_info is not None]
-        if ended:
-            with open(run_info_path, "w") as f:
-                json.dump(ended[-1], f, indent=2)
+    script = os.path.abspath(script)
+    outcome, detail, code = run(script, script_args)
+    # Ending the experiment must not be cut short by a second Ctrl-C or signal.
+    for signum in SIGNAL_EXIT:
+        signal.signal(signum, signal.SIG_IGN)
+    outcome, detail, code, runs = finish(outcome, detail, code)
+    with open(run_info_path, "w") as f:
+        json.dump({"outcome": outcomes.NAMES[outcome], "detail": detail,
+                   "step": session.robotaria[-1]._iterations if session.robotaria else 0,
+                   "exit_code": code, "runs": runs}, f, indent=2)
+    return code
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    sys.exit(main(sys.argv[1:]))

@@ -65,3 +65,58 @@ options = RunOptions()
 
 # The Robotarium objects the script made, newest last (the runner reads how each run ended).
 robotaria = []
+
+# The exception that ended a script run with plain python (seen by sys.excepthook before the exit
+# handler ends the experiment), so that the recording says how the run ended.
+uncaught = None
+
+
+class Interrupted(BaseException):
+    """A signal asked the script to stop (SIGTERM, SIGHUP): raised in it like KeyboardInterrupt."""
+
+    def __init__(self, signal_name):
+        super().__init__(signal_name)
+        self.signal_name = signal_name
+
+
+def remember_uncaught_exceptions():
+    if getattr(sys.excepthook, "robotarium", False):
+        return
+    previous = sys.excepthook
+
+    def hook(exc_type, exc, traceback):
+        global uncaught
+        uncaught = exc
+        previous(exc_type, exc, traceback)
+
+    hook.robotarium = True
+    sys.excepthook = hook
+
+
+def describe_exception(exc):
+    """'KeyError: 'goal'' - the exception's type and the first line of its message."""
+    text = str(exc).strip().splitlines()
+    return "%s: %s" % (type(exc).__name__, text[0][:200]) if text else type(exc).__name__
+
+
+def failure_of(exc, step, where=""):
+    """(outcome, detail) of a run that an exception ended at `step` (robotarium_core.outcomes);
+    `where` says where in the script, e.g. "line 57 of go.py"."""
+    from robotarium_client.robotarium import TestbedLost
+    from robotarium_core import outcomes
+    at = "at step %d%s" % (step, " (%s)" % where if where else "")
+    if isinstance(exc, KeyboardInterrupt):
+        return outcomes.INTERRUPTED, "interrupted by Ctrl-C (SIGINT) %s" % at
+    if isinstance(exc, Interrupted):
+        return outcomes.INTERRUPTED, "interrupted by %s %s" % (exc.signal_name, at)
+    if isinstance(exc, TestbedLost):
+        return outcomes.TESTBED_LOST, "the testbed was lost %s: %s" % (at, str(exc).split(". ")[0])
+    return outcomes.SCRIPT_ERROR, "the script raised %s %s" % (describe_exception(exc), at)
+
+
+def outcome_of_uncaught(step):
+    """(outcome, detail) for an experiment still running when the script's process exits."""
+    from robotarium_core import outcomes
+    if uncaught is not None:
+        return failure_of(uncaught, step)
+    return outcomes.NO_END, "the script ended without calling call_at_scripts_end() (step %d)" % step

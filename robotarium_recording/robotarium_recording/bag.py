@@ -547,6 +547,21 @@ class Bag:
         texts = [msg.data for _, msg in self.decoded([name])]
         return TestbedConfig.from_yaml(texts[-1]) if texts else DEFAULT
 
+    def drawings(self):
+        """What the script drew on r.axes: the drawing messages (robotarium_recording.drawing), in
+        recorded order; [] for a run that drew nothing or a bag recorded before they were kept."""
+        import json
+        name = self.topic("drawing", required=False)
+        if name not in self.topics:
+            return []
+        out = []
+        for _, msg in self.decoded([name]):
+            try:
+                out.append(json.loads(msg.data))
+            except ValueError:
+                continue   # not ours: anything may publish on a topic
+        return out
+
     def statuses(self):
         """Decoded TestbedStatus messages in recorded order."""
         name = self.topic("status", required=False)

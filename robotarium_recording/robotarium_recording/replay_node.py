@@ -1,16 +1,18 @@
 """Replay a recorded run: republish its topics with the original timing, so any subscriber sees it again.
 
-    ./robotarium replay BAG [--rate R] [--loop] [--figure] [--namespace NS]
+    ./robotarium replay BAG [--rate R] [--loop] [--figure] [--namespace NS] [--timing T] [--into-live]
     ros2 run robotarium_recording replay BAG ...
 
 Every recorded topic except /rosout (the log lines stay in the bag: republishing them would mix
-them with live logs) is published again, serialized bytes as recorded, at the recorded receive
-times scaled by 1/rate. QoS follows what the recorded publishers offered (reliable unless one of
+them with live logs) is published again, serialized bytes as recorded, scaled by 1/rate: a
+lockstep run (recorded as fast as it ran) in experiment time, step k at k time steps, as its
+video plays; a real-time run at its recorded receive times. A namespace where a live testbed
+answers is refused unless --into-live says so. QoS follows what the recorded publishers offered (reliable unless one of
 them was best effort; transient local only if all of them were). Pause and resume: the space bar
 (or p) when started from a terminal, q quits; or the service <ns>/replay/pause
-(std_srvs/SetBool: true pauses, false resumes). --figure draws the poses in the arena
-(robots to scale, with headings); with no display (Agg) the last frame is saved to
---figure-file (default <bag>/replay.png).
+(std_srvs/SetBool: true pauses, false resumes). --figure draws the run as its live figure was
+(arena_figure.ArenaFigure with ids and what the script drew); with no display (Agg) the replay is
+written as a video to --figure-file (default <bag>/replay.mp4).
 """
 import argparse
 import os
@@ -18,6 +20,7 @@ import select
 import sys
 import time
 
+import numpy as np
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -73,7 +76,7 @@ def publisher_qos(offers):
 
 
 class ReplayNode(Node):
-    def __init__(self, bag, rate=1.0, loop=False, namespace=None):
+    def __init__(self, bag, rate=1.0, loop=False, namespace=None, timing="recorded"):
         self.bag = bag
         self.namespace = (namespace or bag.namespace).rstrip("/") or "/"
         super().__init__("replay", namespace=self.namespace)
@@ -90,7 +93,12 @@ class ReplayNode(Node):
                 self.get_logger().warning("skipping %s: message type %s is not installed" % (topic, info.type))
                 continue
             self.publishers_by_topic[topic] = self.create_publisher(cls, self.rename(topic), publisher_qos(info.offered_qos))
-        self.messages = [(m.log_time, m.topic, m.data, m.type) for m in bag.messages(self.publishers_by_topic)]
+        messages = list(bag.messages(self.publishers_by_topic))
+        times = [m.log_time for m in messages]
+        if timing == "experiment":
+            times = experiment_times(bag, times)
+        self.messages = [(t, m.topic, m.data, m.type) for t, m in zip(times, messages)]
+        self.drawing_topic = bag.topic("drawing", required=False)
         self.create_service(SetBool, "replay/pause", self.on_pause)
 
     def rename(self, topic):
@@ -138,45 +146,82 @@ class Keyboard:
 
 
 class Figure:
-    """The arena with the replayed poses. update() only moves the artists (cheap); draw() renders,
-    and play() calls it only when the next message is far enough away not to be delayed."""
+    """The replay drawn as the run's live figure was (arena_figure.ArenaFigure, ids, what the
+    script drew). On a screen: update() moves the artists (cheap) and draw() renders, which play()
+    calls only when the next message is far enough away not to be delayed. Without a display the
+    replayed run is written as a video (pictures.render_video) when the replay ends."""
 
     def __init__(self, bag, path):
-        import matplotlib
-        if not os.environ.get("DISPLAY") and not os.environ.get("MPLBACKEND"):
-            matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        self.plt, self.bag, self.path = plt, bag, path
-        self.interactive = matplotlib.get_backend().lower() not in ("agg", "pdf", "svg", "ps", "cairo", "template")
-        self.view = None
+        from robotarium_recording.arena_figure import is_interactive, pyplot
+        self.plt, self.bag, self.path = pyplot(), bag, path
+        self.interactive = is_interactive(self.plt)
+        self.config = bag.config()
+        self.view = self.painter = None
+        self.state = None
         self.dirty = False
         self.last_draw = 0.0
         if self.interactive:
-            plt.ion()
+            self.plt.ion()
 
     def update(self, data, type_name):
+        """A replayed poses message."""
+        if not self.interactive:
+            return
         msg = self.bag.typestore.deserialize_cdr(data, type_name)
+        poses = np.array([msg.x, msg.y, msg.theta])
         if self.view is None:
-            from robotarium_recording.results import ArenaView
-            self.view = ArenaView(len(msg.x), "replay of %s" % self.bag.name, plt=self.plt)
-            if self.interactive:
-                self.view.fig.show()
-        self.view.update(msg.x, msg.y, msg.theta, "t = %6.2f s  step %d" % (msg.sim_time, msg.step))
+            from robotarium_recording.arena_figure import ArenaFigure
+            from robotarium_recording.drawing import DrawingPainter, DrawingState
+            self.view = ArenaFigure.window(self.config.arena, self.config.robot_radius, poses, self.plt,
+                                           title="replay of %s" % self.bag.name)
+            self.painter, self.state = DrawingPainter(self.view.axes), DrawingState()
+            self.view.figure.show()
+        self.view.update(poses)
+        self.view.set_label("%s   t = %7.2f s   step %5d" % (self.bag.name, msg.sim_time, msg.step))
         self.dirty = True
 
+    def drawing(self, data, type_name):
+        """A replayed drawing message (what the script drew)."""
+        if self.interactive and self.state is not None:
+            import json
+            try:
+                self.state.apply(json.loads(self.bag.typestore.deserialize_cdr(data, type_name).data))
+            except ValueError:
+                return
+            self.painter.paint(self.state)
+            self.dirty = True
+
     def draw(self):
-        """Render on screen, at most FIGURE_HZ times a second (headless: only at the end)."""
+        """Render on screen, at most FIGURE_HZ times a second."""
         if not (self.dirty and self.interactive) or time.monotonic() - self.last_draw < 1.0 / FIGURE_HZ:
             return False
-        self.view.fig.canvas.draw_idle()
-        self.view.fig.canvas.flush_events()
+        self.view.show()
         self.last_draw, self.dirty = time.monotonic(), False
         return True
 
     def close(self):
-        if self.view is not None and not self.interactive:
-            self.view.fig.savefig(self.path)
-            print("[replay] last frame saved to %s" % self.path, file=sys.stderr)
+        if not self.interactive:
+            from robotarium_recording.pictures import render_video
+            folder, name = os.path.split(os.path.abspath(self.path))
+            os.makedirs(folder, exist_ok=True)
+            written = render_video(self.bag.poses(), self.bag.drawings(), self.config, folder, self.bag.name,
+                                   name=os.path.splitext(name)[0])
+            if written:
+                print("[replay] no display: the replay is the video %s" % written, file=sys.stderr)
+
+
+def experiment_times(bag, log_times):
+    """The messages' recorded times (ns) moved to experiment time: each poses message at its step
+    times the time step, the others in between by linear interpolation. A lockstep run is recorded
+    as fast as it ran; replayed this way it plays as its video does, step by step in real time."""
+    track = bag.poses()
+    if len(track.steps) < 2:
+        return list(log_times)
+    order = np.argsort(track.log_ns, kind="stable")
+    recorded = track.log_ns[order].astype(float)
+    experiment = track.log_ns[order][0] + track.steps[order] * bag.config().time_step * 1e9
+    keep = np.concatenate(([True], np.diff(recorded) > 0))   # np.interp needs increasing abscissae
+    return np.interp(np.asarray(log_times, dtype=float), recorded[keep], experiment[keep]).astype(np.int64).tolist()
 
 
 def play(node, keyboard=None, figure=None, poses_topic=None, delay=0.0):
@@ -211,25 +256,51 @@ def play(node, keyboard=None, figure=None, poses_topic=None, delay=0.0):
             node.publishers_by_topic[topic].publish(data)
             if figure is not None and topic == poses_topic:
                 figure.update(data, type_name)
+            elif figure is not None and topic == node.drawing_topic:
+                figure.drawing(data, type_name)
         if not node.loop:
             break
     executor.spin_once(timeout_sec=0.2)
     executor.remove_node(node)
 
 
-def main(argv=None):
-    argv = list(sys.argv[1:] if argv is None else argv)
+def build_parser():
     parser = argparse.ArgumentParser(prog="robotarium replay", description=(
-        "Republish a recorded run with its original timing. Keys: space/p pause and resume, q quits; "
-        "service <ns>/replay/pause (std_srvs/SetBool) does the same."))
+        "Republish a recorded run: every topic, in recorded order, in experiment time for a lockstep run "
+        "(as its video plays) and with the original timing for a real-time one. Keys: space/p pause and "
+        "resume, q quits; service <ns>/replay/pause (std_srvs/SetBool) does the same."))
     parser.add_argument("bag", help="run folder (bags/<run_id>), its metadata.yaml or its .mcap file")
     parser.add_argument("--rate", type=float, default=1.0, help="speed factor (2 = twice as fast)")
     parser.add_argument("--loop", action="store_true", help="start again at the end, until stopped")
-    parser.add_argument("--figure", action="store_true", help="draw the poses in the arena")
-    parser.add_argument("--figure-file", help="where the last frame goes without a display (default <bag>/replay.png)")
+    parser.add_argument("--timing", choices=("experiment", "recorded"), help=(
+        "experiment: step k at k time steps (the default for lockstep runs, which were recorded as fast as "
+        "they ran); recorded: the recorded receive times (the default for real-time runs)"))
+    parser.add_argument("--figure", action="store_true", help=(
+        "draw the run as its live figure (robots, ids, what the script drew); without a display, write "
+        "the replay as a video instead (--figure-file)"))
+    parser.add_argument("--figure-file", help="the video written without a display (default <bag>/replay.mp4)")
     parser.add_argument("--namespace", help="republish the recorded namespace's topics under this one instead")
+    parser.add_argument("--into-live", action="store_true", help=(
+        "publish even where a live testbed answers (its nodes, recorder and clients would take the replay "
+        "for live traffic); without it such a replay is refused"))
     parser.add_argument("--delay", type=float, default=0.5, help=(
         "seconds to wait before the first message, so that subscribers discover the new publishers (default 0.5)"))
+    return parser
+
+
+def live_testbed_answers(node, namespace, timeout):
+    """True when a simulator offers <namespace>/start_experiment on this domain (a live testbed)."""
+    from robotarium_msgs.srv import StartExperiment
+    client = node.create_client(StartExperiment, "%s/start_experiment" % namespace.rstrip("/"))
+    try:
+        return client.wait_for_service(timeout_sec=timeout)
+    finally:
+        node.destroy_client(client)
+
+
+def main(argv=None):
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
     args = parser.parse_args(remove_ros_args(["replay"] + argv)[1:])
     if not args.rate > 0:
         parser.error("--rate must be > 0")
@@ -238,16 +309,24 @@ def main(argv=None):
     except FileNotFoundError as error:
         print("replay: %s" % error, file=sys.stderr)
         return 2
+    timing = args.timing or ("experiment" if any(s.mode == "lockstep" for s in bag.statuses()[:50]) else "recorded")
     rclpy.init(args=["replay"] + argv)
     node = keyboard = figure = None
     try:
-        node = ReplayNode(bag, rate=args.rate, loop=args.loop, namespace=args.namespace)
+        node = ReplayNode(bag, rate=args.rate, loop=args.loop, namespace=args.namespace, timing=timing)
+        if not args.into_live and live_testbed_answers(node, node.namespace, max(1.0, args.delay)):
+            print("replay: a live testbed answers in %s on ROS_DOMAIN_ID %s: replayed poses, commands and statuses "
+                  "would mix with its own. Replay into another namespace (--namespace /replay), on another "
+                  "domain, or pass --into-live if that is what you want."
+                  % (node.namespace, os.environ.get("ROS_DOMAIN_ID", "0")), file=sys.stderr)
+            return 2
         poses_topic = bag.topic("poses", required=False)
         if args.figure and poses_topic in node.publishers_by_topic:
-            figure = Figure(bag, args.figure_file or os.path.join(bag.path, "replay.png"))
+            figure = Figure(bag, args.figure_file or os.path.join(bag.path, "replay.mp4"))
         keyboard = Keyboard()
-        print("[replay] %s: %d messages on %d topics, %.1f s at rate %g%s%s" % (
-            bag.path, len(node.messages), len(node.publishers_by_topic), bag.duration_ns * 1e-9, args.rate,
+        span = (node.messages[-1][0] - node.messages[0][0]) * 1e-9 if node.messages else 0.0
+        print("[replay] %s: %d messages on %d topics, %.1f s (%s time) at rate %g%s%s" % (
+            bag.path, len(node.messages), len(node.publishers_by_topic), span, timing, args.rate,
             ", looping" if args.loop else "", "; space pauses, q quits" if keyboard.enabled else ""), file=sys.stderr)
         play(node, keyboard, figure, poses_topic, max(0.0, args.delay))
         print("[replay] done", file=sys.stderr)

@@ -28,24 +28,58 @@ import sys
 
 import numpy as np
 
-from robotarium_core import model
+from robotarium_core import model, outcomes
 from robotarium_recording.bag import Bag
 
-FPS = 30
-ROBOT_COLORS = "tab10"
+STOP_STATUSES = (2, 3, 4)   # SafetyReport.STATUS_STOP_NO_POSES, _SOLVER_FAILED, _BAD_INPUT (the message's constants)
+COUNTS_ONLY = 5             # SafetyReport.STATUS_COUNTS_ONLY: no array was filtered
 
 
 # -- the report ----------------------------------------------------------------------------------
 
 def _run_settings(bag):
-    """experiment, run id, mode, N and the testbed's final counters from the status topic."""
-    running = [s for s in bag.statuses() if s.state == 1]
+    """experiment, run id, mode, N, the testbed's final counters and how the run ended (outcome,
+    detail) from the status topic: the IDLE status that closes a run says how it ended (a bag
+    made before outcomes were recorded: completed); none at all means the recording ends while
+    the experiment was still running."""
+    statuses = bag.statuses()
+    running = [s for s in statuses if s.state == 1]
     if not running:
-        return {"experiment": "", "run_id": "", "mode": "", "number_of_robots": 0, "final": None}
+        return {"experiment": "", "run_id": "", "mode": "", "number_of_robots": 0, "final": None,
+                "outcome": outcomes.UNFINISHED, "detail": ""}
     last_step = max(s.step for s in running)
     final = [s for s in running if s.step == last_step][-1]   # the simulator's last word: counters, end reason
+    closing = [s for s in statuses if s.state == 0 and s.run_id == final.run_id]
+    if closing:
+        outcome = outcomes.of_request(getattr(closing[-1], "outcome", outcomes.NONE))
+        detail = getattr(closing[-1], "outcome_detail", "")
+    else:
+        outcome, detail = outcomes.UNFINISHED, ""
     return {"experiment": final.experiment, "run_id": final.run_id, "mode": final.mode,
-            "number_of_robots": int(final.number_of_robots), "final": final}
+            "number_of_robots": int(final.number_of_robots), "final": final, "outcome": outcome, "detail": detail}
+
+
+def safety_interventions(bag, tolerance):
+    """(interventions, arrays, largest change, mean change) from the safety node's reports: an
+    intervention is an array whose safe command differs from the requested one by more than
+    `tolerance` for some robot, or a stop (SafetyReport.msg); the changes are those of the
+    interventions (stops included, as the largest finite speed they cancelled)."""
+    name = bag.topic("safety_report", required=False)
+    if name not in bag.topics:
+        return 0, 0, 0.0, 0.0
+    changes = []
+    arrays = 0
+    for _, report in bag.decoded([name]):
+        status = report.status   # a string ("passthrough", "stop_...") in bags before the constants
+        if status == COUNTS_ONLY:
+            continue
+        arrays += 1
+        stop = status in STOP_STATUSES if isinstance(status, int) else str(status).startswith("stop")
+        if stop or report.max_change > tolerance:
+            changes.append(float(report.max_change))
+    if not changes:
+        return 0, arrays, 0.0, 0.0
+    return len(changes), arrays, max(changes), float(np.mean(changes))
 
 
 def _commands_in_force_lockstep(commands, n, steps):
@@ -88,10 +122,16 @@ def _commands_in_force_realtime(commands, n, tick_ns, timeout):
         yield velocities, flag
 
 
-def recompute(bag):
+NAMES = {name: outcome for outcome, name in outcomes.NAMES.items()}
+
+
+def recompute(bag, run=None):
     """The debug report's numbers from the bag: a dict with iterations, collisions,
-    boundary_violations, actuator_limit_iterations, report (the exact text rps prints),
-    settings, testbed (the status counters, or None), mismatches (list of strings), notes."""
+    boundary_violations, actuator_limit_iterations, report (the exact text rps prints for a
+    completed run), outcome and first_line (how the run ended), safety_interventions (count,
+    arrays, largest and mean change), settings, testbed (the status counters, or None),
+    mismatches (list of strings), notes. `run` (run.json) says how the run ended where the bag
+    cannot (a testbed lost mid-run)."""
     if not isinstance(bag, Bag):
         bag = Bag(bag)
     settings = _run_settings(bag)
@@ -128,10 +168,17 @@ def recompute(bag):
             notes.append("%d valid command arrays on cmd_safe for %d steps: the bag is missing commands "
                          "(recorder started late or was killed?)." % (applied, steps))
 
+    if run is not None and settings["outcome"] == outcomes.UNFINISHED and run.get("outcome") in NAMES:
+        # The testbed never heard how the run ended (it was lost): the client's word for it.
+        settings["outcome"], settings["detail"] = NAMES[run["outcome"]], run.get("detail", "")
+    completed = settings["outcome"] == outcomes.COMPLETED
+    interventions = safety_interventions(bag, config.intervention_tolerance)
     result = {"iterations": steps, "collisions": collisions, "boundary_violations": boundary,
               "actuator_limit_iterations": actuator, "number_of_robots": n, "settings": settings,
-              "report": model.debug_report(steps, boundary, collisions, actuator, config.time_step), "notes": notes,
-              "config": config,
+              "outcome": settings["outcome"], "completed": completed,
+              "first_line": outcomes.first_line(settings["outcome"], settings["detail"]),
+              "report": model.debug_report(steps, boundary, collisions, actuator, config.time_step, completed),
+              "notes": notes, "config": config, "safety_interventions": interventions,
               "mismatches": [], "testbed": None}
     final = settings["final"]
     if final is not None:
@@ -163,9 +210,11 @@ def _dropped(status):
 
 
 def report_text(bag, numbers):
-    """report.txt: the debug report exactly as rps prints it, then settings and the cross-check."""
+    """report.txt: how the run ended (first line), the debug report as rps prints it (never the
+    acceptance estimate for a run that did not complete), then settings and the cross-check."""
     s = numbers["settings"]
-    lines = [numbers["report"].rstrip("\n"), "", "##### RUN (recomputed from the recording) #####",
+    lines = [numbers["first_line"], "", numbers["report"].rstrip("\n"), "",
+             "##### RUN (recomputed from the recording) #####",
              "bag:          %s%s" % (bag.path, "" if bag.complete else "  (not closed: recorder stopped early; "
                                      "every complete chunk was read)"),
              "experiment:   %s   run id: %s   mode: %s" % (s["experiment"] or "?", s["run_id"] or "?", s["mode"] or "?"),
@@ -181,179 +230,22 @@ def report_text(bag, numbers):
         lines.append("cross-check:  %s" % ("collisions, boundary violations, actuator-limit iterations and steps "
                                           "agree with the testbed's counters" if not numbers["mismatches"]
                                           else "DIFFERS: " + "; ".join(numbers["mismatches"])))
-        lines.append("testbed:      %d command timeouts, %d command arrays accepted, %d safety interventions" % (
-            t["command_timeouts"], t["commands_accepted"], t["safety_interventions"]))
+        lines.append("testbed:      %d command timeouts, %d command arrays accepted" % (
+            t["command_timeouts"], t["commands_accepted"]))
         for name, counts in t["dropped"].items():
             lines.append("dropped:      %s: %s" % (name, ", ".join("%d %s" % (n, reason) for reason, n in counts.items()
                                                                  if n) or "none"))
         if t["end_reason"]:
             lines.append("ended:        %s" % t["end_reason"])
+    count, arrays, largest, mean = numbers["safety_interventions"]
+    lines.append("safety:       %d interventions in %d command arrays (a safe command more than %g m/s or rad/s "
+                 "from the requested one, or a stop)%s%s" % (
+                     count, arrays, numbers["config"].intervention_tolerance,
+                     "; change largest %.3g, mean %.3g" % (largest, mean) if count else "",
+                     "; the testbed counted %d" % t["safety_interventions"] if t is not None else ""))
     lines += ["note:         " + note for note in numbers["notes"]]
     lines.append("messages:     " + ", ".join("%s %d" % (topic, info.count) for topic, info in sorted(bag.topics.items())))
     return "\n".join(lines) + "\n"
-
-
-# -- pictures -------------------------------------------------------------------------------------
-
-def _pyplot():
-    import matplotlib
-    if not os.environ.get("DISPLAY") and not os.environ.get("MPLBACKEND"):
-        matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def arena_axes(ax, arena=(model.ARENA_X_MIN, model.ARENA_X_MAX, model.ARENA_Y_MIN, model.ARENA_Y_MAX), margin=0.1):
-    """The arena rectangle on `ax`, to scale, metres on both axes."""
-    from matplotlib.patches import Rectangle
-    x0, x1, y0, y1 = arena
-    ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, lw=1.5, ec="black"))
-    ax.set_xlim(x0 - margin, x1 + margin)
-    ax.set_ylim(y0 - margin, y1 + margin)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    return ax
-
-
-class ArenaView:
-    """The arena with N robots drawn to scale (circles of the robot diameter and a heading line);
-    update() moves them. Used by the video here and by `replay --figure`.
-
-    blit=True (videos): the static part (arena, axes, title) is rendered once and frame() only
-    redraws the robots and the time label over it, several times faster than a full redraw.
-    """
-
-    def __init__(self, number_of_robots, title="", figsize=(6.4, 4.4), dpi=100, plt=None, blit=False):
-        from matplotlib.collections import EllipseCollection, LineCollection
-        plt = plt or _pyplot()
-        self.fig, self.ax = plt.subplots(figsize=figsize, dpi=dpi)
-        arena_axes(self.ax)
-        self.ax.set_title(title, fontsize=9)
-        colors = plt.get_cmap(ROBOT_COLORS)(np.arange(number_of_robots) % 10)
-        self.bodies = EllipseCollection(
-            np.full(number_of_robots, model.ROBOT_DIAMETER), np.full(number_of_robots, model.ROBOT_DIAMETER),
-            np.zeros(number_of_robots), units="xy", offsets=np.zeros((number_of_robots, 2)),
-            offset_transform=self.ax.transData, facecolors=colors, edgecolors="black", linewidths=0.5, alpha=0.85)
-        self.ax.add_collection(self.bodies)
-        self.headings = LineCollection(np.zeros((number_of_robots, 2, 2)), colors="black", linewidths=1.2)
-        self.ax.add_collection(self.headings)
-        self.label = self.fig.text(0.99, 0.01, "", ha="right", va="bottom", fontsize=8, family="monospace")
-        self.fig.tight_layout()
-        self.dynamic = (self.bodies, self.headings, self.label)
-        self.blit = blit
-        for artist in self.dynamic:
-            artist.set_animated(blit)
-        self._background = None
-
-    def update(self, x, y, theta, label=""):
-        xy = np.column_stack((x, y))
-        self.bodies.set_offsets(xy)
-        tip = xy + model.ROBOT_RADIUS * np.column_stack((np.cos(theta), np.sin(theta)))
-        self.headings.set_segments(np.stack((xy, tip), axis=1))
-        self.label.set_text(label)
-
-    def frame(self):
-        """The figure as RGBA bytes (Agg canvas)."""
-        canvas = self.fig.canvas
-        if not self.blit:
-            canvas.draw()
-            return canvas.buffer_rgba()
-        if self._background is None:   # after the writer has fixed the frame size
-            canvas.draw()
-            self._background = canvas.copy_from_bbox(self.fig.bbox)
-        canvas.restore_region(self._background)
-        for artist in self.dynamic:
-            self.fig.draw_artist(artist)
-        return canvas.buffer_rgba()
-
-
-def plot_trajectories(track, path, title=""):
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(8, 5.5), dpi=120)
-    arena_axes(ax)
-    n = track.x.shape[1] if track.x.size else 0
-    colors = plt.get_cmap(ROBOT_COLORS)(np.arange(n) % 10)
-    for i in range(n):
-        ax.plot(track.x[:, i], track.y[:, i], color=colors[i], lw=1.2)
-        ax.plot(track.x[0, i], track.y[0, i], "o", mfc="none", mec=colors[i], ms=6)
-        ax.add_patch(plt.Circle((track.x[-1, i], track.y[-1, i]), model.ROBOT_RADIUS, fc=colors[i], ec="black",
-                                lw=0.5, alpha=0.85))
-        ax.plot([track.x[-1, i], track.x[-1, i] + model.ROBOT_RADIUS * np.cos(track.theta[-1, i])],
-                [track.y[-1, i], track.y[-1, i] + model.ROBOT_RADIUS * np.sin(track.theta[-1, i])], "k-", lw=1)
-        ax.annotate(str(int(track.ids[i])), (track.x[-1, i] + model.ROBOT_RADIUS, track.y[-1, i] + model.ROBOT_RADIUS),
-                    fontsize=7, ha="left", va="bottom")
-    ax.set_title(title + ("\n" if title else "") + "open circle: start, filled: end (to scale, with heading)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return path
-
-
-def _ffmpeg_writer_class():
-    """matplotlib's FFMpegWriter fed with ArenaView.frame() instead of a savefig per frame."""
-    from matplotlib import animation
-
-    class FrameFFMpegWriter(animation.FFMpegWriter):
-        def grab_frame(self, **savefig_kwargs):
-            self._proc.stdin.write(self.view.frame())
-
-    return FrameFFMpegWriter
-
-
-def _ffmpeg_available():
-    """Point matplotlib at the ffmpeg of the imageio-ffmpeg wheel; False if there is no ffmpeg."""
-    import matplotlib
-    from matplotlib import animation
-    try:
-        import imageio_ffmpeg
-        matplotlib.rcParams["animation.ffmpeg_path"] = imageio_ffmpeg.get_ffmpeg_exe()
-        return True
-    except Exception:   # no wheel, or no binary for this platform: maybe one on PATH
-        return animation.FFMpegWriter.isAvailable()
-
-
-def render_video(track, out_dir, title="", progress=True, fps=FPS, fmt=None):
-    """run.mp4, or run.gif (Pillow) when fmt="gif" or no ffmpeg is found: one frame per recorded
-    step (GIF: every other one, at half the rate). Progress in percent on stderr. Returns the path."""
-    plt = _pyplot()
-    fmt = fmt or ("mp4" if _ffmpeg_available() else "gif")
-    path = os.path.join(out_dir, "run." + fmt)
-    n = track.x.shape[1] if track.x.size else 0
-    frames = len(track.steps)
-    stride = 2 if fmt == "gif" else 1
-    view = ArenaView(n, title, plt=plt, blit=True)
-    shown = -1
-
-    def frames_out():
-        nonlocal shown
-        for k in range(0, frames, stride):
-            view.update(track.x[k], track.y[k], track.theta[k],
-                        "t = %6.2f s  step %4d" % (track.steps[k] * model.TIME_STEP, track.steps[k]))
-            yield k
-            percent = 100 * min(k + stride, frames) // max(frames, 1)
-            if progress and percent // 5 != shown // 5:
-                shown = percent
-                print("\rrendering %s: %3d%%" % (os.path.basename(path), percent), end="", file=sys.stderr, flush=True)
-
-    if fmt == "mp4":
-        writer = _ffmpeg_writer_class()(fps=fps, codec="libx264", extra_args=["-pix_fmt", "yuv420p"])
-        writer.view = view
-        with writer.saving(view.fig, path, dpi=view.fig.dpi):
-            for _ in frames_out():
-                writer.grab_frame()
-    else:
-        from PIL import Image
-        size = view.fig.canvas.get_width_height()
-        images = [Image.frombuffer("RGBA", size, bytes(view.frame()), "raw", "RGBA", 0, 1).convert("RGB")
-                  .quantize(colors=64) for _ in frames_out()]
-        if images:
-            images[0].save(path, save_all=True, append_images=images[1:], loop=0,
-                           duration=int(1000 * stride * model.TIME_STEP))
-    if progress:
-        print(file=sys.stderr, flush=True)
-    plt.close(view.fig)
-    return path
 
 
 # -- entry points -----------------------------------------------------------------------------------
@@ -367,34 +259,38 @@ def _run_json(bag_dir):
         return {}
 
 
-def write_results(bag_dir, progress=True, *, out_dir=None, video=True):
-    """Write report.txt, trajectories.png and run.mp4 (or run.gif) for the run in `bag_dir` (into
-    `out_dir`, default the bag folder). Returns {"report": path, "trajectories": path, "video": path}
-    ("video" only when video=True and the bag has poses). Prints nothing but progress (stderr)."""
+def write_results(bag_dir, progress=True, *, out_dir=None, video=True, run=None):
+    """Write report.txt, trajectories.png, run.mp4 (or run.gif) and index.html for the run in
+    `bag_dir` (into `out_dir`, default the bag folder); `run` (run.json's dict) says how the run
+    ended where the bag cannot and goes on the page. Returns {"report": path, "trajectories":
+    path, "video": path, "page": path} ("video" only when video=True and the bag has poses).
+    Prints nothing but progress (stderr)."""
+    from robotarium_recording import page, pictures
     bag = Bag(bag_dir)
     out_dir = os.path.abspath(out_dir or bag.path)
     os.makedirs(out_dir, exist_ok=True)
-    numbers = recompute(bag)
+    run = run if run is not None else (_run_json(bag.path) or None)
+    numbers = recompute(bag, run)
     paths = {"report": os.path.join(out_dir, "report.txt")}
-    text = report_text(bag, numbers)
-    stopped = _run_json(bag.path).get("time_limit")
-    if stopped:   # the client ended the run at its time limit: say so first, as its printed report did
-        text = stopped["note"] + "\n" + text
     with open(paths["report"], "w", encoding="utf-8") as f:
-        f.write(text)
-    track = bag.poses()
-    s = numbers["settings"]
-    title = "%s: %d robots, %d steps" % (s["run_id"] or bag.name, numbers["number_of_robots"], numbers["iterations"])
-    paths["trajectories"] = plot_trajectories(track, os.path.join(out_dir, "trajectories.png"), title)
-    if video and len(track.steps):
-        paths["video"] = render_video(track, out_dir, title, progress=progress)
+        f.write(report_text(bag, numbers))
+    track, drawings, config = bag.poses(), bag.drawings(), numbers["config"]
+    title = numbers["settings"]["run_id"] or bag.name
+    plot = pictures.plot_trajectories(track, drawings, config, os.path.join(out_dir, "trajectories.png"), title)
+    if plot:
+        paths["trajectories"] = plot
+    if video:
+        movie = pictures.render_video(track, drawings, config, out_dir, title, progress=progress)
+        if movie:
+            paths["video"] = movie
+    paths["page"] = page.write_page(out_dir, run=run, numbers=numbers, bag=bag)
     return paths
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="robotarium report", description=(
         "Recompute the results of a recorded run from its bag: report.txt (the debug report), "
-        "trajectories.png and a video, written beside the bag (or into --out)."))
+        "trajectories.png, a video and the results page index.html, written beside the bag (or into --out)."))
     parser.add_argument("bag", help="run folder (bags/<run_id>), its metadata.yaml or its .mcap file")
     parser.add_argument("--out", help="folder for the results (default: the bag folder)")
     parser.add_argument("--no-video", action="store_true", help="skip the video")
