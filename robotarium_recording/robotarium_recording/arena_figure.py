@@ -20,6 +20,7 @@ CHASSIS_COLOUR = "#FFD700"
 RPS_ROBOT_RADIUS = 0.055   # rps's wheel and LED offsets below are in metres for this robot
 MARGIN = 0.1               # m of floor shown around the arena, as rps's figure does
 ID_HEIGHT = 0.05           # m, height of a robot's id on its chassis
+ROBOTS_ZORDER = 1          # the robots' zorder: patches', as rps's robots have
 
 
 def pyplot():
@@ -103,7 +104,7 @@ class ArenaFigure:
                                       offset_transform=axes.transData, facecolors="none", edgecolors="k",
                                       linewidths=1.0)
         for collection in (self.wheels, self.chassis, self.leds):
-            collection.set_zorder(1)   # patches' zorder, as rps's robots have
+            collection.set_zorder(ROBOTS_ZORDER)
             axes.add_collection(collection, autolim=False)
         self.boundary = axes.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False))
         self.own_artists = {self.wheels, self.chassis, self.leds, self.boundary}
@@ -120,7 +121,7 @@ class ArenaFigure:
                 (a, b), (c, d) = path.get_extents().get_points()
                 paths.append(path.transformed(Affine2D().translate(-(a + c) / 2, -(b + d) / 2)))
             self.ids = PathCollection(paths, offsets=np.zeros((n, 2)), offset_transform=axes.transData,
-                                      facecolors="k", edgecolors="none", zorder=1.01)
+                                      facecolors="k", edgecolors="none", zorder=ROBOTS_ZORDER + 0.01)
             axes.add_collection(self.ids, autolim=False)
             self.own_artists.add(self.ids)
         self.label = None

@@ -7,9 +7,10 @@ changes (JSON on <ns>/drawing, so the recorder keeps them in the bag); the video
 plot and the replay figure draw them again at the step they belong to.
 
 Watching is cheap: each artist's stale callback (matplotlib calls it whenever a property changes)
-marks it, and only marked artists are serialized and compared with what was sent before. One
-message: {"step": k, "ppm": points per metre of the script's figure, "set": {key: spec},
-"removed": [key, ...]}. Keys number the artists in the order they were added (matplotlib's
+marks it, and only marked artists are serialized and compared with what was sent before (a
+scatter of which only the positions or sizes changed - a marker following a robot - is sent as
+just those). One message: {"step": k, "ppm": points per metre of the script's figure, "set":
+{key: spec}, "move": {key: {"offsets": .., "sizes": ..}}, "removed": [key, ...]}. Keys number the artists in the order they were added (matplotlib's
 drawing order among equal zorders). Sizes in points (marker sizes, line widths, font sizes) are
 the script's, made for its figure's scale; they are scaled by the ratio of points per metre when
 drawn on another figure, so a 20 cm goal marker stays 20 cm.
@@ -126,6 +127,18 @@ def serialize(artist, axes):
     return spec
 
 
+def fingerprint(artist):
+    """A cheap summary of a scatter's state (the kind scripts touch every step), to skip serializing
+    one that did not really change; None for other kinds (always serialized and compared)."""
+    from matplotlib.collections import PathCollection
+    if type(artist) is not PathCollection:
+        return None
+    return (np.asarray(artist.get_offsets()).tobytes(), np.asarray(artist.get_sizes()).tobytes(),
+            np.asarray(artist.get_facecolor()).tobytes(), np.asarray(artist.get_edgecolor()).tobytes(),
+            np.asarray(artist.get_linewidth()).tobytes(), tuple(id(p) for p in artist.get_paths()),
+            artist.get_zorder(), artist.get_alpha(), artist.get_visible())
+
+
 class DrawingWatcher:
     """Watches the artists of `axes` that are not in `own` (the arena's) and says what changed."""
 
@@ -135,6 +148,7 @@ class DrawingWatcher:
         self.keys = {}          # artist -> key
         self.sent = {}          # key -> the spec last sent (None: not drawable)
         self.dirty = set()
+        self.prints = {}        # key -> fingerprint() when last serialized
         self.failed = set()
         self.next_key = 0
         self.ppm = None
@@ -169,9 +183,20 @@ class DrawingWatcher:
         removed = [self.keys.pop(a) for a in list(self.keys) if a not in present_set]
         for key in removed:
             self.sent.pop(key, None)
-        updated = {}
+            self.prints.pop(key, None)
+        updated, moved = {}, {}
         for artist in sorted(self.dirty & present_set, key=lambda a: int(self.keys[a])):
             key = self.keys[artist]
+            print_, before = fingerprint(artist), self.prints.get(key)
+            if print_ is not None and print_ == before:
+                continue   # touched (set_sizes with the same size every step) but unchanged
+            self.prints[key] = print_
+            if print_ is not None and before is not None and print_[2:] == before[2:] and key in self.sent:
+                # Only where it is and how big: a marker following a robot, the common case.
+                moved[key] = {"offsets": np.asarray(artist.get_offsets(), dtype=float).reshape(-1, 2).tolist(),
+                              "sizes": np.asarray(artist.get_sizes(), dtype=float).tolist()}
+                self.sent[key] = dict(self.sent[key], **moved[key])
+                continue
             try:
                 spec = serialize(artist, self.axes)
             except Exception as error:   # an artist we cannot describe must never break the script
@@ -187,10 +212,13 @@ class DrawingWatcher:
         removed = [k for k in removed] + [k for k, spec in updated.items() if spec is None]
         updated = {k: v for k, v in updated.items() if v is not None}
         ppm = round(points_per_metre(self.axes), 6)
-        if not updated and not removed and ppm == self.ppm:
+        if not updated and not moved and not removed and ppm == self.ppm:
             return None
         self.ppm = ppm
-        return {"format": FORMAT, "step": int(step), "ppm": ppm, "set": updated, "removed": removed}
+        message = {"format": FORMAT, "step": int(step), "ppm": ppm, "set": updated, "removed": removed}
+        if moved:
+            message["move"] = moved
+        return message
 
     def close(self):
         """Stop watching (restores nothing: the script's figure is going away)."""
@@ -218,6 +246,9 @@ class DrawingState:
         for key in message.get("removed", []):
             self.specs.pop(key, None)
         self.specs.update(message.get("set", {}))
+        for key, fields in message.get("move", {}).items():
+            if key in self.specs:
+                self.specs[key] = dict(self.specs[key], **fields)
         self.ppm = message.get("ppm", self.ppm)
         self.version += 1
 
@@ -233,25 +264,57 @@ class DrawingPainter:
         self.scale = 1.0
 
     def paint(self, state):
+        """Make the axes show `state`. Returns (changed, removed): the artists made or changed, and
+        the zorders of those taken away (the video redraws its background when one below the
+        robots changed)."""
         from robotarium_recording.arena_figure import points_per_metre
         scale = points_per_metre(self.axes) / state.ppm if state.ppm else 1.0
         rescaled = abs(scale - self.scale) > 1e-9
         self.scale = scale
+        changed, removed = [], []
         for key in list(self.artists):
             if key not in state.specs:
-                self.artists.pop(key)[1].remove()
+                artist = self.artists.pop(key)[1]
+                removed.append(artist.get_zorder())
+                artist.remove()
         for key in sorted(state.specs, key=int):
             spec = state.specs[key]
             old = self.artists.get(key)
             if old is not None and old[0] is spec and not rescaled:
                 continue
+            if old is not None and not rescaled and self._update(old[1], old[0], spec):
+                self.artists[key] = (spec, old[1])
+                changed.append(old[1])
+                continue
             if old is not None:
+                removed.append(old[1].get_zorder())
                 old[1].remove()
             artist = self._make(spec)
             if artist is not None:
+                artist.set_zorder(spec["z"] + (int(key) + 1) * 1e-9)   # equal zorders keep the script's order
                 self.artists[key] = (spec, artist)
+                changed.append(artist)
             else:
                 self.artists.pop(key, None)
+        return changed, removed
+
+    def _update(self, artist, old, spec):
+        """Change an artist in place where only its data moved (the common case: a marker that
+        follows a robot, a label's text); False when it must be made again."""
+        same = {k: v for k, v in old.items() if k not in ("offsets", "sizes", "xy", "text", "x", "y")}
+        if same != {k: v for k, v in spec.items() if k not in ("offsets", "sizes", "xy", "text", "x", "y")}:
+            return False
+        if spec["kind"] == "scatter":
+            artist.set_offsets(np.asarray(spec["offsets"]).reshape(-1, 2))
+            artist.set_sizes(np.asarray(spec["sizes"]) * self.scale ** 2)
+        elif spec["kind"] == "text":
+            artist.set_position(spec["xy"])
+            artist.set_text(spec["text"])
+        elif spec["kind"] == "line":
+            artist.set_data(spec["x"], spec["y"])
+        else:
+            return False
+        return True
 
     def _make(self, spec):
         from matplotlib.collections import PathCollection
@@ -302,7 +365,6 @@ class DrawingPainter:
             ax.add_patch(artist)
         else:
             return None
-        artist.set_zorder(spec["z"])
         artist.set_visible(spec["visible"])
         alpha = self.alpha if self.alpha is not None else spec["alpha"]
         if alpha is not None:

@@ -18,7 +18,7 @@ import sys
 
 import numpy as np
 
-from robotarium_recording.arena_figure import ArenaFigure, robot_colours
+from robotarium_recording.arena_figure import ROBOTS_ZORDER, ArenaFigure, robot_colours
 from robotarium_recording.drawing import DrawingPainter, DrawingState
 
 VIDEO_SIZE = (1280, 800)
@@ -57,7 +57,9 @@ class Frames:
         return len(self.steps)
 
     def render(self, arena_figure, painter=None):
-        """Yield (index, step) after putting each frame on `arena_figure` (and its drawing on `painter`)."""
+        """Yield (index, step, background_changed) after putting each frame on `arena_figure` (and
+        its drawing on `painter`); background_changed: something of the drawing below the robots
+        changed (see Blitter)."""
         track, state, d = self.track, DrawingState(), 0
         row = 0
         for index, step in enumerate(self.steps):
@@ -69,10 +71,39 @@ class Frames:
                 state.apply(self.drawings[d])
                 d += 1
                 changed = True
+            below = False
             if painter is not None and changed:
-                painter.paint(state)
+                made, removed = painter.paint(state)
+                below = any(z < ROBOTS_ZORDER for z in removed) or any(a.get_zorder() < ROBOTS_ZORDER for a in made)
             arena_figure.set_label("%s   t = %7.2f s   step %5d" % (self.title, step * self.config.time_step, step))
-            yield index, step
+            yield index, step, below
+
+
+class Blitter:
+    """Frames drawn the fast way: what lies below the robots (the arena, a goal marker, a label
+    at a lower zorder, a background image) is rendered once into a background and drawn again
+    only when it changed; each frame restores it and draws the robots, their ids, the label and
+    what the script drew above them."""
+
+    def __init__(self, arena_figure, painter):
+        self.arena_figure, self.painter = arena_figure, painter
+        self.background = None
+
+    def frame(self, background_changed):
+        af = self.arena_figure
+        figure, canvas = af.figure, af.figure.canvas
+        above = [a for _, a in self.painter.artists.values() if a.get_zorder() >= ROBOTS_ZORDER]
+        dynamic = [a for a in (af.wheels, af.chassis, af.leds, af.ids, af.label) if a is not None] + above
+        for artist in dynamic:
+            artist.set_animated(True)   # left out of canvas.draw(): the background
+        if self.background is None or background_changed:
+            canvas.draw()
+            self.background = canvas.copy_from_bbox(figure.bbox)
+        else:
+            canvas.restore_region(self.background)
+        for artist in sorted(dynamic, key=lambda a: a.get_zorder()):   # stable: robots before equal zorders
+            figure.draw_artist(artist)
+        return canvas.buffer_rgba()
 
 
 class Progress:
@@ -105,6 +136,7 @@ def render_video(track, drawings, config, out_dir, title="", progress=True, fmt=
     first = np.vstack((track.x[0], track.y[0], track.theta[0]))
     arena_figure = ArenaFigure.offscreen(config.arena, config.robot_radius, first, *VIDEO_SIZE, dpi=VIDEO_DPI)
     painter = DrawingPainter(arena_figure.axes)
+    blitter = Blitter(arena_figure, painter)
     meter = Progress(os.path.basename(path), len(frames), progress)
     width, height = arena_figure.figure.canvas.get_width_height()
     if fmt == "mp4":
@@ -113,8 +145,8 @@ def render_video(track, drawings, config, out_dir, title="", progress=True, fmt=
              "-framerate", frame_rate(config.time_step), "-i", "-", "-c:v", "libx264", "-preset", "ultrafast",
              "-pix_fmt", "yuv420p", "-movflags", "+faststart", path], stdin=subprocess.PIPE)
         try:
-            for index, _ in frames.render(arena_figure, painter):
-                encoder.stdin.write(arena_figure.frame())
+            for index, _, background_changed in frames.render(arena_figure, painter):
+                encoder.stdin.write(blitter.frame(background_changed))
                 meter(index + 1)
         finally:
             encoder.stdin.close()
@@ -123,8 +155,9 @@ def render_video(track, drawings, config, out_dir, title="", progress=True, fmt=
     else:
         from PIL import Image
         images = []
-        for index, _ in frames.render(arena_figure, painter):
-            images.append(Image.frombuffer("RGBA", (width, height), bytes(arena_figure.frame()), "raw", "RGBA", 0, 1)
+        for index, _, background_changed in frames.render(arena_figure, painter):
+            pixels = bytes(blitter.frame(background_changed))
+            images.append(Image.frombuffer("RGBA", (width, height), pixels, "raw", "RGBA", 0, 1)
                           .convert("RGB").quantize(colors=64))
             meter(index + 1)
         images[0].save(path, save_all=True, append_images=images[1:], loop=0,

@@ -1,0 +1,328 @@
+"""Every run returns its results, whatever its end: ./robotarium run against real nodes.
+
+Each way a run can end - an exception mid-run, Ctrl-C, no call_at_scripts_end(), a script that
+cannot be imported (before any testbed is started), a testbed lost mid-run - leaves a run folder
+with log.txt (the traceback too), report.txt whose first line says how it ended (never the
+acceptance estimate for a run that did not complete), run.json, index.html and, from the
+recording, trajectories.png and run.mp4; the last line printed names the folder. A guide
+plotting script's video shows what it drew on r.axes; the results page works in a real browser
+(Chromium); replay plays a lockstep run in experiment time and refuses a live testbed's namespace.
+
+One testbed serves the module (as in test_examples.py); the lost-testbed test stops its
+simulator, so it comes last.
+"""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from robotarium_client.testbed import LocalTestbed, testbed_answers as answers_in_namespace
+from devtools.rosutil import REPO, node_env, unique_domain_id
+
+START = "np.array([[0.0, 0.5], [0.0, 0.0], [0.0, 0.0]])"
+HEADER = """import time
+import rps.robotarium as robotarium
+import numpy as np
+N = 2
+r = robotarium.Robotarium(number_of_robots=N, show_figure=True, sim_in_real_time=False, initial_conditions=%s)
+r.axes.scatter([1.0], [0.5], s=300, marker='s', facecolors='none', edgecolors='r', linewidth=4)
+""" % START
+STEP = """    r.get_poses()
+    r.set_velocities(np.arange(N), np.array([[0.05, 0.05], [0.0, 0.0]]))
+    r.step()
+"""
+SCRIPTS = {
+    "fails.py": HEADER + "goals = {}\nfor k in range(40):\n" + STEP + "    if k == 9:\n        goals['goal']\n"
+                "r.call_at_scripts_end()\n",
+    "endless.py": HEADER + "for k in range(100000):\n" + STEP + "    if k == 5:\n        print('running', flush=True)\n"
+                  "    time.sleep(0.02)\nr.call_at_scripts_end()\n",
+    "no_end.py": HEADER + "for k in range(6):\n" + STEP,
+    "typo.py": "import numpy as np\nimport nump\nimport rps.robotarium as robotarium\n",
+    "broken.py": "import numpy as np\nfor k in range(3)\n    print(k)\n",
+}
+
+
+@pytest.fixture(scope="module")
+def testbed(tmp_path_factory):
+    domain = unique_domain_id()
+    bags = tmp_path_factory.mktemp("bags")
+    scripts = tmp_path_factory.mktemp("scripts")
+    for name, text in SCRIPTS.items():
+        (scripts / name).write_text(text)
+    env = node_env(domain)
+    saved = dict(os.environ)
+    os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    tb = LocalTestbed(log_dir=str(tmp_path_factory.mktemp("logs")), bags_dir=str(bags)).start()
+    try:
+        assert answers_in_namespace(timeout=60), "the testbed did not come up: %s" % tb.failed()
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
+    try:
+        yield {"env": env, "bags": bags, "scripts": scripts, "testbed": tb,
+               "results": tmp_path_factory.mktemp("results"), "runs": {}}
+    finally:
+        tb.stop()
+
+
+def start_run(ctx, script, *flags, env=None):
+    """./robotarium run in its own session (as a terminal's foreground job: signals reach it alone)."""
+    command = [sys.executable, "-m", "robotarium_client.cli", "run", *flags, "--results-dir", str(ctx["results"]),
+               script if os.path.isabs(script) else str(ctx["scripts"] / script)]
+    return subprocess.Popen(command, env=env or ctx["env"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            text=True, cwd=str(ctx["scripts"]), start_new_session=True)
+
+
+def finish(process, timeout=180):
+    try:
+        out, _ = process.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+        out, _ = process.communicate()
+        raise AssertionError("./robotarium run did not finish within %d s:\n%s" % (timeout, out))
+    return process.returncode, out
+
+
+def wait_for_line(process, text, timeout=60):
+    """Read the run's output until a line contains `text`; returns what was read."""
+    lines = []
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        line = process.stdout.readline()
+        if not line:
+            break
+        lines.append(line)
+        if text in line:
+            return "".join(lines)
+    raise AssertionError("no %r in the output:\n%s" % (text, "".join(lines)))
+
+
+def run_folder(out):
+    """The folder the last line names."""
+    last = out.strip().splitlines()[-1]
+    assert last.startswith("[robotarium] results in "), out
+    folder = last[len("[robotarium] results in "):].split(" (open ")[0]
+    return folder
+
+
+def check_folder(folder, cwd, recorded=True):
+    """The files every run folder has; returns (first line of report.txt, report, log, run.json)."""
+    folder = os.path.join(cwd, folder)
+    names = set(os.listdir(folder))
+    want = {"log.txt", "report.txt", "run.json", "index.html"} | ({"trajectories.png", "run.mp4"} if recorded else set())
+    assert want <= names, names
+    with open(os.path.join(folder, "report.txt")) as f:
+        report = f.read()
+    with open(os.path.join(folder, "log.txt")) as f:
+        log = f.read()
+    with open(os.path.join(folder, "run.json")) as f:
+        run = json.load(f)
+    return report.splitlines()[0], report, log, run
+
+
+def test_a_script_that_raises_mid_run(testbed):
+    code, out = finish(start_run(testbed, "fails.py", "--no-local-testbed"))
+    assert code == 1, out
+    folder = run_folder(out)
+    first, report, log, run = check_folder(folder, str(testbed["scripts"]))
+    assert first == "Run did not complete: the script raised KeyError: 'goal' at step 10 (line 13 of fails.py).", report
+    assert "Acceptance" not in report and "no acceptance estimate" in report
+    assert "Traceback (most recent call last)" in log and 'fails.py", line 13' in log and "KeyError: 'goal'" in log
+    assert run["outcome"] == "script_error" and run["exit_code"] == 1 and run["step"] == 10
+    assert "hint: the traceback above" in out
+    testbed["runs"]["fails"] = os.path.join(str(testbed["scripts"]), folder)
+
+    # The recording itself says how the run ended: ./robotarium report on the bag alone.
+    from robotarium_recording import results
+    numbers = results.recompute(testbed["runs"]["fails"])
+    assert numbers["outcome"] != 1 and "did not complete" in numbers["first_line"] and not numbers["completed"]
+    assert "Acceptance" not in numbers["report"]
+
+
+def test_a_run_interrupted_with_ctrl_c(testbed):
+    signum, code = signal.SIGINT, 130
+    process = start_run(testbed, "endless.py", "--no-local-testbed")
+    head = wait_for_line(process, "running")
+    os.killpg(process.pid, signum)
+    got, out = finish(process)
+    out = head + out
+    assert got == code, out
+    first, report, log, run = check_folder(run_folder(out), str(testbed["scripts"]))
+    name = signal.Signals(signum).name
+    assert first.startswith("Run did not complete: interrupted by ") and name in first, report
+    assert "Acceptance" not in report and run["outcome"] == "interrupted" and run["step"] >= 6
+    assert "running" in log
+
+
+def test_a_script_without_call_at_scripts_end(testbed):
+    code, out = finish(start_run(testbed, "no_end.py", "--no-local-testbed"))
+    assert code == 3, out
+    first, report, log, run = check_folder(run_folder(out), str(testbed["scripts"]))
+    assert first == ("Run did not complete: the script ended without calling r.call_at_scripts_end() "
+                     "(step 6)."), report
+    assert "Acceptance" not in report and "hint: end the script with r.call_at_scripts_end()" in out
+
+
+@pytest.mark.parametrize("script, words", [
+    ("typo.py", ["could not import nump", "line 2 of typo.py", "Did you mean 'numpy'?"]),
+    ("broken.py", ["could not be compiled: SyntaxError", "line 2 of broken.py"])])
+def test_a_script_that_cannot_be_imported_fails_before_a_testbed_is_started(testbed, script, words):
+    # A namespace where nothing answers: had the script been started, a testbed would be started for it.
+    env = dict(testbed["env"], ROBOTARIUM_NAMESPACE="/nobody_%d" % os.getpid())
+    code, out = finish(start_run(testbed, script, env=env), timeout=60)
+    assert code == 1, out
+    assert "starting one" not in out and "testbed" not in out.split("[robotarium] Run did not")[0], out
+    first, report, log, run = check_folder(run_folder(out), str(testbed["scripts"]), recorded=False)
+    assert first.startswith("Run did not complete: the script ") and "no testbed was started" in first, report
+    assert all(w in first for w in words), first
+    assert os.path.dirname(os.path.join(str(testbed["scripts"]), run_folder(out))) == str(testbed["results"])
+
+
+def _frame(path, index):
+    import imageio_ffmpeg
+    reader = imageio_ffmpeg.read_frames(path)
+    meta = next(reader)
+    width, height = meta["size"]
+    for k, frame in enumerate(reader):
+        if k == index:
+            reader.close()
+            return np.frombuffer(frame, dtype=np.uint8).reshape(height, width, 3)
+    raise AssertionError("no frame %d in %s" % (index, path))
+
+
+def test_a_guide_plotting_scripts_video_shows_its_goals_and_labels(testbed, tmp_path):
+    """3.8.4 draws goal squares (random colours) with "G0".. labels on r.axes: they are in the video."""
+    import imageio_ffmpeg
+
+    from robotarium_recording.arena_figure import ArenaFigure
+    from robotarium_recording.bag import Bag
+    from robotarium_recording.pictures import render_video
+    script = os.path.join(REPO, "examples", "guide", "3_8_4_go_to_point_single_integrator_with_plotting.py")
+    command = [sys.executable, "-m", "robotarium_client.cli", "run", "--no-local-testbed", "--lockstep",
+               "--results-dir", str(testbed["results"]), os.path.join(REPO, "devtools", "run_seeded.py"), "1", script]
+    completed = subprocess.run(command, env=testbed["env"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                               text=True, cwd=os.path.dirname(script), timeout=300)
+    out = completed.stdout
+    assert completed.returncode == 0, out
+    folder = os.path.join(os.path.dirname(script), run_folder(out))
+    first, report, _, run = check_folder(folder, "")
+    assert first == "Run completed." and "did not complete" not in report
+    testbed["runs"]["guide"] = folder
+
+    bag = Bag(folder)
+    drawings = bag.drawings()
+    scatters = [spec for message in drawings for spec in message["set"].values() if spec["kind"] == "scatter"]
+    labels = [spec for message in drawings for spec in message["set"].values() if spec["kind"] == "text"]
+    assert len(labels) == 5 and sorted(s["text"] for s in labels) == ["G0", "G1", "G2", "G3", "G4"]
+    frames, seconds = imageio_ffmpeg.count_frames_and_secs(os.path.join(folder, "run.mp4"))
+    steps = run["runs"][-1]["steps"]
+    assert frames == steps + 1 and seconds == pytest.approx((steps + 1) * bag.config().time_step, abs=0.05)
+
+    # Frame 1 of the video against the same frame drawn without the script's drawing.
+    plain = render_video(bag.poses(), [], bag.config(), str(tmp_path), progress=False, name="plain")
+    with_drawing, without = _frame(os.path.join(folder, "run.mp4"), 1), _frame(plain, 1)
+    assert with_drawing.shape[:2] == (800, 1280)
+    view = ArenaFigure.offscreen(bag.config().arena, bag.config().robot_radius, np.zeros((3, 5)))
+    height = with_drawing.shape[0]
+    for label in labels:
+        x, y = view.axes.transData.transform(label["xy"])
+        col, row = int(x), int(height - y)
+        box = (slice(row - 40, row + 40), slice(col - 40, col + 40))   # +-0.1 m: the goal's square and label
+        goal = next(s for s in scatters if np.allclose(s["offsets"][0], label["xy"]))   # its square
+        colour = np.array(goal["ec"][0][:3]) * 255
+
+        def near(image):
+            return int(np.count_nonzero(np.linalg.norm(image[box].astype(float) - colour, axis=2) < 50))
+
+        def dark(image):
+            return int(np.count_nonzero(image[row - 8:row + 8, col - 15:col + 15].max(axis=2) < 90))
+
+        assert near(with_drawing) > 150 and near(with_drawing) > 3 * near(without), (label["text"], near(with_drawing),
+                                                                                     near(without))
+        assert dark(with_drawing) > 20 + dark(without), label["text"]   # the label's letters
+
+
+def test_the_results_page_in_a_real_browser(testbed):
+    from devtools.browser import Browser, find_chromium
+    if find_chromium() is None:
+        pytest.skip("no chromium here and it could not be installed (./robotarium test installs Debian's "
+                    "package when it runs as root with apt-get)")
+    folder = testbed["runs"].get("guide")
+    if folder is None:
+        pytest.skip("needs the guide script's run of test_a_guide_plotting_scripts_video_shows_its_goals_and_labels")
+    with Browser() as browser:
+        page = browser.open("file://" + os.path.join(folder, "index.html"))
+        assert "Run completed." in page.evaluate("document.querySelector('.outcome').textContent")
+        played = page.evaluate("""new Promise(async (resolve) => {
+            const video = document.getElementById('video');
+            await video.play();
+            const start = video.currentTime;
+            setTimeout(() => resolve({start: start, now: video.currentTime, ready: video.readyState,
+                                      width: video.videoWidth, height: video.videoHeight}), 500);
+        })""", await_promise=True)
+        assert played["now"] > played["start"] and played["ready"] >= 2, played
+        assert (played["width"], played["height"]) == (1280, 800)
+        links = page.evaluate("""Promise.all(Array.from(document.querySelectorAll('a')).map(a => new Promise(done => {
+            const request = new XMLHttpRequest();
+            request.open('GET', a.href);
+            request.onload = () => done([a.getAttribute('href'), request.response.length]);
+            request.onerror = () => done([a.getAttribute('href'), -1]);
+            request.send();
+        })))""", await_promise=True)
+        hrefs = {href for href, _ in links}
+        assert {"run.mp4", "report.txt", "log.txt", "run.json", "run_seeded.py", "metadata.yaml"} <= hrefs, hrefs
+        assert all(size > 0 for _, size in links), links
+        page.drain(0.5)
+        assert page.errors == []
+
+
+def test_replay_plays_a_lockstep_run_in_experiment_time_and_refuses_a_live_testbed(testbed, tmp_path):
+    from robotarium_msgs.msg import RobotPoses
+    from devtools.rosutil import RosProbe
+    bag = testbed["runs"].get("fails")
+    if bag is None:
+        pytest.skip("needs the run of test_a_script_that_raises_mid_run")
+    env = testbed["env"]
+    replay = [sys.executable, "-m", "robotarium_recording.replay_node", bag]
+    refused = subprocess.run(replay, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=60)
+    assert refused.returncode == 2 and "a live testbed answers in /robotarium" in refused.stdout, refused.stdout
+
+    probe = RosProbe(int(env["ROS_DOMAIN_ID"]))
+    received = []
+    probe.node.create_subscription(RobotPoses, "/replayed/poses", lambda m: received.append(time.monotonic()), 100)
+    process = subprocess.Popen(replay + ["--namespace", "/replayed", "--delay", "2", "--figure", "--figure-file",
+                                         str(tmp_path / "replay.mp4")], env=env, stdout=subprocess.PIPE,
+                               stderr=subprocess.STDOUT, text=True)
+    try:
+        assert probe.spin_until(lambda: process.poll() is not None, 60)
+        probe.spin_for(0.2)
+    finally:
+        probe.close()
+        if process.poll() is None:
+            process.kill()
+        out = process.communicate()[0]
+    assert "experiment time" in out, out
+    assert len(received) == 11, out   # steps 0..10
+    gaps = np.diff(received)
+    assert np.median(gaps) == pytest.approx(0.033, abs=0.01), gaps   # recorded as fast as it ran (a few ms)
+    assert os.path.getsize(tmp_path / "replay.mp4") > 10000   # headless --figure: a video
+
+
+def test_a_testbed_lost_mid_run(testbed):
+    """Last: it stops the module's simulator."""
+    process = start_run(testbed, "endless.py", "--no-local-testbed")
+    head = wait_for_line(process, "running")
+    simulator, _ = testbed["testbed"].processes["simulator"]
+    os.killpg(simulator.pid, signal.SIGTERM)
+    code, out = finish(process)
+    out = head + out
+    assert code == 4, out
+    first, report, log, run = check_folder(run_folder(out), str(testbed["scripts"]))
+    assert first.startswith("Run did not complete: the testbed was lost at step "), report
+    assert "Acceptance" not in report and run["outcome"] == "testbed_lost" and "TestbedLost" in log
+    assert "hint: the testbed stopped answering" in out
