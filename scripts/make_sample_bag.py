@@ -3,7 +3,8 @@
 It starts the simulator, the safety node and the recorder on a private DDS domain, runs 6 robots
 in real time (30 Hz) for about 4 s under a consensus controller on a cycle graph (each robot
 drives towards the mean of its two neighbours; they start on a wide circle, so they never get
-near each other in that time), ends the experiment and moves the recorded run folder to
+near each other in that time), draws the point they agree on as a script would on r.axes (the
+drawing topic), ends the experiment and moves the recorded run folder to
 bags/sample_consensus/ (replacing an older one).
 
 Commands: the script publishes on <ns>/cmd_requested as the client would and the safety node
@@ -45,6 +46,25 @@ def consensus(poses, gain=0.6, max_speed=0.1):
     return v, np.clip(w, -1.5, 1.5)   # within the wheel limits: no actuator errors
 
 
+def publish_drawing(probe, started):
+    """What an experiment script would draw on r.axes, sent as the client sends it: the point the
+    robots agree on (their centroid) marked and labelled, so the sample's video shows a drawing."""
+    from robotarium_core.config import DEFAULT
+    from robotarium_core.topics import DRAWING, DRAWING_QOS
+    from robotarium_recording.arena_figure import ArenaFigure, pyplot
+    from robotarium_recording.drawing import DrawingWatcher, encode
+    plt = pyplot()
+    poses = np.array([started.x, started.y, started.theta])
+    figure = ArenaFigure.live(DEFAULT.arena, DEFAULT.robot_radius, poses, plt=plt)
+    watcher = DrawingWatcher(figure.axes, figure.own_artists)
+    centre = poses[:2].mean(axis=1)
+    figure.axes.scatter(*centre, s=600, marker="s", facecolors="none", edgecolors="tab:green", linewidth=4, zorder=-2)
+    figure.axes.text(centre[0], centre[1] + 0.15, "consensus", ha="center", fontsize=12, color="tab:green")
+    publisher = probe.node.create_publisher(String, NS + "/" + DRAWING, DRAWING_QOS)
+    publisher.publish(String(data=encode(watcher.changes(0))))
+    plt.close(figure.figure)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=4.0)
@@ -77,6 +97,7 @@ def main():
         if not started.success:
             raise RuntimeError(started.message)
         print(started.message)
+        publish_drawing(probe, started)
         step, t_end = 0, time.monotonic() + args.seconds
         while time.monotonic() < t_end:
             probe.spin_until(lambda: poses and poses[-1].step > step, 1.0)

@@ -162,9 +162,10 @@ def test_headless_figure_takes_the_guides_plotting_calls(testbed, tmp_path):
         r.set_velocities(np.arange(3), np.full((2, 3), 0.05))
         r.step()
     x = r.get_poses()
-    # the chassis patches follow the robots
+    # the chassis follow the robots, and what the script drew is watched for the video
     chassis = r._arena_figure.chassis
-    assert np.allclose([p.xy for p in chassis], x[:2].T)
+    assert np.allclose([path.vertices[:4].mean(axis=0) for path in chassis.get_paths()], x[:2].T)
+    assert sorted(spec["kind"] for spec in r._drawing.sent.values()) == ["image", "line", "patch", "scatter", "text"]
     r.figure.savefig(tmp_path / "arena.png")
     assert (tmp_path / "arena.png").stat().st_size > 5000
     r.call_at_scripts_end()

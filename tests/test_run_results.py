@@ -232,7 +232,7 @@ def test_a_guide_plotting_scripts_video_shows_its_goals_and_labels(testbed, tmp_
     for label in labels:
         x, y = view.axes.transData.transform(label["xy"])
         col, row = int(x), int(height - y)
-        box = (slice(row - 40, row + 40), slice(col - 40, col + 40))   # +-0.1 m: the goal's square and label
+        box = (slice(max(row - 100, 0), row + 100), slice(max(col - 100, 0), col + 100))   # the square around it
         goal = next(s for s in scatters if np.allclose(s["offsets"][0], label["xy"]))   # its square
         colour = np.array(goal["ec"][0][:3]) * 255
 

@@ -300,6 +300,8 @@ def print_summary(run_dir, run, cwd):
     say(first)
     if run["outcome"] != "completed" and run["outcome"] in HINTS:
         say("hint: " + HINTS[run["outcome"]])
+    elif run["exit_code"]:   # completed, and then the script failed or was stopped
+        say("the experiment completed, %s (exit code %d)" % (run["detail"], run["exit_code"]))
     relative = os.path.relpath(run_dir, cwd)
     shown = run_dir if relative.startswith("..") else relative
     say("files: " + ", ".join(sorted(os.listdir(run_dir))))

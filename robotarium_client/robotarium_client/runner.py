@@ -118,6 +118,10 @@ def finish(outcome, detail, code):
                                                 "(step %d)" % step)
         if outcome != outcomes.COMPLETED and not code:
             code = outcomes.EXIT_CODES[outcome]
+    elif session.robotaria and all(r.run_info is not None and r.run_info.get("outcome") == "completed"
+                                   for r in session.robotaria):
+        # Its experiments had completed (call_at_scripts_end) when the script failed or was stopped.
+        outcome, detail = outcomes.COMPLETED, "then %s" % detail
     runs = []
     for robotarium in session.robotaria:
         if robotarium.run_info is None:

@@ -32,6 +32,7 @@ from robotarium_recording.recorder_node import message_class
 
 SKIPPED_TOPICS = {"/rosout"}
 FIGURE_HZ = 15
+LIVE_CHECK = 3.0   # s to wait for a live testbed's start_experiment service before replaying
 
 
 class ReplayClock:
@@ -314,7 +315,10 @@ def main(argv=None):
     node = keyboard = figure = None
     try:
         node = ReplayNode(bag, rate=args.rate, loop=args.loop, namespace=args.namespace, timing=timing)
-        if not args.into_live and live_testbed_answers(node, node.namespace, max(1.0, args.delay)):
+        # Discovery takes a moment (seconds on a loaded machine): the check waits up to as long as
+        # ./robotarium run does for a testbed, and that wait counts towards --delay.
+        checked = time.monotonic()
+        if not args.into_live and live_testbed_answers(node, node.namespace, max(LIVE_CHECK, args.delay)):
             print("replay: a live testbed answers in %s on ROS_DOMAIN_ID %s: replayed poses, commands and statuses "
                   "would mix with its own. Replay into another namespace (--namespace /replay), on another "
                   "domain, or pass --into-live if that is what you want."
@@ -328,7 +332,7 @@ def main(argv=None):
         print("[replay] %s: %d messages on %d topics, %.1f s (%s time) at rate %g%s%s" % (
             bag.path, len(node.messages), len(node.publishers_by_topic), span, timing, args.rate,
             ", looping" if args.loop else "", "; space pauses, q quits" if keyboard.enabled else ""), file=sys.stderr)
-        play(node, keyboard, figure, poses_topic, max(0.0, args.delay))
+        play(node, keyboard, figure, poses_topic, max(0.0, args.delay - (time.monotonic() - checked)))
         print("[replay] done", file=sys.stderr)
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
         pass
