@@ -10,10 +10,11 @@ Watching is cheap: each artist's stale callback (matplotlib calls it whenever a 
 marks it, and only marked artists are serialized and compared with what was sent before (a
 scatter of which only the positions or sizes changed - a marker following a robot - is sent as
 just those). One message: {"step": k, "ppm": points per metre of the script's figure, "set":
-{key: spec}, "move": {key: {"offsets": .., "sizes": ..}}, "removed": [key, ...]}. Keys number the artists in the order they were added (matplotlib's
-drawing order among equal zorders). Sizes in points (marker sizes, line widths, font sizes) are
-the script's, made for its figure's scale; they are scaled by the ratio of points per metre when
-drawn on another figure, so a 20 cm goal marker stays 20 cm.
+{key: spec}, "move": {key: {"offsets": .., "sizes": ..}}, "removed": [key, ...]}. Keys number
+the artists in the order they were added (matplotlib's drawing order among equal zorders).
+Sizes in points (marker sizes, line widths, font sizes) are the script's, made for its figure's
+scale; they are scaled by the ratio of points per metre when drawn on another figure, so a 20 cm
+goal marker stays 20 cm.
 
 Kinds: "scatter" (PathCollection), "collection" (LineCollection, PolyCollection and other data
 collections), "line" (Line2D), "text", "image" (AxesImage, as PNG), "patch" (any Patch: circles,
