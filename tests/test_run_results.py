@@ -229,6 +229,7 @@ def test_a_guide_plotting_scripts_video_shows_its_goals_and_labels(testbed, tmp_
     assert with_drawing.shape[:2] == (800, 1280)
     view = ArenaFigure.offscreen(bag.config().arena, bag.config().robot_radius, np.zeros((3, 5)))
     height = with_drawing.shape[0]
+    readable = []
     for label in labels:
         x, y = view.axes.transData.transform(label["xy"])
         col, row = int(x), int(height - y)
@@ -244,7 +245,11 @@ def test_a_guide_plotting_scripts_video_shows_its_goals_and_labels(testbed, tmp_
 
         assert near(with_drawing) > 150 and near(with_drawing) > 3 * near(without), (label["text"], near(with_drawing),
                                                                                      near(without))
-        assert dark(with_drawing) > 20 + dark(without), label["text"]   # the label's letters
+        poses = bag.poses()
+        if np.min(np.hypot(poses.x[1] - label["xy"][0], poses.y[1] - label["xy"][1])) > 0.15:   # not under a robot
+            assert dark(with_drawing) > 20 + dark(without), label["text"]   # the label's letters
+            readable.append(label["text"])
+    assert len(readable) >= 3, readable
 
 
 def test_the_results_page_in_a_real_browser(testbed):
@@ -317,8 +322,8 @@ def test_a_testbed_lost_mid_run(testbed):
     """Last: it stops the module's simulator."""
     process = start_run(testbed, "endless.py", "--no-local-testbed")
     head = wait_for_line(process, "running")
-    simulator, _ = testbed["testbed"].processes["simulator"]
-    os.killpg(simulator.pid, signal.SIGTERM)
+    simulator = testbed["testbed"].processes["simulator"][0]
+    os.killpg(simulator.pid, signal.SIGKILL)   # lost: it cannot say goodbye (SIGTERM would end the run cleanly)
     code, out = finish(process)
     out = head + out
     assert code == 4, out

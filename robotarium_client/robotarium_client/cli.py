@@ -634,7 +634,7 @@ whatever happens, the run folder (the last line printed names it) gets log.txt, 
 line says how the run ended), run.json, index.html, and from a recording made here trajectories.png and
 run.mp4. Exit codes: 0 the run completed (call_at_scripts_end); 1 the script raised an exception or
 could not be compiled or imported (then no testbed is started); 2 a bad command line; 3 the script
-ended without call_at_scripts_end(); 4 no testbed, or the testbed was lost mid-run; 5 the time limit;
+ended without call_at_scripts_end(); 4 no testbed, or it was lost or ended the experiment; 5 the time limit;
 128 + N interrupted by signal N (130: Ctrl-C, 143: SIGTERM, 129: SIGHUP)."""
 
 

@@ -74,6 +74,7 @@ def where_in_script(exc, script):
 
 def run(script, script_args):
     """Run the script; returns (outcome, detail, exit code)."""
+    from robotarium_client.robotarium import EndedByTestbed
     sys.argv = [script, *script_args]
     sys.path.insert(0, os.path.dirname(script))
     for signum in (signal.SIGTERM, signal.SIGHUP):
@@ -92,7 +93,9 @@ def run(script, script_args):
         if orphaned and isinstance(exc, KeyboardInterrupt):
             exc = session.Interrupted("the loss of ./robotarium run (its lifeline closed)")
         outcome, detail = session.failure_of(exc, step, where_in_script(exc, script))
-        if outcome == outcomes.INTERRUPTED:   # 128 + the signal, as a shell reports it
+        if isinstance(exc, EndedByTestbed):   # not a signal here: the testbed's doing
+            code = outcomes.EXIT_CODES[outcomes.TESTBED_LOST]
+        elif outcome == outcomes.INTERRUPTED:   # 128 + the signal, as a shell reports it
             code = 128 + getattr(signal, getattr(exc, "signal_name", "SIGINT"), signal.SIGKILL)
         else:
             code = outcomes.EXIT_CODES[outcome]

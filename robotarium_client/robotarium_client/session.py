@@ -102,13 +102,15 @@ def describe_exception(exc):
 def failure_of(exc, step, where=""):
     """(outcome, detail) of a run that an exception ended at `step` (robotarium_core.outcomes);
     `where` says where in the script, e.g. "line 57 of go.py"."""
-    from robotarium_client.robotarium import TestbedLost
+    from robotarium_client.robotarium import EndedByTestbed, TestbedLost
     from robotarium_core import outcomes
     at = "at step %d%s" % (step, " (%s)" % where if where else "")
     if isinstance(exc, KeyboardInterrupt):
         return outcomes.INTERRUPTED, "interrupted by Ctrl-C (SIGINT) %s" % at
     if isinstance(exc, Interrupted):
         return outcomes.INTERRUPTED, "interrupted by %s %s" % (exc.signal_name, at)
+    if isinstance(exc, EndedByTestbed):   # an operator's end --force, a testbed that was stopped
+        return outcomes.INTERRUPTED, "interrupted %s: %s" % (at, str(exc).rstrip("."))
     if isinstance(exc, TestbedLost):
         return outcomes.TESTBED_LOST, "the testbed was lost %s: %s" % (at, str(exc).split(". ")[0])
     return outcomes.SCRIPT_ERROR, "the script raised %s %s" % (describe_exception(exc), at)
