@@ -2,14 +2,16 @@
 
 The Robotarium's results page (guide §1.3.2) gives back the experiment settings, a video of the
 run, the printed output and data files. From a bag folder this makes, beside the bag:
-  report.txt        the debug report of rps.Robotarium.call_at_scripts_end(), recomputed from the
-                    recorded poses and safe commands with robotarium_core.model's own counting
-                    functions, then the run's settings and a cross-check against the counters the
-                    testbed published (status topic);
-  trajectories.png  the arena with every robot's path, start (open circle) and end (robot drawn
-                    to scale with its heading);
-  run.mp4           the run replayed at 30 frames a second of simulated time (ffmpeg from the
-                    imageio-ffmpeg wheel), or run.gif with Pillow when no encoder is found.
+  report.txt        how the run ended (first line: the IDLE status that closed it says so, or
+                    run.json where the testbed could not be told), then the debug report of
+                    rps.Robotarium.call_at_scripts_end() recomputed from the recorded poses and
+                    safe commands with robotarium_core.model's own counting functions (the
+                    acceptance estimate only for a completed run), then the run's settings, a
+                    cross-check against the counters the testbed published (status topic) and
+                    the safety node's interventions (SafetyReport: changes beyond the tolerance);
+  trajectories.png  pictures.plot_trajectories: every robot's path over the script's drawing;
+  run.mp4           pictures.render_video: the Robotarium's video, with what the script drew;
+  index.html        page.write_page: the results page.
 
 How the report is recomputed, as the simulator counts (robotarium_core.model.Testbed.step): step
 k+1 counts collisions and robots outside the arena on the poses of step k (before the move) and
