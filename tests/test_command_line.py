@@ -1,0 +1,60 @@
+"""The command line as people expect it: --help on every command, an unknown command lists them
+all, `shell -c CMD` runs CMD, and `report` on the committed sample leaves nothing for git."""
+import os
+import subprocess
+
+import pytest
+
+from devtools.rosutil import REPO
+
+ROBOTARIUM = os.path.join(REPO, "robotarium")
+
+
+def robotarium(*args, timeout=120):
+    return subprocess.run([ROBOTARIUM, *args], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                          timeout=timeout, cwd=REPO)
+
+
+def listed_commands():
+    usage = robotarium("help").stdout
+    return [line.split()[0] for line in usage.splitlines() if line.startswith("  ") and line.split()]
+
+
+def test_an_unknown_command_lists_every_command():
+    completed = robotarium("frobnicate")
+    assert completed.returncode == 2 and "unknown command frobnicate" in completed.stdout
+    commands = listed_commands()
+    assert {"run", "demo", "up", "status", "stop", "end", "replay", "report", "test", "bench", "setup",
+            "shell"} <= set(commands), commands
+    assert all("  %s" % command in completed.stdout for command in commands)
+
+
+def test_every_command_has_help(capsys):
+    from robotarium_client import cli
+    for command in listed_commands():
+        if command in ("test", "bench", "setup", "shell"):   # bash's own (test: pytest's help)
+            completed = robotarium(command, "--help")
+            assert completed.returncode == 0 and "usage" in completed.stdout.lower(), (command, completed.stdout)
+            continue
+        with pytest.raises(SystemExit) as exit_:
+            cli.main([command, "--help"])
+        assert exit_.value.code == 0, command
+        assert "usage" in capsys.readouterr().out, command
+
+
+def test_shell_runs_a_command_in_the_projects_environment():
+    completed = robotarium("shell", "-c", "echo venv=$VIRTUAL_ENV; python -c 'import robotarium_msgs'")
+    assert completed.returncode == 0, completed.stdout
+    assert "venv=%s" % os.path.join(REPO, ".venv") in completed.stdout
+
+
+def test_what_report_and_replay_write_beside_the_committed_sample_is_ignored_by_git():
+    sample = os.path.join("bags", "sample_consensus")
+    written = ["report.txt", "trajectories.png", "run.mp4", "run.gif", "index.html", "replay.mp4"]
+    ignored = subprocess.run(["git", "check-ignore", *(os.path.join(sample, name) for name in written)],
+                             cwd=REPO, stdout=subprocess.PIPE, text=True)
+    assert sorted(ignored.stdout.split()) == sorted(os.path.join(sample, name) for name in written)
+    recorded = [os.path.join(sample, name) for name in os.listdir(os.path.join(REPO, sample))
+                if name == "metadata.yaml" or name.endswith(".mcap")]
+    kept = subprocess.run(["git", "check-ignore", *recorded], cwd=REPO, stdout=subprocess.PIPE, text=True)
+    assert recorded and kept.stdout == ""   # the recording itself stays tracked
