@@ -482,7 +482,8 @@ def cmd_demo(args):
     say("demo: %s, headless, lockstep" % DEMO_SCRIPT)
     code, info, run_dir = run_script(script, real_time=False, video=not args.no_video)
     if code == 0 and run_dir:
-        say("demo done: the report, trajectories.png and the video of the run are in %s" % run_dir)
+        say("demo done: the results page, the report, trajectories.png and the video of the run are in %s"
+            % run_dir)
     return code
 
 
