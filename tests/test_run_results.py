@@ -169,8 +169,8 @@ def test_a_script_without_call_at_scripts_end(testbed):
 
 
 @pytest.mark.parametrize("script, words", [
-    ("typo.py", ["could not import nump", "line 2 of typo.py", "Did you mean 'numpy'?"]),
-    ("broken.py", ["could not be compiled: SyntaxError", "line 2 of broken.py"])])
+    ("typo.py", ["could not import nump", "(line 2 of typo.py; did you mean 'numpy'?)"]),
+    ("broken.py", ["could not be compiled: SyntaxError: expected ':' (line 2 of broken.py)"])])
 def test_a_script_that_cannot_be_imported_fails_before_a_testbed_is_started(testbed, script, words):
     # A namespace where nothing answers: had the script been started, a testbed would be started for it.
     env = dict(testbed["env"], ROBOTARIUM_NAMESPACE="/nobody_%d" % os.getpid())

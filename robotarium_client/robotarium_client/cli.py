@@ -189,7 +189,7 @@ def _close_module_name(name):
 
 
 def check_script(script):
-    """Compile the script and find the modules its top-level import statements name, as `python
+    """Compile the script and find the modules its opening import statements name, as `python
     SCRIPT` would meet them (the script's folder first on sys.path), without running it. Returns
     None, or (detail, message): a syntax error or an import typo fails here, before a testbed is
     started, with the message python would print."""
@@ -205,17 +205,23 @@ def check_script(script):
         import traceback
         text = "".join(traceback.format_exception_only(type(error), error))
         where = " (line %d of %s)" % (error.lineno, os.path.basename(script)) if getattr(error, "lineno", None) else ""
-        return "could not be compiled: %s%s" % (session.describe_exception(error), where), text
+        what = "%s: %s" % (type(error).__name__, error.msg) if isinstance(error, SyntaxError) else \
+            session.describe_exception(error)
+        return "could not be compiled: %s%s" % (what, where), text
     lines = source.splitlines()
     sys.path.insert(0, os.path.dirname(script))
     try:
-        for node in tree.body:   # top-level imports only: those in functions or try blocks may be optional
+        # The imports at the top of the script, before its first other statement: those in functions
+        # or try blocks may be optional, and a later one may follow a change to sys.path.
+        for node in tree.body:
             if isinstance(node, ast.Import):
                 names = [alias.name for alias in node.names]
-            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-                names = [node.module]
+            elif isinstance(node, ast.ImportFrom):
+                names = [node.module] if node.level == 0 and node.module else []
+            elif isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant):
+                continue   # the docstring
             else:
-                continue
+                break
             for name in names:
                 try:
                     found = importlib.util.find_spec(name) is not None
@@ -227,11 +233,12 @@ def check_script(script):
                 if not found:
                     top = name.split(".")[0]
                     close = _close_module_name(top) if "No module named" in error else None
-                    hint = " Did you mean %r?" % close if close and close != top else ""
+                    hint = "Did you mean %r?" % close if close and close != top else ""
                     text = '  File "%s", line %d\n    %s\nModuleNotFoundError: %s%s\n' % (
-                        script, node.lineno, lines[node.lineno - 1].strip(), error, hint)
-                    return ("could not import %s: ModuleNotFoundError: %s (line %d of %s)%s"
-                            % (name, error, node.lineno, os.path.basename(script), hint)), text
+                        script, node.lineno, lines[node.lineno - 1].strip(), error, " " + hint if hint else "")
+                    return ("could not import %s: ModuleNotFoundError: %s (line %d of %s%s)"
+                            % (name, error, node.lineno, os.path.basename(script),
+                               "; " + hint[0].lower() + hint[1:] if hint else "")), text
     finally:
         sys.path.remove(os.path.dirname(script))
     return None
