@@ -17,6 +17,8 @@ def test_first_lines_and_exit_codes():
     line = outcomes.first_line(outcomes.SCRIPT_ERROR, "the script raised KeyError: 'goal' at step 3")
     assert line == "Run did not complete: the script raised KeyError: 'goal' at step 3."
     assert outcomes.first_line(outcomes.UNFINISHED).startswith("Run did not complete: the recording ends")
+    note = "Stopped at the time limit: 1 s of testbed time (step 31, 1.02 s); the rest of the script did not run."
+    assert outcomes.first_line(outcomes.TIME_LIMIT, note) == note
     assert outcomes.of_request(outcomes.NONE) == outcomes.COMPLETED
     assert outcomes.EXIT_CODES[outcomes.COMPLETED] == 0
     failures = [code for outcome, code in outcomes.EXIT_CODES.items() if outcome != outcomes.COMPLETED]

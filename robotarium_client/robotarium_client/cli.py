@@ -434,6 +434,8 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
         say("interrupted (%s): the script was stopped%s" % (
             interruption.name, " and the testbed this run started was stopped" if testbed is not None else ""))
     info = run["runs"][-1] if run["runs"] else {}
+    # The run is its (last) experiment: its keys at the top, how the script's run ended over them.
+    run = dict({k: v for k, v in info.items() if k != "report"}, **run)
     run.update(run_id=info.get("run_id", ""), script=script, started=started_at, wall_time=wall_time)
     saved = [p for p, mtime in _snapshot(cwd).items() if before.get(p) != mtime and mtime / 1e9 >= started - 1]
 

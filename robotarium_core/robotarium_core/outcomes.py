@@ -39,4 +39,6 @@ def first_line(outcome, detail=""):
     """The report's first line: how the run ended."""
     if outcome == COMPLETED:
         return "Run completed%s." % (": " + detail if detail else "")
+    if outcome == TIME_LIMIT and detail:   # the client's note says it all: "Stopped at the time limit: ..."
+        return detail
     return "Run did not complete: %s." % (detail or PHRASES.get(outcome, "unknown outcome %s" % outcome)).rstrip(".")
