@@ -305,7 +305,9 @@ def print_summary(run_dir, run, cwd):
     with open(os.path.join(run_dir, "report.txt"), encoding="utf-8") as f:
         first = f.readline().strip()
     say(first)
-    if run["outcome"] != "completed" and run["outcome"] in HINTS:
+    if "no testbed was started" in run.get("detail", ""):
+        say("hint: fix the line named above and run it again (nothing ran)")
+    elif run["outcome"] != "completed" and run["outcome"] in HINTS:
         say("hint: " + HINTS[run["outcome"]])
     elif run["exit_code"]:   # completed, and then the script failed or was stopped
         say("the experiment completed, %s (exit code %d)" % (run["detail"], run["exit_code"]))

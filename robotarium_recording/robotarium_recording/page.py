@@ -62,14 +62,16 @@ def _settings(run, numbers, bag):
     info = (run.get("runs") or [{}])[-1] if run.get("runs") else {}
     settings = numbers["settings"] if numbers else {}
     config = numbers["config"] if numbers else None
-    rows.append(("run id", html.escape(settings.get("run_id") or info.get("run_id") or run.get("run_id") or "?")))
+    run_id = settings.get("run_id") or info.get("run_id") or run.get("run_id")
+    rows.append(("run id", html.escape(run_id) if run_id else "none: no experiment ran on a testbed"))
     if run.get("script"):
         name = os.path.basename(run["script"])
         rows.append(("script", _link(name) + " (run from %s)" % html.escape(run["script"])))
     if run.get("started"):
         rows.append(("started", html.escape(run["started"])))
-    mode = settings.get("mode") or ({True: "realtime", False: "lockstep"}.get(info.get("real_time")) or "?")
-    rows.append(("mode", html.escape(mode)))
+    mode = settings.get("mode") or {True: "realtime", False: "lockstep"}.get(info.get("real_time"))
+    if mode:
+        rows.append(("mode", html.escape(mode)))
     robots = numbers["number_of_robots"] if numbers else info.get("number_of_robots")
     if robots:
         rows.append(("robots", str(robots)))
