@@ -34,6 +34,17 @@ SCRIPT_GRACE = 5.0
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
+def seed_type(text):
+    """--seed: a whole number 0 .. 2**32 - 1 (the StartExperiment request's uint32)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError("must be a whole number; received %r" % text) from None
+    if not 0 <= value < 2**32:
+        raise argparse.ArgumentTypeError("must be between 0 and %d; received %d" % (2**32 - 1, value))
+    return value
+
+
 def say(text):
     print("[robotarium] %s" % text, file=sys.stderr, flush=True)
 
@@ -108,11 +119,12 @@ def cmd_up(args):
         return 1
     interruption = Interruption()
     testbed = LocalTestbed(record=not args.no_record, quiet=False, bags_dir=args.bags_dir,
-                           config_file=args.config).start()
+                           config_file=args.config, hardware=args.hardware).start()
     try:
-        say("testbed up in namespace %s on ROS_DOMAIN_ID %s (simulator, safety%s). It runs as long as this "
-            "command does: Ctrl-C (or SIGTERM, SIGHUP) stops it." % (ns, os.environ.get("ROS_DOMAIN_ID", "0"),
-                                                                   "" if args.no_record else ", recorder"))
+        say("testbed up in namespace %s on ROS_DOMAIN_ID %s (simulator%s, safety%s). It runs as long as this "
+            "command does: Ctrl-C (or SIGTERM, SIGHUP) stops it." % (
+                ns, os.environ.get("ROS_DOMAIN_ID", "0"), " hardware-like" if args.hardware else "",
+                "" if args.no_record else ", recorder"))
         while interruption.signum is None:
             failed = testbed.failed()
             if failed:
@@ -318,7 +330,7 @@ def print_summary(run_dir, run, cwd):
 
 
 def run_script(script, script_args=(), real_time=None, record=True, bags_dir=None, results=True, video=True,
-               local_testbed=True, config_file=None, time_limit=None, results_dir=None):
+               local_testbed=True, config_file=None, time_limit=None, results_dir=None, hardware=False, seed=0):
     """Run an experiment script against the testbed (starting one here if none answers and
     `local_testbed` allows it). Whatever happens, the run folder gets the log, the report, the
     results page and run.json (with the plot and the video when the run was recorded here); a
@@ -358,13 +370,13 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
     interruption = Interruption()
     try:
         return _run_script(script, script_args, real_time, record, bags_dir, results, video, local_testbed,
-                           config_file, time_limit, interruption, results_dir, started_at)
+                           config_file, time_limit, hardware, seed, interruption, results_dir, started_at)
     finally:
         interruption.restore()
 
 
 def _run_script(script, script_args, real_time, record, bags_dir, results, video, local_testbed, config_file,
-                time_limit, interruption, results_dir, started_at):
+                time_limit, hardware, seed, interruption, results_dir, started_at):
     from robotarium_core import outcomes
     ns = namespace()
     testbed = None
@@ -386,7 +398,8 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
     # The testbed is up (found or started above): the script waits for it, never starts another.
     options = session.RunOptions(real_time=real_time, local_testbed=False, namespace=ns, experiment_name=name,
                                  progress_interval=session.progress_from_environment(10.0), time_limit=time_limit,
-                                 config_file=os.path.abspath(config_file) if config_file else None)
+                                 config_file=os.path.abspath(config_file) if config_file else None,
+                                 hardware=hardware, seed=seed)
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
         env.setdefault("MPLBACKEND", "Agg")
@@ -484,7 +497,8 @@ def cmd_run(args):
     code, _, _ = run_script(args.script, args.script_args, real_time=real_time, record=not args.no_record,
                             bags_dir=args.bags_dir, video=not args.no_video,
                             local_testbed=not args.no_local_testbed, config_file=args.config,
-                            time_limit=args.time_limit, results_dir=args.results_dir)
+                            time_limit=args.time_limit, results_dir=args.results_dir, hardware=args.hardware,
+                            seed=args.seed)
     return code
 
 
@@ -672,6 +686,9 @@ def main(argv=None):
     up.add_argument("--no-record", action="store_true", help="do not start the recorder")
     up.add_argument("--bags-dir", help="where runs are recorded (default: bags/)")
     up.add_argument("--config", help="the testbed configuration file (default: robotarium_core's testbed.yaml)")
+    up.add_argument("--hardware", action="store_true",
+                    help="run every experiment hardware-like: tracking and command latency, pose noise, wheel "
+                         "dynamics (the numbers: hardware section of testbed.yaml)")
     up.set_defaults(func=cmd_up)
 
     run = sub.add_parser("run", help="run a Robotarium script against the testbed", epilog=RUN_EPILOG,
@@ -686,6 +703,11 @@ def main(argv=None):
     run.add_argument("--time-limit", type=_seconds, metavar="S",
                      help="end the experiment after S seconds of testbed time, in real time and lockstep alike "
                           "(default: the testbed's time_limit, 900 s: the real Robotarium's 15-minute slot; 0: none)")
+    run.add_argument("--hardware", action="store_true",
+                     help="hardware-like: the real testbed's tracking and command latency, pose noise, wheel "
+                          "dynamics (the numbers: hardware section of testbed.yaml)")
+    run.add_argument("--seed", type=seed_type, default=0,
+                     help="seed of the hardware-like model (default: the testbed draws one; the report names it)")
     run.add_argument("--no-record", action="store_true", help="(local testbed only) do not record the run")
     run.add_argument("--no-video", action="store_true", help="skip rendering the video of the run")
     run.add_argument("--bags-dir", help="(local testbed only) where runs are recorded (default: bags/)")
@@ -739,7 +761,7 @@ def main(argv=None):
         # `./robotarium run script.py --lockstep` works too: our own flags may follow the script.
         own = {"--lockstep": ("mode", "lockstep"), "--real-time": ("mode", "real-time"),
                "--no-record": ("no_record", True), "--no-video": ("no_video", True),
-               "--no-local-testbed": ("no_local_testbed", True)}
+               "--no-local-testbed": ("no_local_testbed", True), "--hardware": ("hardware", True)}
         rest, given = [], iter(args.script_args)
         for arg in given:
             if arg in own:

@@ -22,6 +22,14 @@ The step's round trip is the hot path: commands are published and poses taken as
 (robotarium_core.cdr, no Python object per robot), and the node is spun by
 robotarium_core.executor.LeanExecutor (rclpy's default executor costs about half a millisecond
 of Python per message).
+
+Fresh poses in real time, as the real testbed's tracker gives them: step() returns the newest
+poses the testbed published after the command was sent, however long the script's loop took.
+step() takes every poses message its reader holds before sending (node_tools.take_waiting: the newest
+step known then), waits for a later one and again takes all that came: a script whose loop takes
+60 ms gets poses one tick old, not the 50 ticks (1.7 s) that reading the queued history one
+message per step handed it. Lockstep is untouched: one command, one step, the poses of exactly
+that step.
 """
 import atexit
 import os
@@ -95,8 +103,10 @@ class Robotarium(RobotariumABC):
 
     def _advance(self, velocities):
         if self.sim_in_real_time:
+            self._take_newest_poses()   # the newest step published before this command
+            known = max(self._last_step, self._latest.step if self._latest is not None else 0)
             self._send(velocities, 0)  # unnumbered: the simulator's 30 Hz timer applies it at its next tick
-            target = self._last_step + 1
+            target = known + 1
         else:
             self._send(velocities, self._iterations)
             target = self._iterations
@@ -140,7 +150,9 @@ class Robotarium(RobotariumABC):
                          "command_timeouts": response.command_timeouts, "real_time": self.sim_in_real_time,
                          "number_of_robots": self.number_of_robots,
                          "end_reason": response.end_reason, "dropped": dropped,
-                         "recording_stopped_at_step": self._recorder_lost_at}
+                         "recording_stopped_at_step": self._recorder_lost_at,
+                         "stale_pose_stops": response.stale_pose_stops, "hardware": response.hardware,
+                         "hardware_seed": response.hardware_seed}
         self._errors = {k: v for k, v in (("boundary", response.boundary_violations), ("collision", response.collisions),
                                           ("actuator", response.actuator_limit_iterations)) if v}
         return response.report
@@ -163,6 +175,9 @@ class Robotarium(RobotariumABC):
                 print("[robotarium] the testbed dropped command arrays on %s that were not this script's or not "
                       "valid: %s" % (name, ", ".join("%d %s" % (n, reason) for reason, n in counts.items() if n)),
                       file=sys.stderr)
+        if info["stale_pose_stops"]:
+            print("The safety node stopped the robots %d time(s) because the testbed's newest poses were older than "
+                  "its pose_timeout (an overloaded testbed machine?)." % info["stale_pose_stops"])
         if self._recorder_lost_at is not None:
             print("Run %s: recording stopped at step %d (the recorder is gone)%s" % (
                 info["run_id"], self._recorder_lost_at,
@@ -208,7 +223,8 @@ class Robotarium(RobotariumABC):
         self._latest = None
         self._run_id = None
         self._command_pub = self._node.create_publisher(TwistArray, CMD_REQUESTED, TESTBED_QOS)
-        self._node.create_subscription(RobotPoses, POSES, self._on_poses, TESTBED_QOS, raw=True)
+        self._poses_subscription = self._node.create_subscription(RobotPoses, POSES, self._on_poses, TESTBED_QOS,
+                                                                  raw=True)
         self._node.create_subscription(TestbedStatus, STATUS, self._on_status, TESTBED_QOS)
         # Made now, not at the first drawing: the recorder discovers it while the experiment starts.
         self._drawing_pub = self._node.create_publisher(String, DRAWING, DRAWING_QOS)
@@ -262,7 +278,8 @@ class Robotarium(RobotariumABC):
         from robotarium_msgs.srv import StartExperiment
         self._watch_testbed()
         request = StartExperiment.Request(name=self._options.experiment_name, number_of_robots=self.number_of_robots,
-                                          real_time=self.sim_in_real_time)
+                                          real_time=self.sim_in_real_time, hardware=bool(self._options.hardware),
+                                          seed=int(self._options.seed))
         request.x, request.y, request.theta = (row.tolist() for row in self.initial_conditions)
         response = self._call(self._start_client, request)
         if not response.success:
@@ -344,6 +361,12 @@ class Robotarium(RobotariumABC):
         if msg.run_id == self._run_id and msg.key == self._poses_key:
             self._latest = msg
 
+    def _take_newest_poses(self):
+        """Take every poses message the reader holds now (this run's newest ends up in _latest)."""
+        from robotarium_core.node_tools import take_waiting
+        for data in take_waiting(self._poses_subscription):
+            self._on_poses(data)
+
     def _send(self, velocities, step):
         v, w = velocities
         sec, nanosec = self._node.get_clock().now().seconds_nanoseconds()
@@ -366,6 +389,7 @@ class Robotarium(RobotariumABC):
                 "move without it)? Node logs are in log/testbed/<namespace>_<domain>_<pid>/ when ./robotarium started "
                 "the testbed (./robotarium status lists the testbeds of this machine)."
                 % (target, STEP_TIMEOUT))
+        self._take_newest_poses()   # a still newer one may have come meanwhile
         msg = self._latest
         self._last_step = msg.step
         return np.array([msg.x, msg.y, msg.theta])   # a copy: the message's arrays are views of its bytes

@@ -52,6 +52,10 @@ class RunOptions:
     time_limit: object = None
     # The testbed configuration file the run was started with (--config), None: the packaged one.
     config_file: object = None
+    # Ask for the hardware-like model (latency, noise, wheel dynamics) for this run.
+    hardware: bool = False
+    # Seed of the hardware-like model (0: the testbed draws one and the report names it).
+    seed: int = 0
 
     def to_json(self):
         return json.dumps(dataclasses.asdict(self))

@@ -98,10 +98,12 @@ class LocalTestbed:
     """Simulator, safety node and recorder in subprocesses, stopped together, and tied to this
     process by its lifeline."""
 
-    def __init__(self, log_dir=None, record=True, ns=None, bags_dir=None, quiet=True, config_file=None):
+    def __init__(self, log_dir=None, record=True, ns=None, bags_dir=None, quiet=True, config_file=None,
+                 hardware=False):
         self.ns = ns or namespace()
         self.config_file = config_file
         self.log_dir = log_dir   # None: log/testbed/<namespace>_<domain>_<pid>/, chosen at start
+        self.hardware = hardware   # every experiment hardware-like (the simulator's `hardware` parameter)
         self.names = ["simulator", "safety"] + (["recorder"] if record else [])
         self.bags_dir = bags_dir
         self.quiet = quiet
@@ -115,6 +117,8 @@ class LocalTestbed:
         env, pass_fds = lifeline.for_child(os.environ)
         for name in self.names:
             extra = ["-p", "bags_dir:=%s" % self.bags_dir] if name == "recorder" and self.bags_dir else []
+            if name == "simulator" and self.hardware:
+                extra = ["-p", "hardware:=true"]
             log = open(os.path.join(self.log_dir, name + ".log"), "wb") if self.quiet else None
             self.processes[name] = (subprocess.Popen(
                 node_command(name, self.ns, extra, self.config_file), stdout=log, stderr=subprocess.STDOUT if log else None,

@@ -27,6 +27,7 @@ class Field:
     low_open: bool = True     # low itself is not allowed (> low) unless False (>= low)
     used_by: tuple = (SIMULATOR, SAFETY)
     integer: bool = False
+    boolean: bool = False     # true/false rather than a number
 
 
 # name -> Field; the order is the YAML file's.
@@ -71,6 +72,41 @@ FIELDS = {
                          "while one subscribes", 0.0, 100.0, used_by=(SIMULATOR,)),
     "trail_length": Field("s of testbed time of each robot's trail in the viewers", 0.0, 600.0, low_open=False,
                           used_by=(SIMULATOR,)),
+    # the hardware-like mode (robotarium_sim.hardware); see testbed.yaml for each value's source
+    "hardware": Field("true: every experiment runs hardware-like (latency, noise, wheel dynamics)",
+                      used_by=(SIMULATOR,), boolean=True),
+    "tracking_latency": Field("s from the true pose to the published one (hardware-like mode)", 0.0, 1.0,
+                              low_open=False, used_by=(SIMULATOR,)),
+    "tracking_noise_position": Field("m, standard deviation of published x and y (hardware-like mode)", 0.0, 0.1,
+                                     low_open=False, used_by=(SIMULATOR,)),
+    "tracking_noise_heading": Field("rad, standard deviation of the published heading (hardware-like mode)", 0.0, 1.0,
+                                    low_open=False, used_by=(SIMULATOR,)),
+    "command_latency": Field("s from cmd_safe to the robot (hardware-like mode)", 0.0, 1.0, low_open=False,
+                             used_by=(SIMULATOR,)),
+    "command_jitter": Field("s, extra command latency drawn in [0, jitter] (hardware-like mode)", 0.0, 1.0,
+                            low_open=False, used_by=(SIMULATOR,)),
+    "robot_loop_period": Field("s, the robot's command loop, newest command wins (hardware-like mode)", 0.0, 1.0,
+                               used_by=(SIMULATOR,)),
+    "pid_period": Field("s, the wheel-speed PID loop (hardware-like mode)", 0.0, 1.0, used_by=(SIMULATOR,)),
+    "pid_kp": Field("PWM units per rad/s of speed error, each PID period (hardware-like mode)", 0.0, 1000.0,
+                    low_open=False, used_by=(SIMULATOR,)),
+    "pid_ki": Field("PWM units per rad of integrated speed error, each PID period (hardware-like mode)", 0.0,
+                    1000.0, low_open=False, used_by=(SIMULATOR,)),
+    "pwm_slew": Field("PWM units (of +-255) the motor command may change per PID period (hardware-like mode)", 0,
+                      510, used_by=(SIMULATOR,), integer=True),
+    "encoder_counts": Field("encoder counts per wheel turn (hardware-like mode)", 1, 10**7, low_open=False,
+                            used_by=(SIMULATOR,), integer=True),
+    "motor_free_speed": Field("rad/s of the wheel at PWM 255 (hardware-like mode)", 0.0, used_by=(SIMULATOR,)),
+    "motor_time_constant": Field("s, lag of wheel speed behind the PWM (hardware-like mode)", 0.0, 10.0,
+                                 low_open=False, used_by=(SIMULATOR,)),
+    "deadband_linear": Field("m/s below which (with omega below deadband_angular) the motors are off "
+                             "(hardware-like mode)", 0.0, 1.0, low_open=False, used_by=(SIMULATOR,)),
+    "deadband_angular": Field("rad/s, see deadband_linear (hardware-like mode)", 0.0, 10.0, low_open=False,
+                              used_by=(SIMULATOR,)),
+    "brake_timeout": Field("s without a new command before the robot brakes (hardware-like mode)", 0.0, 60.0,
+                           used_by=(SIMULATOR,)),
+    "wheel_radius_spread": Field("relative standard deviation of each wheel's radius: drift (hardware-like mode)",
+                                 0.0, 0.2, low_open=False, used_by=(SIMULATOR,)),
 }
 
 
@@ -86,6 +122,10 @@ def _check(name, value):
                 or not (value[0] < value[1] and value[2] < value[3])):
             raise ConfigError("%s must be [x_min, x_max, y_min, y_max] with min < max; received %r." % (name, value))
         return tuple(float(v) for v in value)
+    if field.boolean:
+        if not isinstance(value, bool):
+            raise ConfigError("%s must be true or false (%s); received %r." % (name, field.description, value))
+        return value
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise ConfigError("%s must be a finite number (%s); received %r." % (name, field.description, value))
     if field.integer and value != int(value):
@@ -129,6 +169,24 @@ class TestbedConfig:
     node_lease: float
     viewer_rate: float
     trail_length: float
+    hardware: bool
+    tracking_latency: float
+    tracking_noise_position: float
+    tracking_noise_heading: float
+    command_latency: float
+    command_jitter: float
+    robot_loop_period: float
+    pid_period: float
+    pid_kp: float
+    pid_ki: float
+    pwm_slew: int
+    encoder_counts: int
+    motor_free_speed: float
+    motor_time_constant: float
+    deadband_linear: float
+    deadband_angular: float
+    brake_timeout: float
+    wheel_radius_spread: float
 
     def __post_init__(self):
         for name in FIELDS:

@@ -223,13 +223,23 @@ NOT_COMPLETED = "The run did not complete, so there is no acceptance estimate.\n
 
 
 def debug_report(iterations, boundary_violations, collisions, actuator_limit_iterations, time_step=TIME_STEP,
-                 completed=True):
+                 completed=True, number_of_robots=None, real_testbed_max_robots=DEFAULT.real_testbed_max_robots,
+                 hardware_seed=None):
     """The text rps.Robotarium.call_at_scripts_end() prints, character for character, for a completed
-    run. A run that did not complete (an error, an interruption, no call_at_scripts_end) gets the
-    same counts but never the acceptance estimate: NOT_COMPLETED takes its place."""
+    ideal run of at most real_testbed_max_robots robots. A run that did not complete (an error, an
+    interruption, no call_at_scripts_end) gets the same counts but never the acceptance estimate:
+    NOT_COMPLETED takes its place. Beside the estimated duration it also says when the run used more
+    robots than the real Robotarium deploys, and that it ran hardware-like (hardware_seed: the seed
+    of robotarium_sim.hardware's model; None for the ideal testbed)."""
     lines = ["##### DEBUG OUTPUT #####\n",
              "Your simulation will take approximately {0} real seconds when deployed on the Robotarium. \n\n"
              .format(int(np.ceil(iterations * time_step)))]
+    if number_of_robots is not None and number_of_robots > real_testbed_max_robots:
+        lines.append("Your simulation uses {0} robots, but the real Robotarium deploys at most {1}: use {1} or fewer "
+                     "to run it there. \n\n".format(number_of_robots, real_testbed_max_robots))
+    if hardware_seed is not None:
+        lines.append("This run simulated the real testbed's hardware (tracking and command latency, pose noise, "
+                     "wheel dynamics; seed {0}). \n\n".format(hardware_seed))
     if boundary_violations or collisions or actuator_limit_iterations:
         if boundary_violations:
             lines.append("\t Simulation had {0} iteration(s) robots were outside the boundaries.\n\n"
@@ -273,11 +283,13 @@ class Testbed:
         self.actuator_limit_iterations = 0
         self.command_timeouts = 0
 
-    def set_commands(self, ids, v, w, now=0.0, requested_exceeds_limits=False):
+    def set_commands(self, ids, v, w, now=0.0, requested_exceeds_limits=False, offset=0.0):
         """Set (v, omega) for the robots `ids` (already checked with check_commands).
 
         requested_exceeds_limits: these commands were filtered from ones that exceed the actuator
         limits (the safety node says so); the iterations they are in force count as rps counts.
+        offset: seconds into the current step when they arrived; the ideal testbed applies every
+        command from the start of its next step (the hardware-like one sends it at that moment).
         """
         ids = np.asarray(ids, dtype=int)
         self.requested_exceeds_limits = bool(requested_exceeds_limits)
@@ -296,22 +308,34 @@ class Testbed:
 
     def step(self):
         """Advance one time step, as rps.Robotarium.step(): count, threshold, integrate."""
+        self._count()
+        self._move()
+        self.steps += 1
+
+    def _count(self):
+        """The debug report's errors, on the poses before the move and the commands in force."""
         self.boundary_violations += int(np.count_nonzero(outside_arena(self.poses, self.arena)))
         self.collisions += count_collisions(self.poses, self.robot_diameter)
         if is_actuator_limit_iteration(self.velocities, self.requested_exceeds_limits, **self.limits):
             self.actuator_limit_iterations += 1
+
+    def _move(self):
+        """Threshold the commands in force and integrate the unicycle over one time step."""
         v, w = threshold_keeping_arc(self.velocities, **self.limits)
         # Same expression order as rps so that runs agree bit for bit.
         self.poses[0, :] = self.poses[0, :] + self.time_step * np.cos(self.poses[2, :]) * v
         self.poses[1, :] = self.poses[1, :] + self.time_step * np.sin(self.poses[2, :]) * v
         self.poses[2, :] = self.poses[2, :] + self.time_step * w
         self.poses[2, :] = wrap_angle(self.poses[2, :])
-        self.steps += 1
 
     @property
     def sim_time(self):
         return self.steps * self.time_step
 
+    # The seed of the hardware-like model; None: the ideal testbed (the report names the mode).
+    seed = None
+
     def report(self, completed=True):
         return debug_report(self.steps, self.boundary_violations, self.collisions, self.actuator_limit_iterations,
-                            self.time_step, completed)
+                            self.time_step, completed, self.number_of_robots, self.config.real_testbed_max_robots,
+                            self.seed)

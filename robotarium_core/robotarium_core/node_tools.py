@@ -24,7 +24,9 @@ from robotarium_core.executor import LeanExecutor
 def _descriptor(description, value, low=-math.inf, high=math.inf, integer=False, read_only=True):
     """A ParameterDescriptor that `ros2 param describe` explains and that refuses values out of
     range, or any change at all where the node reads the value only at start-up (read_only)."""
-    if isinstance(value, (list, tuple)):
+    if isinstance(value, bool):
+        kind = ParameterType.PARAMETER_BOOL
+    elif isinstance(value, (list, tuple)):
         kind = ParameterType.PARAMETER_DOUBLE_ARRAY
     elif isinstance(value, str):
         kind = ParameterType.PARAMETER_STRING

@@ -48,7 +48,7 @@ def _run_settings(bag):
     running = [s for s in statuses if s.state == 1]
     if not running:
         return {"experiment": "", "run_id": "", "mode": "", "number_of_robots": 0, "final": None,
-                "outcome": outcomes.UNFINISHED, "detail": ""}
+                "outcome": outcomes.UNFINISHED, "detail": "", "hardware_seed": None}
     last_step = max(s.step for s in running)
     final = [s for s in running if s.step == last_step][-1]   # the simulator's last word: counters, end reason
     closing = [s for s in statuses if s.state == 0 and s.run_id == final.run_id]
@@ -57,8 +57,11 @@ def _run_settings(bag):
         detail = getattr(closing[-1], "outcome_detail", "")
     else:
         outcome, detail = outcomes.UNFINISHED, ""
+    # hardware-like runs name their seed (bags made before that mode existed have no such field)
+    hardware = bool(getattr(final, "hardware", False))
     return {"experiment": final.experiment, "run_id": final.run_id, "mode": final.mode,
-            "number_of_robots": int(final.number_of_robots), "final": final, "outcome": outcome, "detail": detail}
+            "number_of_robots": int(final.number_of_robots), "final": final, "outcome": outcome, "detail": detail,
+            "hardware_seed": int(final.hardware_seed) if hardware else None}
 
 
 def safety_interventions(bag, tolerance):
@@ -179,7 +182,8 @@ def recompute(bag, run=None):
               "actuator_limit_iterations": actuator, "number_of_robots": n, "settings": settings,
               "outcome": settings["outcome"], "completed": completed,
               "first_line": outcomes.first_line(settings["outcome"], settings["detail"]),
-              "report": model.debug_report(steps, boundary, collisions, actuator, config.time_step, completed),
+              "report": model.debug_report(steps, boundary, collisions, actuator, config.time_step, completed, n,
+                                           config.real_testbed_max_robots, settings["hardware_seed"]),
               "notes": notes, "config": config, "safety_interventions": interventions,
               "mismatches": [], "testbed": None}
     final = settings["final"]
@@ -190,6 +194,7 @@ def recompute(bag, run=None):
                    "command_timeouts": int(final.command_timeouts),
                    "commands_accepted": int(final.commands_accepted),
                    "safety_interventions": int(final.safety_interventions),
+                   "stale_pose_stops": int(getattr(final, "stale_pose_stops", 0)),
                    "dropped": _dropped(final), "end_reason": getattr(final, "end_reason", "")}
         result["testbed"] = testbed
         for key in ("iterations", "collisions", "boundary_violations", "actuator_limit_iterations"):
@@ -219,7 +224,9 @@ def report_text(bag, numbers):
              "##### RUN (recomputed from the recording) #####",
              "bag:          %s%s" % (bag.path, "" if bag.complete else "  (not closed: recorder stopped early; "
                                      "every complete chunk was read)"),
-             "experiment:   %s   run id: %s   mode: %s" % (s["experiment"] or "?", s["run_id"] or "?", s["mode"] or "?"),
+             "experiment:   %s   run id: %s   mode: %s%s" % (
+                 s["experiment"] or "?", s["run_id"] or "?", s["mode"] or "?",
+                 "" if s["hardware_seed"] is None else ", hardware-like (seed %d)" % s["hardware_seed"]),
              "robots:       %d" % numbers["number_of_robots"],
              "steps:        %d (%.2f s of simulated time; the recording spans %.2f s of wall time)"
              % (numbers["iterations"], numbers["iterations"] * numbers["config"].time_step, bag.duration_ns * 1e-9),
@@ -232,8 +239,8 @@ def report_text(bag, numbers):
         lines.append("cross-check:  %s" % ("collisions, boundary violations, actuator-limit iterations and steps "
                                           "agree with the testbed's counters" if not numbers["mismatches"]
                                           else "DIFFERS: " + "; ".join(numbers["mismatches"])))
-        lines.append("testbed:      %d command timeouts, %d command arrays accepted" % (
-            t["command_timeouts"], t["commands_accepted"]))
+        lines.append("testbed:      %d command timeouts, %d command arrays accepted, %d stops for stale poses" % (
+            t["command_timeouts"], t["commands_accepted"], t["stale_pose_stops"]))
         for name, counts in t["dropped"].items():
             lines.append("dropped:      %s: %s" % (name, ", ".join("%d %s" % (n, reason) for reason, n in counts.items()
                                                                  if n) or "none"))

@@ -37,6 +37,15 @@ have arrived (at most `lockstep_wait`). That keeps lockstep deterministic. Unnum
 
 Poses come in and cmd_safe goes out as CDR bytes read and written with numpy (robotarium_core.cdr):
 rclpy's message objects, one per robot for a Twist[], cost more than the barrier QP.
+
+Newest poses: before filtering a real-time command it takes every poses message its reader holds
+(node_tools.take_waiting), so a loaded node never filters with poses queued behind newer ones. A
+pose's age is counted from when it reached this node (no clock shared with the simulator is
+needed, and this node's own backlog never counts against the poses): late poses under load do not
+stop robots until they are older than `pose_timeout` (0.5 s, the command timeout: by then the
+simulator would stop the robots anyway). Each such stop is counted (SafetyReport
+STATUS_STOP_NO_POSES with its pose_age; the simulator's status counts them as stale_pose_stops)
+and logged: the first of a spell at once, then at most once a second, and the spell's end.
 """
 import sys
 import time
@@ -53,6 +62,8 @@ from robotarium_core.node_tools import declare_config, run_node, take_waiting
 from robotarium_core.topics import (CMD_REQUESTED, CMD_SAFE, COMMAND_INPUT_QOS, DEFAULT_NAMESPACE, POSES,
                                     SAFETY_ARM, SAFETY_REPORT, TESTBED_QOS, readers_matched,
                                     warn_on_incompatible_qos)
+
+STALE_LOG_INTERVAL = 1.0   # s between log lines while poses stay too old
 
 
 class SafetyNode(Node):
@@ -73,12 +84,15 @@ class SafetyNode(Node):
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
         self._dropped_reported = dict(self.dropped)
         self._logged = set()
+        self.stale_stops = 0         # commands turned into a stop because the newest poses were too old
+        self._stale_spell = None     # (first stop's time, stops so far, last log time) while poses stay old
 
         self.safe_pub = self.create_publisher(TwistArray, CMD_SAFE, TESTBED_QOS)
         self.report_pub = self.create_publisher(SafetyReport, SAFETY_REPORT, TESTBED_QOS)
+        # Poses first: the executor serves ready subscriptions in the order they were created.
+        self.poses_subscription = self.create_subscription(RobotPoses, POSES, self.on_poses, TESTBED_QOS, raw=True)
         self.requests = self.create_subscription(TwistArray, CMD_REQUESTED, self.on_requests, COMMAND_INPUT_QOS,
                                                  raw=True, event_callbacks=warn_on_incompatible_qos(self, CMD_REQUESTED))
-        self.create_subscription(RobotPoses, POSES, self.on_poses, TESTBED_QOS, raw=True)
         self.create_service(ArmSafety, SAFETY_ARM, self.on_arm)
         self.presence = presence.Presence(self, presence.alive_topic(presence.SAFETY), c.node_lease)
         self.create_timer(0.02, self.check_pending)
@@ -225,11 +239,21 @@ class SafetyNode(Node):
         report = SafetyReport(step=request.step)
         self.last_step = max(self.last_step, request.step)
 
-        # In lockstep (numbered commands) time stands still between steps: only real-time poses age.
-        stale = request.step == 0 and time.monotonic() - self.poses_time > self.config.pose_timeout
-        if self.poses is None or stale:
-            self.warn_once("no_poses", "no recent poses from the simulator: sending stop")
+        # In lockstep (numbered commands) time stands still between steps: only real-time poses age,
+        # and a real-time command is filtered with the newest poses that have come.
+        if request.step == 0:
+            for data in take_waiting(self.poses_subscription):
+                self.on_poses(data)
+        now = time.monotonic()
+        report.pose_age = now - self.poses_time if self.poses is not None else -1.0
+        if self.poses is None or (request.step == 0 and report.pose_age > self.config.pose_timeout):
+            self.note_stale_stop(now, report.pose_age)
             return self.send_stop(request, report, SafetyReport.STATUS_STOP_NO_POSES, started)
+        if self._stale_spell is not None:
+            first, stops, _ = self._stale_spell
+            self._stale_spell = None
+            self.get_logger().info("fresh poses again: %d command array(s) were stopped over %.1f s (%d in all)"
+                                   % (stops, now - first, self.stale_stops))
         n = self.poses.shape[1]
         problem = model.check_commands(ids, v, w, n)
         if problem is not None:
@@ -264,6 +288,22 @@ class SafetyNode(Node):
         report.max_change = float(change.max()) if n else 0.0
         report.robots_changed = int(np.count_nonzero(change.max(axis=0) > self.config.intervention_tolerance))
         self.publish(request, np.arange(n), safe[0], safe[1], report, started, over_limits)
+
+    def note_stale_stop(self, now, age):
+        """Count a stop for want of recent poses; log the first of a spell, then once a second."""
+        self.stale_stops += 1
+        what = ("no poses from the simulator yet" if age < 0 else
+                "the newest poses are %.2f s old (more than pose_timeout %.2f s)" % (age, self.config.pose_timeout))
+        if self._stale_spell is None:
+            self._stale_spell = (now, 1, now)
+            self.get_logger().warning("%s: sending stop (stop %d)" % (what, self.stale_stops))
+            return
+        first, stops, logged = self._stale_spell
+        if now - logged >= STALE_LOG_INTERVAL:
+            self.get_logger().warning("%s: still sending stops (%d in this spell, %d in all)"
+                                      % (what, stops + 1, self.stale_stops))
+            logged = now
+        self._stale_spell = (first, stops + 1, logged)
 
     def send_stop(self, request, report, status, started):
         # How far the stop is from what was asked: the largest finite requested speed.

@@ -33,6 +33,12 @@ safely when a message was lost before discovery completed (step 0 means "unnumbe
 
 Poses and pose_array go out as CDR bytes made with numpy (robotarium_core.cdr): rclpy's message
 objects, one per robot for a PoseArray, cost more than the whole step at N = 20.
+
+Either mode may be ideal (robotarium_core.model.Testbed, as rps) or hardware-like
+(robotarium_sim.hardware.HardwareTestbed: latency, pose noise, wheel dynamics), asked for per
+experiment (StartExperiment.hardware) or for all of them (`hardware: true` in the configuration).
+In real time a command goes into the hardware-like pipeline at the moment it arrived within the
+current tick; in lockstep at the start of its step, so a seed gives the same run bit for bit.
 """
 import array
 import hashlib
@@ -59,6 +65,7 @@ from robotarium_core.topics import (CMD_SAFE, COMMAND_INPUT_QOS, CONFIG, DEFAULT
                                     MARKERS, VIEWER_QOS,
                                     POSE_ARRAY, POSES, RECORDING, SAFETY_ARM, SAFETY_REPORT, START_EXPERIMENT, STATUS,
                                     TESTBED_QOS, warn_on_incompatible_qos)
+from robotarium_sim.hardware import HardwareTestbed
 
 SAFETY_WAIT = 10.0          # s a start waits for the safety node to answer (discovery is slow on a loaded machine)
 ARM_RESEND = 1.0            # s before an unanswered ArmSafety request is sent again
@@ -86,6 +93,8 @@ def copy_counters(testbed, target):
     target.boundary_violations = testbed.boundary_violations
     target.actuator_limit_iterations = testbed.actuator_limit_iterations
     target.command_timeouts = testbed.command_timeouts
+    target.hardware = testbed.seed is not None
+    target.hardware_seed = testbed.seed or 0
 
 
 STOPS = (SafetyReport.STATUS_STOP_NO_POSES, SafetyReport.STATUS_STOP_SOLVER_FAILED, SafetyReport.STATUS_STOP_BAD_INPUT)
@@ -108,12 +117,14 @@ class SimulatorNode(Node):
         self.recording = ""
         self.outcome, self.outcome_detail = TestbedStatus.OUTCOME_NONE, ""   # how the last experiment ended
         self.safety_interventions = 0
+        self.stale_pose_stops = 0
         self.commands_accepted = 0
         self.last_command_step = 0   # the testbed's step when the last command was applied
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
         self.dropped_requested = DropCounts()   # the safety node's, from its safety_report
         self._logged_drops = set()
         self._clock_start = 0.0
+        self._last_tick = 0.0
         self._tick_timer = None
         self._starting = False
         self.token = self.safety_key = self.poses_key = ""
@@ -175,7 +186,10 @@ class SimulatorNode(Node):
                 raise model.RobotariumError(
                     "initial conditions need x, y and theta of length %d each, or all empty for random ones; "
                     "received lengths %s." % (n, given))
-            testbed = model.Testbed(poses, c)
+            if request.hardware or c.hardware:
+                testbed = HardwareTestbed(poses, c, seed=request.seed or None)
+            else:
+                testbed = model.Testbed(poses, c)
         except model.RobotariumError as error:
             response.message = str(error)
             return response
@@ -202,12 +216,13 @@ class SimulatorNode(Node):
         self.end_reason = ""
         self.safety_interventions = 0
         self.outcome, self.outcome_detail = TestbedStatus.OUTCOME_NONE, ""
+        self.stale_pose_stops = 0
         self.commands_accepted = 0
         self.last_command_step = 0
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
         self.dropped_requested = DropCounts()
         self._logged_drops = set()
-        self._clock_start = time.monotonic()
+        self._clock_start = self._last_tick = time.monotonic()
         self.trails.reset()
         self.watch_client(run_id)
         if self.real_time:
@@ -221,8 +236,9 @@ class SimulatorNode(Node):
         response.client_alive_topic = self.client_watch.subscription.topic_name
         response.client_lease = c.client_lease
         response.x, response.y, response.theta = (to_float_array(row) for row in self.testbed.poses)
-        response.message = "started %s: %d robots, %s" % (
-            self.run_id, n, "real time at %g Hz" % c.rate if self.real_time else "lockstep")
+        response.message = "started %s: %d robots, %s%s" % (
+            self.run_id, n, "real time at %g Hz" % c.rate if self.real_time else "lockstep",
+            "" if self.testbed.seed is None else ", hardware-like (seed %d)" % self.testbed.seed)
         self.get_logger().info(response.message)
         return response
 
@@ -327,6 +343,7 @@ class SimulatorNode(Node):
         response.run_id = self.run_id
         response.steps = tb.steps
         copy_counters(tb, response)
+        response.stale_pose_stops = self.stale_pose_stops
         response.report = tb.report(completed=outcome == outcomes.COMPLETED)
         response.recording = self.recording
         response.end_reason = reason
@@ -377,8 +394,11 @@ class SimulatorNode(Node):
             return self.drop(problem, "step %d" % msg.step)
         self.commands_accepted += 1
         self.last_command_step = tb.steps + (0 if self.real_time else 1)
-        tb.set_commands(msg.ids, msg.v, msg.omega, now=time.monotonic(),
-                        requested_exceeds_limits=msg.requested_exceeds_limits)
+        now = time.monotonic()
+        # Real time: how far into the current tick it came (the hardware-like model sends it then).
+        offset = min(max(now - self._last_tick, 0.0), tb.time_step) if self.real_time else 0.0
+        tb.set_commands(msg.ids, msg.v, msg.omega, now=now, requested_exceeds_limits=msg.requested_exceeds_limits,
+                        offset=offset)
         if not self.real_time:
             tb.step()
             self.publish_state()
@@ -397,6 +417,8 @@ class SimulatorNode(Node):
             return
         if is_intervention(msg, self.config.intervention_tolerance):
             self.safety_interventions += 1
+        if msg.status == SafetyReport.STATUS_STOP_NO_POSES:
+            self.stale_pose_stops += 1
         self.dropped_requested = msg.dropped
 
     def on_recording(self, msg):
@@ -411,7 +433,8 @@ class SimulatorNode(Node):
         # Stamped with the tick's own time: the step's computation (and whatever preempts it) is
         # not the simulated world's, so the poses' stamps are as regular as the timer.
         now = self.get_clock().now()
-        tb.expire_commands(time.monotonic(), self.config.command_timeout)
+        self._last_tick = time.monotonic()
+        tb.expire_commands(self._last_tick, self.config.command_timeout)
         tb.step()
         self.publish_state(now)
 
@@ -459,6 +482,7 @@ class SimulatorNode(Node):
         if tb is not None:
             msg.poses_key_sha256, msg.safety_key_sha256 = self.key_hashes
         msg.outcome, msg.outcome_detail = self.outcome, self.outcome_detail
+        msg.stale_pose_stops = self.stale_pose_stops
         if tb is None:
             msg.state = TestbedStatus.STATE_IDLE
         else:
