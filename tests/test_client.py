@@ -110,6 +110,96 @@ def test_report_and_counts_come_from_the_testbed(testbed, capsys):
     assert counted == 120 and r._errors["actuator"] == counted
 
 
+def _age_of_newest_poses(r):
+    """Seconds since the simulator published the poses step() returned (same machine, same clock)."""
+    import time
+    stamp = r._latest.header.stamp
+    return time.time() - (stamp.sec + stamp.nanosec * 1e-9)
+
+
+def test_a_slow_real_time_loop_gets_fresh_poses(testbed):
+    # A script whose loop takes 60 ms (two testbed ticks). Reading the poses topic one queued
+    # message per step, it would trail the testbed by the 50 queued ticks (1.7 s) within seconds.
+    import time
+    r = robotarium(number_of_robots=1, sim_in_real_time=True, initial_conditions=np.array([[0.0], [0.0], [0.0]]))
+    ages, steps = [], []
+    for _ in range(75):
+        r.get_poses()
+        time.sleep(0.06)   # the script's work
+        r.set_velocities(np.arange(1), np.array([[0.02], [0.0]]))
+        r.step()
+        ages.append(_age_of_newest_poses(r))
+        steps.append(r._last_step)
+    r.call_at_scripts_end()
+    ticks_old = np.array(ages[5:]) / r.time_step
+    assert np.median(ticks_old) <= 2 and ticks_old.max() < 15, np.round(ticks_old, 1)
+    assert np.mean(np.diff(steps)) > 1.5   # each step() skips the ticks its loop missed: about 2 per loop
+
+
+def test_after_a_pause_the_next_step_shows_what_the_command_timeout_allowed(testbed):
+    # Drive at 0.1 m/s, then sleep 2 s: the robot drives 0.5 s (the command timeout) and stops;
+    # the poses after the next step() are the newest, so they show the whole 0.050 m.
+    import time
+    r = robotarium(number_of_robots=1, sim_in_real_time=True, initial_conditions=np.array([[0.0], [0.0], [0.0]]))
+    r.get_poses()
+    r.set_velocities(np.arange(1), np.array([[0.1], [0.0]]))
+    r.step()
+    time.sleep(2.0)
+    r.get_poses()
+    r.set_velocities(np.arange(1), np.array([[0.0], [0.0]]))
+    r.step()
+    moved = r.get_poses()[0, 0]
+    r.call_at_scripts_end()
+    assert abs(moved - 0.1 * 0.5) <= 0.1 * r.time_step + 1e-9, moved
+
+
+def test_hardware_like_lockstep_through_the_stack_is_repeatable(testbed, capsys, monkeypatch):
+    from robotarium_client import session
+    runs = []
+    for seed in (5, 5):
+        monkeypatch.setattr(session, "options", RunOptions(local_testbed=False, hardware=True, seed=seed))
+        r = robotarium(number_of_robots=3, initial_conditions=LINE.copy())
+        trace = []
+        for k in range(40):
+            trace.append(r.get_poses())
+            r.set_velocities(np.arange(3), np.array([[0.1, 0.05, 0.1], [0.5, -1.0, 0.0]]))
+            r.step()
+        r.call_at_scripts_end()
+        runs.append(np.array(trace))
+        assert r.run_info["hardware"] and r.run_info["hardware_seed"] == 5
+    assert np.array_equal(runs[0], runs[1])
+    out = capsys.readouterr().out
+    assert out.count("This run simulated the real testbed's hardware") == 2 and "seed 5" in out
+
+
+def test_hardware_like_in_real_time(testbed, capsys, monkeypatch):
+    # Commands enter the pipeline when they arrive within the tick; the robot lags the ideal one.
+    from robotarium_client import session
+    monkeypatch.setattr(session, "options", RunOptions(local_testbed=False, hardware=True))
+    r = robotarium(number_of_robots=1, sim_in_real_time=True, initial_conditions=np.array([[0.0], [0.0], [0.0]]))
+    for _ in range(45):
+        r.get_poses()
+        r.set_velocities(np.arange(1), np.array([[0.1], [0.0]]))
+        r.step()
+    moved = r.get_poses()[0, 0]
+    steps = r._last_step
+    r.call_at_scripts_end()
+    assert 0.05 < moved < 0.1 * steps * r.time_step, (moved, steps)
+    assert r.run_info["hardware"] and r.run_info["hardware_seed"] > 0
+    assert "seed %d" % r.run_info["hardware_seed"] in capsys.readouterr().out
+
+
+def test_the_report_says_when_more_robots_than_the_real_testbed_has(testbed, capsys):
+    np.random.seed(3)
+    r = robotarium(number_of_robots=21)
+    r.get_poses()
+    r.set_velocities(np.arange(21), np.zeros((2, 21)))
+    r.step()
+    r.call_at_scripts_end()
+    out = capsys.readouterr().out
+    assert "Your simulation uses 21 robots, but the real Robotarium deploys at most 20" in out
+
+
 @pytest.mark.parametrize("kwargs, words", [
     (dict(number_of_robots=2.5), "must be an integer"),
     (dict(number_of_robots=0), "between 1 and 50"),

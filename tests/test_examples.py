@@ -158,3 +158,26 @@ def test_a_guide_script_runs_unchanged_in_real_time(testbed):
     from robotarium_recording.bag import Bag
     poses = Bag(folder).poses()
     assert (poses.log_ns[-1] - poses.log_ns[0]) / 1e9 >= 0.95 * (poses.sim_time[-1] - poses.sim_time[0]) > 5
+
+
+def test_a_guide_script_runs_hardware_like(testbed):
+    """./robotarium run --hardware: the same script through the hardware-like model (latency, noise,
+    wheel dynamics), to its goal, with the report naming the mode and the seed."""
+    env, bags = testbed
+    script = os.path.join(REPO, "examples", "guide", "3_1_2_go_to_point_unicycle.py")
+    completed = run(env, os.path.join(REPO, "devtools", "run_seeded.py"), "--lockstep", "--hardware", "--seed", "3",
+                    "--no-video", "--", "1", script, timeout=240)
+    out = completed.stdout + completed.stderr
+    assert completed.returncode == 0, out
+    assert "This run simulated the real testbed's hardware (tracking and command latency, pose noise, wheel " \
+           "dynamics; seed 3)" in out, out
+    assert "robots collided" not in out and "outside the boundaries" not in out, out
+    folder = run_folder(bags, out)
+    with open(os.path.join(folder, "run.json")) as f:
+        info = json.load(f)
+    assert info["hardware"] is True and info["hardware_seed"] == 3
+    # the report recomputed from the bag names the mode too, and agrees with the testbed's counters
+    with open(os.path.join(folder, "report.txt")) as f:
+        report = f.read()
+    assert "hardware-like (seed 3)" in report and "seed 3)" in report.split("#####")[2], report
+    assert "agree with the testbed's counters" in report, report

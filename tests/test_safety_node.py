@@ -204,3 +204,52 @@ def test_first_commands_of_quick_starts_are_never_lost(stack):
         probe.call(EndExperiment, NS + "/end_experiment", EndExperiment.Request(token=started.token))
         assert first, "run %d: the first command of the run was lost" % run
         assert as_array(poses[-1])[0, 0] > -0.5, "run %d: the first step did not move robot 0" % run
+
+
+def test_late_poses_stop_robots_only_past_the_bound(stack):
+    """Poses late under load (here: the simulator frozen with SIGSTOP) do not stop the robots until
+    they are older than pose_timeout; then each command becomes a stop, counted and logged."""
+    import signal
+    import time
+
+    from robotarium_core.config import DEFAULT
+
+    nodes, probe = stack
+    status = probe.collect(TestbedStatus, NS + "/status")
+    reports = probe.collect(SafetyReport, NS + "/safety_report")
+    probe.wait_for_publishers()
+    started = start(probe, np.array([[-1.0, 0.0], [-0.5, 0.5], [0.0, 0.0]]), real_time=True)
+    requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
+    connected(probe, requests)
+
+    def ask():
+        """One command; the safety node's report on it."""
+        count = len(reports)
+        requests.publish(with_token(command([0, 1], [0.05, 0.05], [0.0, 0.0]), started))
+        assert probe.spin_until(lambda: len(reports) > count, 10), "no safety report"
+        return reports[-1]
+
+    def ask_while_frozen(seconds):
+        """Freeze the simulator (no poses), ask after `seconds`, thaw after the report came."""
+        assert probe.spin_until(lambda: ask().status == SafetyReport.STATUS_PASSTHROUGH, 10)   # fresh poses now
+        nodes["sim"].kill(signal.SIGSTOP)
+        try:
+            time.sleep(seconds)
+            return ask()
+        finally:
+            nodes["sim"].kill(signal.SIGCONT)
+
+    late = ask_while_frozen(0.5 * DEFAULT.pose_timeout)
+    assert late.pose_age >= 0.5 * DEFAULT.pose_timeout                     # the poses were late ...
+    assert late.status == SafetyReport.STATUS_PASSTHROUGH                   # ... but not too late: no stop
+    assert probe.spin_until(lambda: status and status[-1].step > 0, 10)
+    before, first = status[-1].stale_pose_stops, len(reports)
+
+    stale = ask_while_frozen(1.5 * DEFAULT.pose_timeout)
+    assert stale.status == SafetyReport.STATUS_STOP_NO_POSES and stale.pose_age > DEFAULT.pose_timeout
+    assert probe.spin_until(lambda: ask().status == SafetyReport.STATUS_PASSTHROUGH, 10)   # passing again
+    stops = sum(r.status == SafetyReport.STATUS_STOP_NO_POSES for r in reports[first:])
+    assert probe.spin_until(lambda: status[-1].stale_pose_stops - before == stops, 5), \
+        (status[-1].stale_pose_stops, before, stops)
+    log = nodes["safety"].output()
+    assert "more than pose_timeout" in log and "fresh poses again" in log, log

@@ -184,6 +184,40 @@ def test_lockstep_is_deterministic(testbed):
     assert np.abs(runs[0][-1] - LINE).max() > 0.05
 
 
+def test_hardware_like_lockstep_is_the_same_for_a_seed(tmp_path):
+    """`./robotarium up --hardware`: every experiment runs the hardware-like model; in lockstep a
+    seed gives the same run bit for bit, another seed another run, and neither is the ideal one."""
+    domain = unique_domain_id()
+    sim = NodeProcess("robotarium_sim.simulator_node", domain, ros_args=["-p", "hardware:=true"],
+                      log_path=tmp_path / "simulator.log")
+    probe = RosProbe(domain)
+    try:
+        safety = SafetyStandIn(probe)
+        poses = probe.collect(RobotPoses, NS + "/poses")
+        probe.wait_for_publishers()
+        rng = np.random.default_rng(0)
+        commands = [(rng.uniform(0.05, 0.15, 3), rng.uniform(-1, 1, 3)) for _ in range(60)]
+        runs = []
+        for seed in (7, 7, 8):
+            started = start(probe, n=3, poses=LINE, seed=seed)
+            assert started.success and "hardware-like (seed %d)" % seed in started.message, started.message
+            runs.append(run_lockstep(probe, safety, commands, poses))
+            ended = end(probe, started)
+            assert ended.hardware and ended.hardware_seed == seed and ended.steps == 60
+            assert "simulated the real testbed's hardware" in ended.report
+            poses.clear()
+        assert np.array_equal(runs[0], runs[1])
+        assert not np.array_equal(runs[0], runs[2])
+        ideal = model.Testbed(LINE)
+        for v, w in commands:
+            ideal.set_commands(range(3), v, w)
+            ideal.step()
+        assert np.abs(runs[0][-1, :2] - ideal.poses[:2]).max() > 0.005
+    finally:
+        probe.close()
+        sim.close()
+
+
 def test_bad_commands_are_dropped_counted_and_never_move_robots(testbed):
     _, probe, safety = testbed
     poses = probe.collect(RobotPoses, NS + "/poses")
