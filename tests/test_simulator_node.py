@@ -84,6 +84,18 @@ def test_start_and_end_round_trip(testbed):
     assert start(probe, n=2, name="after").success  # a new one may start once the old one ended
 
 
+def test_runs_of_one_name_in_one_second_get_their_own_run_ids(testbed):
+    # A client that took an earlier run's end (status, same run id) for its own would stop at once.
+    _, probe, _ = testbed
+    ids = []
+    for _ in range(3):
+        started = start(probe, n=1, poses=LINE[:, :1], name="quick")
+        assert started.success, started.message
+        ids.append(started.run_id)
+        assert end(probe, started).success
+    assert len(set(ids)) == 3 and all(i.startswith("quick_") for i in ids)
+
+
 def test_only_its_client_or_an_operator_ends_an_experiment(testbed):
     _, probe, _ = testbed
     response = start(probe, n=2, poses=LINE[:, :2])

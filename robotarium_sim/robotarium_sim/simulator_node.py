@@ -114,6 +114,7 @@ class SimulatorNode(Node):
         self.real_time = True
         self.experiment = ""
         self.run_id = ""
+        self._run_ids = set()   # every run id this simulator gave
         self.recording = ""
         self.outcome, self.outcome_detail = TestbedStatus.OUTCOME_NONE, ""   # how the last experiment ended
         self.safety_interventions = 0
@@ -194,7 +195,14 @@ class SimulatorNode(Node):
             response.message = str(error)
             return response
 
-        run_id = "%s_%s" % (name, time.strftime("%Y%m%d-%H%M%S"))
+        # Two runs of one name started within a second: the second is <name>_<time>_2 (a client must
+        # never take the end of an earlier run for its own, nor the recorder write both to one folder).
+        base = run_id = "%s_%s" % (name, time.strftime("%Y%m%d-%H%M%S"))
+        copies = 1
+        while run_id in self._run_ids:
+            copies += 1
+            run_id = "%s_%d" % (base, copies)
+        self._run_ids.add(run_id)
         token, safety_key, poses_key = (secrets.token_hex(16) for _ in range(3))
         self._starting = True
         try:
