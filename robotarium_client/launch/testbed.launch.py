@@ -1,0 +1,52 @@
+"""The Robotarium testbed under `ros2 launch`: the nodes `./robotarium up` starts, on a ROS install.
+
+    ros2 launch robotarium_client testbed.launch.py [namespace:=robotarium] [config:=FILE]
+                                                   [bags_dir:=DIR] [record:=true]
+
+Arguments (`ros2 launch robotarium_client testbed.launch.py --show-args` lists them):
+  namespace  the testbed's namespace (default robotarium; clients: ROBOTARIUM_NAMESPACE=/<namespace>)
+  config     the testbed configuration file the simulator and the safety node read (default: the
+             packaged share/robotarium_core/config/testbed.yaml; edit a copy to change a value)
+  bags_dir   where the recorder records each run (default: $ROBOTARIUM_ROOT/bags, else ./bags)
+  record     start the recorder (default true)
+
+Real time or lockstep is no launch argument: each experiment chooses it when it starts
+(StartExperiment.real_time, a script's sim_in_real_time, ./robotarium run --lockstep/--real-time).
+Ctrl-C (SIGINT to ros2 launch) stops the nodes the way ./robotarium up does: the simulator ends a
+running experiment, the recorder closes its bag.
+"""
+import os
+
+from ament_index_python.packages import get_package_share_directory
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument
+from launch.conditions import IfCondition
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+
+
+def generate_launch_description():
+    config = os.path.join(get_package_share_directory("robotarium_core"), "config", "testbed.yaml")
+    arguments = [
+        DeclareLaunchArgument("namespace", default_value="robotarium",
+                              description="namespace of the testbed's topics and services (clients: "
+                                          "ROBOTARIUM_NAMESPACE=/<namespace>)"),
+        DeclareLaunchArgument("config", default_value=config,
+                              description="testbed configuration file of the simulator and the safety node"),
+        DeclareLaunchArgument("bags_dir", default_value="",
+                              description="where runs are recorded (empty: $ROBOTARIUM_ROOT/bags, else ./bags)"),
+        DeclareLaunchArgument("record", default_value="true", choices=["true", "false"],
+                              description="start the recorder"),
+    ]
+    namespace = LaunchConfiguration("namespace")
+    parameters = [LaunchConfiguration("config")]
+    nodes = [
+        Node(package="robotarium_sim", executable="simulator", namespace=namespace, parameters=parameters,
+             output="screen", emulate_tty=True),
+        Node(package="robotarium_safety", executable="safety", namespace=namespace, parameters=parameters,
+             output="screen", emulate_tty=True),
+        Node(package="robotarium_recording", executable="recorder", namespace=namespace,
+             parameters=[{"bags_dir": LaunchConfiguration("bags_dir")}], output="screen", emulate_tty=True,
+             condition=IfCondition(LaunchConfiguration("record"))),
+    ]
+    return LaunchDescription(arguments + nodes)
