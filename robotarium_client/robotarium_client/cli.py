@@ -330,7 +330,8 @@ def print_summary(run_dir, run, cwd):
 
 
 def run_script(script, script_args=(), real_time=None, record=True, bags_dir=None, results=True, video=True,
-               local_testbed=True, config_file=None, time_limit=None, results_dir=None, hardware=False, seed=0):
+               local_testbed=True, config_file=None, time_limit=None, results_dir=None, hardware=False, seed=0,
+               rps_api=None):
     """Run an experiment script against the testbed (starting one here if none answers and
     `local_testbed` allows it). Whatever happens, the run folder gets the log, the report, the
     results page and run.json (with the plot and the video when the run was recorded here); a
@@ -370,13 +371,13 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
     interruption = Interruption()
     try:
         return _run_script(script, script_args, real_time, record, bags_dir, results, video, local_testbed,
-                           config_file, time_limit, hardware, seed, interruption, results_dir, started_at)
+                           config_file, time_limit, hardware, seed, interruption, results_dir, started_at, rps_api)
     finally:
         interruption.restore()
 
 
 def _run_script(script, script_args, real_time, record, bags_dir, results, video, local_testbed, config_file,
-                time_limit, hardware, seed, interruption, results_dir, started_at):
+                time_limit, hardware, seed, interruption, results_dir, started_at, rps_api=None):
     from robotarium_core import outcomes
     ns = namespace()
     testbed = None
@@ -399,7 +400,8 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
     options = session.RunOptions(real_time=real_time, local_testbed=False, namespace=ns, experiment_name=name,
                                  progress_interval=session.progress_from_environment(10.0), time_limit=time_limit,
                                  config_file=os.path.abspath(config_file) if config_file else None,
-                                 hardware=hardware, seed=seed)
+                                 hardware=hardware, seed=seed,
+                                 rps_api=rps_api or session.rps_api_from_environment())
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
         env.setdefault("MPLBACKEND", "Agg")
@@ -498,7 +500,7 @@ def cmd_run(args):
                             bags_dir=args.bags_dir, video=not args.no_video,
                             local_testbed=not args.no_local_testbed, config_file=args.config,
                             time_limit=args.time_limit, results_dir=args.results_dir, hardware=args.hardware,
-                            seed=args.seed)
+                            seed=args.seed, rps_api=args.rps)
     return code
 
 
@@ -717,6 +719,10 @@ def main(argv=None):
                                            "(default: results/)")
     run.add_argument("--no-local-testbed", action="store_true",
                      help="never start a testbed here: wait up to 60 s for one to answer (./robotarium up)")
+    run.add_argument("--rps", choices=session.RPS_APIS, default=None,
+                     help="the Robotarium API the script is written against: guide (rps 0.0.0, the user's guide), "
+                          "2 (the Robotarium simulator 2.x: sensors, obstacles, the drive-on phase, debug()) or auto "
+                          "(default, or ROBOTARIUM_RPS: 2 when the script uses something only 2.x has)")
     run.set_defaults(func=cmd_run)
 
     status = sub.add_parser("status", help="the testbeds on this machine, and the experiment running on this domain",

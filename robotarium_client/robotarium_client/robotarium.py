@@ -281,6 +281,7 @@ class Robotarium(RobotariumABC):
                                           real_time=self.sim_in_real_time, hardware=bool(self._options.hardware),
                                           seed=int(self._options.seed))
         request.x, request.y, request.theta = (row.tolist() for row in self.initial_conditions)
+        self._complete_start_request(request)
         response = self._call(self._start_client, request)
         if not response.success:
             incomplete = not self._watches["safety"].seen   # the testbed's fault, not the request's
@@ -309,6 +310,9 @@ class Robotarium(RobotariumABC):
         # Likewise a node is reported lost only once we saw it there: wait for the simulator's and
         # the safety node's first sign of life (moments; their presences assert every 0.17 s).
         self._spin_until(lambda: self._watches["simulator"].seen and self._watches["safety"].seen, STEP_TIMEOUT)
+
+    def _complete_start_request(self, request):
+        """What a subclass adds to the StartExperiment request (robotarium2: the 2.x API's fields)."""
 
     def _watch_testbed(self):
         """Follow the presence of the testbed's nodes (robotarium_core.presence), with the testbed's lease."""

@@ -50,11 +50,7 @@ class RobotariumABC(abc.ABC):
         self.current_file_size = 0
 
         if initial_conditions.size == 0:
-            # rps draws these in the script's process from numpy's global generator, so a script
-            # that seeds numpy gets the same start as on the Robotarium simulator.
-            from rps.utilities.misc import generate_initial_conditions
-            initial_conditions = generate_initial_conditions(self.number_of_robots, spacing=0.2, width=2.5,
-                                                             height=1.5)
+            initial_conditions = self._default_initial_conditions()
         self.initial_conditions = model.validate_initial_conditions(
             initial_conditions, self.number_of_robots, config.robot_diameter, config.arena)
         self.velocities = np.zeros((2, self.number_of_robots))
@@ -81,6 +77,13 @@ class RobotariumABC(abc.ABC):
         self.max_linear_velocity = config.max_linear_velocity
         self.max_angular_velocity = config.max_angular_velocity
         self.max_wheel_velocity = config.max_wheel_velocity
+
+    def _default_initial_conditions(self):
+        """Random initial conditions when the script gives none. rps draws these in the script's
+        process from numpy's global generator, so a script that seeds numpy gets the same start as
+        on the Robotarium simulator."""
+        from rps.utilities.misc import generate_initial_conditions
+        return generate_initial_conditions(self.number_of_robots, spacing=0.2, width=2.5, height=1.5)
 
     def _make_figure(self):
         """The arena figure (r.figure, r.axes) when show_figure is True; call once the poses are known.

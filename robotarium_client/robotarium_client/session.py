@@ -2,9 +2,10 @@
 
 `./robotarium run` starts the script through `robotarium_client.runner`, which sets `options`
 before the script's first line; a script started any other way (`python my_script.py`) gets the
-defaults below. Two user-facing environment variables are read here and nowhere else:
-ROBOTARIUM_NAMESPACE (which testbed: /robotarium by default) and ROBOTARIUM_PROGRESS (seconds
-between progress lines; 0: none).
+defaults below. Three user-facing environment variables are read here and nowhere else:
+ROBOTARIUM_NAMESPACE (which testbed: /robotarium by default), ROBOTARIUM_PROGRESS (seconds
+between progress lines; 0: none) and ROBOTARIUM_RPS (which Robotarium API: guide, 2 or auto; see
+robotarium_client.api_level).
 """
 import dataclasses
 import json
@@ -28,6 +29,17 @@ def progress_from_environment(default):
         raise RobotariumError("ROBOTARIUM_PROGRESS must be a number of seconds (0: no progress lines); "
                               "received %r." % value) from None
     return seconds if seconds > 0 and seconds != float("inf") else 0.0
+
+
+RPS_APIS = ("auto", "guide", "2")
+
+
+def rps_api_from_environment():
+    value = os.environ.get("ROBOTARIUM_RPS", "auto") or "auto"
+    if value not in RPS_APIS:
+        raise RobotariumError("ROBOTARIUM_RPS must be one of %s (the Robotarium API a script is written against); "
+                              "received %r." % (", ".join(RPS_APIS), value))
+    return value
 
 
 def experiment_name_of(path):
@@ -56,6 +68,8 @@ class RunOptions:
     hardware: bool = False
     # Seed of the hardware-like model (0: the testbed draws one and the report names it).
     seed: int = 0
+    # Which Robotarium API the script is written against: "guide", "2" or "auto" (api_level.decide).
+    rps_api: str = dataclasses.field(default_factory=rps_api_from_environment)
 
     def to_json(self):
         return json.dumps(dataclasses.asdict(self))

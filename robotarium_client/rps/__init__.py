@@ -13,3 +13,17 @@ that experiment scripts written for it run unchanged:
 `rps.robotarium.Robotarium` talks to the testbed over DDS; `rps.utilities` is the researcher's
 toolbox (plain numpy; only `misc` touches matplotlib).
 """
+import os as _os
+import sys as _sys
+
+from robotarium_client import api_level as _api_level
+from robotarium_client import session as _session
+
+# The guide's API or the simulator 2.x's, decided once, when a script first imports rps (see
+# robotarium_client.api_level). For 2.x, the 2.x modules (robotarium_client/rps2/) come first.
+API, API_REASON = _api_level.decide(_session.options.rps_api)
+if API == _api_level.V2:
+    import rps2 as _rps2
+    __path__.insert(0, _os.path.dirname(_rps2.__file__))
+    print("[robotarium] Robotarium simulator 2.x API: %s (./robotarium run --rps guide to change)" % API_REASON,
+          file=_sys.stderr)

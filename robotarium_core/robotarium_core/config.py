@@ -27,7 +27,8 @@ class Field:
     low_open: bool = True     # low itself is not allowed (> low) unless False (>= low)
     used_by: tuple = (SIMULATOR, SAFETY)
     integer: bool = False
-    boolean: bool = False     # true/false rather than a number
+    length: int = 0           # > 0: a list of this many numbers, each in [low, high]
+    boolean: bool = False     # true or false
 
 
 # name -> Field; the order is the YAML file's.
@@ -107,6 +108,54 @@ FIELDS = {
                            used_by=(SIMULATOR,)),
     "wheel_radius_spread": Field("relative standard deviation of each wheel's radius: drift (hardware-like mode)",
                                  0.0, 0.2, low_open=False, used_by=(SIMULATOR,)),
+    # -- the 2.x API (robotarium_core.rps2, robotarium_core.sensors) --
+    "obstacle_clearance": Field("m the safety node keeps between a robot's collider and an obstacle", 0.0, 0.5,
+                                low_open=False, used_by=(SAFETY,)),
+    "collision_diameter": Field("m; 2.x scripts: robots whose colliders are this close are too close", 0.0),
+    "collision_offset": Field("m ahead of the axle where the 2.x collider sits", 0.0, 0.1, low_open=False),
+    "distance_sensor_range": Field("m; a distance sensor ray that hits nothing nearer reads -1", 0.0,
+                                   used_by=(SIMULATOR,)),
+    "distance_sensor_error": Field("distance noise, standard deviation as a fraction of the distance", 0.0, 1.0,
+                                   low_open=False, used_by=(SIMULATOR,)),
+    "distance_sensor_dropout_prob": Field("probability that a hit reads -1", 0.0, 1.0, low_open=False,
+                                          used_by=(SIMULATOR,)),
+    "distance_sensor_outlier_prob": Field("probability that a hit reads uniform in [0, range]", 0.0, 1.0,
+                                          low_open=False, used_by=(SIMULATOR,)),
+    "distance_sensor_x": Field("m, x of the 7 distance sensors in the robot frame", -0.5, 0.5, used_by=(SIMULATOR,),
+                               length=7),
+    "distance_sensor_y": Field("m, y of the 7 distance sensors in the robot frame", -0.5, 0.5, used_by=(SIMULATOR,),
+                               length=7),
+    "distance_sensor_heading": Field("rad, heading of the 7 distance sensors in the robot frame", -4.0, 4.0,
+                                     used_by=(SIMULATOR,), length=7),
+    "distance_sensor_origin_offset": Field("m ahead of the axle where the sensor frame and ray-cast robot discs sit",
+                                           -0.1, 0.1, used_by=(SIMULATOR,)),
+    "distance_sensors_see_walls": Field("distance sensor rays stop at the arena's edges", used_by=(SIMULATOR,),
+                                        boolean=True),
+    "encoder_counts_per_revolution": Field("encoder counts per motor revolution", 0.0, used_by=(SIMULATOR,)),
+    "motor_gear_ratio": Field("motor revolutions per wheel revolution", 0.0, used_by=(SIMULATOR,)),
+    "encoder_noise_std": Field("counts per sqrt(count) of one step's travel", 0.0, low_open=False,
+                               used_by=(SIMULATOR,)),
+    "imu_position": Field("m, x and y of the IMU in the robot frame", -0.5, 0.5, used_by=(SIMULATOR,), length=2),
+    "accelerometer_noise_std": Field("m/s^2, x y z", 0.0, low_open=False, used_by=(SIMULATOR,), length=3),
+    "gyro_noise_std": Field("rad/s, x y z", 0.0, low_open=False, used_by=(SIMULATOR,), length=3),
+    "magnetometer_noise_std": Field("uT, x y z", 0.0, low_open=False, used_by=(SIMULATOR,), length=3),
+    "magnetometer_xy_field": Field("uT, horizontal magnetic field", used_by=(SIMULATOR,)),
+    "magnetometer_z_field": Field("uT, vertical magnetic field", used_by=(SIMULATOR,)),
+    "orientation_noise_std": Field("degrees, noise of the fused yaw", 0.0, low_open=False, used_by=(SIMULATOR,)),
+    "sensor_seed": Field("seed of the sensors' noise where an experiment brings none", 0, 2**31 - 1,
+                         low_open=False, used_by=(SIMULATOR,), integer=True),
+    "random_pose_spacing": Field("m between random 2.x initial conditions where N allows", 0.0, used_by=(CLIENT,)),
+    "random_pose_min_spacing": Field("m; random 2.x initial conditions are never closer", 0.0, used_by=(CLIENT,)),
+    "random_pose_area": Field("m, width and height of the box random 2.x initial conditions lie in", 0.0,
+                              used_by=(CLIENT,), length=2),
+    "charger_spacing": Field("m between the charger slots robots drive on from", 0.0, used_by=(CLIENT,)),
+    "drive_on_wave_margin": Field("m; a robot waits on its charger until those going deeper are this much past its goal",
+                                  0.0, used_by=(CLIENT,)),
+    "drive_on_position_error": Field("m; the drive-on phase ends when every robot is this close to its pose", 0.0,
+                                     used_by=(SIMULATOR,)),
+    "drive_on_rotation_error": Field("rad; ... and its heading this close", 0.0, used_by=(SIMULATOR,)),
+    "drive_on_max_steps": Field("steps before the drive-on phase gives up with an error", 1, 10**7,
+                                low_open=False, used_by=(CLIENT,), integer=True),
 }
 
 
@@ -126,6 +175,15 @@ def _check(name, value):
         if not isinstance(value, bool):
             raise ConfigError("%s must be true or false (%s); received %r." % (name, field.description, value))
         return value
+    if field.length:
+        if not isinstance(value, (list, tuple)) or len(value) != field.length:
+            raise ConfigError("%s must be a list of %d numbers (%s); received %r."
+                              % (name, field.length, field.description, value))
+        return tuple(_check_number(name, field, v) for v in value)
+    return _check_number(name, field, value)
+
+
+def _check_number(name, field, value):
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise ConfigError("%s must be a finite number (%s); received %r." % (name, field.description, value))
     if field.integer and value != int(value):
@@ -187,6 +245,38 @@ class TestbedConfig:
     deadband_angular: float
     brake_timeout: float
     wheel_radius_spread: float
+    # the 2.x API
+    obstacle_clearance: float
+    collision_diameter: float
+    collision_offset: float
+    distance_sensor_range: float
+    distance_sensor_error: float
+    distance_sensor_dropout_prob: float
+    distance_sensor_outlier_prob: float
+    distance_sensor_x: tuple
+    distance_sensor_y: tuple
+    distance_sensor_heading: tuple
+    distance_sensor_origin_offset: float
+    distance_sensors_see_walls: bool
+    encoder_counts_per_revolution: float
+    motor_gear_ratio: float
+    encoder_noise_std: float
+    imu_position: tuple
+    accelerometer_noise_std: tuple
+    gyro_noise_std: tuple
+    magnetometer_noise_std: tuple
+    magnetometer_xy_field: float
+    magnetometer_z_field: float
+    orientation_noise_std: float
+    sensor_seed: int
+    random_pose_spacing: float
+    random_pose_min_spacing: float
+    random_pose_area: tuple
+    charger_spacing: float
+    drive_on_wave_margin: float
+    drive_on_position_error: float
+    drive_on_rotation_error: float
+    drive_on_max_steps: int
 
     def __post_init__(self):
         for name in FIELDS:
@@ -203,6 +293,13 @@ class TestbedConfig:
         """rps's [x_min, y_min, width, height]."""
         x_min, x_max, y_min, y_max = self.arena
         return [x_min, y_min, x_max - x_min, y_max - y_min]
+
+    @property
+    def distance_sensor_poses(self):
+        """3 x 7: x, y and heading of each distance sensor in the robot frame (2.x
+        DISTANCE_SENSORS_ORIENTATION)."""
+        import numpy as np
+        return np.array([self.distance_sensor_x, self.distance_sensor_y, self.distance_sensor_heading])
 
     @property
     def limits(self):
@@ -256,9 +353,8 @@ class TestbedConfig:
             raise ConfigError("%s: %s" % (path, error)) from None
 
     def to_dict(self):
-        values = dataclasses.asdict(self)
-        values["arena"] = list(values["arena"])
-        return values
+        return {name: list(value) if isinstance(value, tuple) else value
+                for name, value in dataclasses.asdict(self).items()}
 
     def to_yaml(self):
         return yaml.safe_dump(self.to_dict(), sort_keys=False)

@@ -67,7 +67,7 @@ def declare_config(node, role=None):
         if role is not None and role not in field.used_by:
             continue
         default = getattr(DEFAULT, name)
-        default = list(default) if isinstance(default, tuple) else default
+        default = [float(v) for v in default] if isinstance(default, tuple) else default
         values[name] = declare_parameter(
             node, name, default, "%s (testbed configuration)" % field.description,
             low=field.low, high=field.high, integer=field.integer)

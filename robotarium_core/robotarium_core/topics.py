@@ -61,6 +61,9 @@ RECORDING = "recording"           # std_msgs/String: recorder -> simulator, wher
 CONFIG = "config"                 # std_msgs/String, latched: the running experiment's TestbedConfig as YAML
 SAFETY_ARM = "safety/arm"         # ArmSafety: simulator -> safety node, the experiment to guard and its secrets
 DRAWING = "drawing"               # std_msgs/String, JSON: client -> recorder, what the script drew on r.axes
+EXPERIMENT = "experiment"         # std_msgs/String, latched: the running experiment's settings as YAML (api, obstacles, ...)
+OBSTACLES = "obstacles"           # visualization_msgs/Marker, latched: the experiment's obstacles (LINE_LIST) for viewers
+SENSORS = "sensors"               # SensorReadings: simulator -> client, every step of a 2.x experiment
 START_EXPERIMENT = "start_experiment"
 END_EXPERIMENT = "end_experiment"
 

@@ -176,6 +176,16 @@ class ArenaFigure:
 
     # -- drawing -------------------------------------------------------------------------------------
 
+    def draw_obstacles(self, obstacles):
+        """A 2.x experiment's line-segment walls (M x 2 x 2), as 2.x draws them: thick grey lines
+        below the robots."""
+        from matplotlib.collections import LineCollection
+        segments = np.asarray(obstacles, dtype=float).reshape(-1, 2, 2)
+        if len(segments):
+            walls = LineCollection(segments, colors="0.5", linewidths=4, zorder=ROBOTS_ZORDER - 0.5)
+            self.axes.add_collection(walls, autolim=False)
+            self.own_artists.add(walls)
+
     def size_ids(self):
         """Ids ID_HEIGHT tall at the figure's present scale (digits are about 0.73 em tall)."""
         if self.ids is not None:

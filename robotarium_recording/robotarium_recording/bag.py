@@ -562,6 +562,16 @@ class Bag:
                 continue   # not ours: anything may publish on a topic
         return out
 
+    def experiment(self):
+        """The experiment's settings (the simulator's `experiment` topic: api, obstacles, drive-on
+        goals) as a dict; {} for a bag recorded before they travelled with runs."""
+        import yaml
+        name = self.topic("experiment", required=False)
+        if name not in self.topics:
+            return {}
+        texts = [msg.data for _, msg in self.decoded([name])]
+        return (yaml.safe_load(texts[-1]) or {}) if texts else {}
+
     def statuses(self):
         """Decoded TestbedStatus messages in recorded order."""
         name = self.topic("status", required=False)

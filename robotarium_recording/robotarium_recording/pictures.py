@@ -129,9 +129,10 @@ class Progress:
             print(file=sys.stderr, flush=True)
 
 
-def render_video(track, drawings, config, out_dir, title="", progress=True, fmt=None, name="run"):
+def render_video(track, drawings, config, out_dir, title="", progress=True, fmt=None, name="run", obstacles=()):
     """<out_dir>/<name>.mp4 (or .gif when fmt="gif" or no ffmpeg): one frame per step; a GIF has
-    every other step at half the rate. Returns the path, or None when there is nothing to show."""
+    every other step at half the rate; `obstacles`: a 2.x experiment's walls. Returns the path, or
+    None when there is nothing to show."""
     if not len(track.steps):
         return None
     ffmpeg = ffmpeg_path() if fmt != "gif" else None
@@ -140,6 +141,7 @@ def render_video(track, drawings, config, out_dir, title="", progress=True, fmt=
     frames = Frames(track, drawings, config, title, stride=1 if fmt == "mp4" else 2)
     first = np.vstack((track.x[0], track.y[0], track.theta[0]))
     arena_figure = ArenaFigure.offscreen(config.arena, config.robot_radius, first, *VIDEO_SIZE, dpi=VIDEO_DPI)
+    arena_figure.draw_obstacles(obstacles)
     painter = DrawingPainter(arena_figure.axes)
     blitter = Blitter(arena_figure, painter)
     meter = Progress(os.path.basename(path), len(frames), progress)
@@ -171,13 +173,14 @@ def render_video(track, drawings, config, out_dir, title="", progress=True, fmt=
     return path
 
 
-def plot_trajectories(track, drawings, config, path, title=""):
+def plot_trajectories(track, drawings, config, path, title="", obstacles=()):
     """trajectories.png: each robot's path in its colour, its start (open circle and id) and its end
     (the robot with its id), over the script's final drawing (faded)."""
     if not len(track.steps):
         return None
     last = np.vstack((track.x[-1], track.y[-1], track.theta[-1]))
     arena_figure = ArenaFigure.offscreen(config.arena, config.robot_radius, last, *PLOT_SIZE, dpi=PLOT_DPI)
+    arena_figure.draw_obstacles(obstacles)
     ax = arena_figure.axes
     state = DrawingState()
     for message in sorted(drawings, key=lambda m: m.get("step", 0)):

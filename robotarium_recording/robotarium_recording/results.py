@@ -30,7 +30,7 @@ import sys
 
 import numpy as np
 
-from robotarium_core import model, outcomes
+from robotarium_core import model, outcomes, rps2
 from robotarium_recording.bag import Bag
 
 STOP_STATUSES = (2, 3, 4)   # SafetyReport.STATUS_STOP_NO_POSES, _SOLVER_FAILED, _BAD_INPUT (the message's constants)
@@ -150,6 +150,9 @@ def recompute(bag, run=None):
     if missing:
         notes.append("poses of %d step(s) are missing from the bag (first: step %d); they are not counted."
                      % (len(missing), missing[0]))
+    experiment = bag.experiment()
+    if experiment.get("api") == rps2.API:
+        return _recompute_2x(bag, settings, config, track, n, steps, by_step, notes, experiment, run)
     collisions = boundary = 0
     for s in range(steps):
         if s in by_step:
@@ -173,19 +176,76 @@ def recompute(bag, run=None):
             notes.append("%d valid command arrays on cmd_safe for %d steps: the bag is missing commands "
                          "(recorder started late or was killed?)." % (applied, steps))
 
+    completed = _add_outcome(settings, run)
+    return _cross_check(bag, {
+        "iterations": steps, "collisions": collisions, "boundary_violations": boundary,
+        "actuator_limit_iterations": actuator, "number_of_robots": n, "settings": settings,
+        "report": model.debug_report(steps, boundary, collisions, actuator, config.time_step, completed, n,
+                                     config.real_testbed_max_robots, settings["hardware_seed"]),
+        "notes": notes, "config": config, "mismatches": [], "testbed": None})
+
+
+def _add_outcome(settings, run):
+    """How the run ended, in `settings`: the testbed's word, else (a testbed lost mid-run) the
+    client's (run.json). Returns whether it completed."""
     if run is not None and settings["outcome"] == outcomes.UNFINISHED and run.get("outcome") in NAMES:
-        # The testbed never heard how the run ended (it was lost): the client's word for it.
         settings["outcome"], settings["detail"] = NAMES[run["outcome"]], run.get("detail", "")
-    completed = settings["outcome"] == outcomes.COMPLETED
-    interventions = safety_interventions(bag, config.intervention_tolerance)
-    result = {"iterations": steps, "collisions": collisions, "boundary_violations": boundary,
-              "actuator_limit_iterations": actuator, "number_of_robots": n, "settings": settings,
-              "outcome": settings["outcome"], "completed": completed,
-              "first_line": outcomes.first_line(settings["outcome"], settings["detail"]),
-              "report": model.debug_report(steps, boundary, collisions, actuator, config.time_step, completed, n,
-                                           config.real_testbed_max_robots, settings["hardware_seed"]),
-              "notes": notes, "config": config, "safety_interventions": interventions,
-              "mismatches": [], "testbed": None}
+    return settings["outcome"] == outcomes.COMPLETED
+
+
+def _recompute_2x(bag, settings, config, track, n, steps, by_step, notes, experiment, run=None):
+    """As recompute, for a 2.x experiment: 2.x's rules (robotarium_core.rps2.Testbed2), nothing
+    counted before the drive-on phase ended."""
+    obstacles = rps2.check_obstacles(experiment.get("obstacles"))
+    goals = experiment.get("drive_on_goals")
+    done_at = -1
+    if goals is not None:
+        done_at = None
+        goals = np.array(goals, dtype=float)
+        for s in range(1, steps + 1):
+            if s in by_step:
+                i = by_step[s]
+                if rps2.at_pose(np.vstack((track.x[i], track.y[i], track.theta[i])), goals,
+                                config.drive_on_position_error, config.drive_on_rotation_error)[0]:
+                    done_at = s
+                    break
+        if done_at is None:
+            notes.append("the robots never reached their initial conditions: the drive-on phase did not end.")
+            done_at = steps
+    too_close = outside = hits = actuator = 0
+    for s in range(done_at + 1, steps):
+        if s in by_step:
+            i = by_step[s]
+            poses = np.vstack((track.x[i], track.y[i], track.theta[i]))
+            too_close += rps2.count_too_close(poses, config.collision_diameter, config.collision_offset)
+            outside += int(np.any(model.outside_arena(poses, config.arena)))
+            hits += rps2.count_obstacle_hits(poses, obstacles, config.collision_diameter, config.collision_offset)
+    if settings["mode"] == "realtime":
+        ticks = [int(track.stamp_ns[by_step[s]]) for s in range(1, steps + 1) if s in by_step]
+        in_force = _commands_in_force_realtime(bag.commands("cmd_safe"), n, ticks, config.command_timeout)
+    else:
+        in_force = _commands_in_force_lockstep(bag.commands("cmd_safe"), n, steps)
+    for step, (velocities, requested_over) in enumerate(in_force, start=1):
+        if step - 1 > done_at:   # step k moves from the poses of step k - 1
+            actuator += bool(requested_over or rps2.exceeds_wheel_limit(velocities, config))
+    result = {"iterations": steps, "collisions": too_close, "boundary_violations": outside,
+              "actuator_limit_iterations": actuator, "obstacle_collisions": hits, "number_of_robots": n,
+              "settings": settings, "notes": notes, "config": config, "mismatches": [], "testbed": None,
+              "report": rps2.debug_report(steps, too_close, outside, actuator, hits, config.time_step,
+                                          _add_outcome(settings, run))}
+    if goals is not None:
+        notes.append("2.x experiment: the drive-on phase took steps 1-%d (counted in the duration, not judged)"
+                     % (done_at + 1))
+    return _cross_check(bag, result)
+
+
+def _cross_check(bag, result):
+    """Add how the run ended, the safety interventions and the testbed's own counters (with any
+    difference from the recomputed ones) to `result`."""
+    settings, notes = result["settings"], result["notes"]
+    result["outcome"], result["completed"] = settings["outcome"], settings["outcome"] == outcomes.COMPLETED
+    result["first_line"] = outcomes.first_line(settings["outcome"], settings["detail"])
+    result["safety_interventions"] = safety_interventions(bag, result["config"].intervention_tolerance)
     final = settings["final"]
     if final is not None:
         testbed = {"iterations": int(final.step), "collisions": int(final.collisions),
@@ -284,12 +344,15 @@ def write_results(bag_dir, progress=True, *, out_dir=None, video=True, run=None)
     with open(paths["report"], "w", encoding="utf-8") as f:
         f.write(report_text(bag, numbers))
     track, drawings, config = bag.poses(), bag.drawings(), numbers["config"]
+    obstacles = bag.experiment().get("obstacles") or ()
     title = numbers["settings"]["run_id"] or bag.name
-    plot = pictures.plot_trajectories(track, drawings, config, os.path.join(out_dir, "trajectories.png"), title)
+    plot = pictures.plot_trajectories(track, drawings, config, os.path.join(out_dir, "trajectories.png"), title,
+                                     obstacles)
     if plot:
         paths["trajectories"] = plot
     if video:
-        movie = pictures.render_video(track, drawings, config, out_dir, title, progress=progress)
+        movie = pictures.render_video(track, drawings, config, out_dir, title, progress=progress,
+                                      obstacles=obstacles)
         if movie:
             paths["video"] = movie
     paths["page"] = page.write_page(out_dir, run=run, numbers=numbers, bag=bag)

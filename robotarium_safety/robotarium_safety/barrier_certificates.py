@@ -525,7 +525,12 @@ def _unicycle_function(where, barrier_gain, unsafe_barrier_gain, safety_radius, 
         points = x[:2] + distance * np.stack([c, s])
         dxi = np.stack([c * dxu[0] - distance * s * dxu[1], s * dxu[0] + distance * c * dxu[1]])
         rows = None if guard is None else guard.rows(x, c, s, guard.speed_bound)
-        safe, unchanged = core(dxi, points, None if guard is None else guard.qp_rows(rows, c, s))
+        qp_rows = None if guard is None else guard.qp_rows(rows, c, s)
+        if qp_rows is not None and len(f.obstacles):   # line-segment obstacles: see obstacle_rows below
+            n = x.shape[1]
+            qp_rows = _join_robot_rows(qp_rows, obstacle_rows(x, c, s, f.obstacles, distance, f.obstacle_offset,
+                                                              f.obstacle_radius, gain, 4 * n + 2 * n * n + 2))
+        safe, unchanged = core(dxi, points, qp_rows)
         if unchanged and np.all(np.abs(dxu[1]) <= ANGULAR_VELOCITY_LIMIT):
             answer = dxu   # the request was safe and within the limits: return it exactly
         else:
@@ -541,6 +546,8 @@ def _unicycle_function(where, barrier_gain, unsafe_barrier_gain, safety_radius, 
         return answer
 
     f.info = core.info
+    f.obstacles = np.zeros((0, 2, 2))   # the safety node's certificate only: see obstacle_rows
+    f.obstacle_offset, f.obstacle_radius = 0.0, 0.0
     return f
 
 
@@ -805,3 +812,49 @@ create_si_barrier_certificate = create_single_integrator_barrier_certificate
 create_si_barrier_certificate_with_boundary = create_single_integrator_barrier_certificate_with_boundary
 create_uni_barrier_certificate = create_unicycle_barrier_certificate
 create_uni_barrier_certificate_with_boundary = create_unicycle_barrier_certificate_with_boundary
+
+
+# ---------------------------------------------------------------------------------------------
+# Line-segment obstacles (2.x experiments; the safety node's certificate only). Kept apart from the
+# pair and boundary rows above: the safety node sets f.obstacles (M x 2 x 2 segments),
+# f.obstacle_offset (m ahead of the axle where the robot's collider sits) and f.obstacle_radius
+# (m the collider's centre keeps from every segment) on the function that
+# create_unicycle_barrier_certificate_with_centre_boundary returns.
+#
+# The collider's centre c = (x, y) + a n (n = (cos t, sin t), a = offset) moves at
+# v n + a w n_perp; with the QP's variable u (the velocity of the point l = projection_distance
+# ahead: v = n.u, w = n_perp.u / l) that is M u with M = n n' + (a / l) n_perp n_perp'. With q the
+# segment's point nearest c, e = c - q and h = |e|^2 - R^2, the row
+#     2 e' M u >= -g h^3      (lower bound clipped at 0: a robot already too close may not get closer)
+# is the cubic barrier on the distance to the segment (as the pair rows), linear in u and satisfied
+# by u = 0, so the QP stays feasible. Rows of segments farther than R + OBSTACLE_REACH are left out.
+
+OBSTACLE_REACH = 0.3   # m beyond the kept distance where a segment's row is posed
+
+
+def _join_robot_rows(a, b):
+    return tuple(np.concatenate([x, y]) for x, y in zip(a, b))
+
+
+def obstacle_rows(x, c, s, segments, projection_distance, offset, radius, gain, key_base):
+    """Robot rows (robot, key, coefficients, lower, upper) keeping colliders off the segments."""
+    m = len(segments)
+    centres = np.stack([x[0] + offset * c, x[1] + offset * s], axis=1)                  # N x 2
+    a, b = segments[None, :, 0, :], segments[None, :, 1, :]
+    ab = b - a
+    length2 = np.einsum("ijk,ijk->ij", ab, ab)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(length2 > 0, np.einsum("ijk,ijk->ij", centres[:, None, :] - a, ab) / length2, 0.0)
+    e = centres[:, None, :] - (a + np.clip(t, 0.0, 1.0)[..., None] * ab)                # N x M x 2
+    d2 = np.einsum("ijk,ijk->ij", e, e)
+    robot, segment = np.nonzero(d2 < (radius + OBSTACLE_REACH) ** 2)
+    e = e[robot, segment]
+    h = d2[robot, segment] - radius ** 2
+    nc, ns = c[robot], s[robot]
+    ratio = offset / projection_distance
+    # M e with M = n n' + ratio n_perp n_perp', n_perp = (-sin, cos)
+    along = nc * e[:, 0] + ns * e[:, 1]
+    across = -ns * e[:, 0] + nc * e[:, 1]
+    coef = 2 * np.stack([nc * along - ratio * ns * across, ns * along + ratio * nc * across], axis=1)
+    lower = np.minimum(-gain * h ** 3, 0.0)
+    return (robot.astype(np.intp), key_base + robot * m + segment, coef, lower, np.full(len(robot), np.inf))

@@ -52,15 +52,16 @@ import time
 from collections import deque
 
 import numpy as np
+import yaml
 from rclpy.node import Node
 
 from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, TwistArray
 from robotarium_msgs.srv import ArmSafety
 from robotarium_safety.barrier_certificates import create_unicycle_barrier_certificate_with_centre_boundary
-from robotarium_core import cdr, model, presence
+from robotarium_core import cdr, model, presence, rps2
 from robotarium_core.node_tools import declare_config, run_node, take_waiting
-from robotarium_core.topics import (CMD_REQUESTED, CMD_SAFE, COMMAND_INPUT_QOS, DEFAULT_NAMESPACE, POSES,
-                                    SAFETY_ARM, SAFETY_REPORT, TESTBED_QOS, readers_matched,
+from robotarium_core.topics import (CMD_REQUESTED, CMD_SAFE, COMMAND_INPUT_QOS, DEFAULT_NAMESPACE, EXPERIMENT, LATCHED,
+                                    POSES, SAFETY_ARM, SAFETY_REPORT, TESTBED_QOS, readers_matched,
                                     warn_on_incompatible_qos)
 
 STALE_LOG_INTERVAL = 1.0   # s between log lines while poses stay too old
@@ -95,6 +96,10 @@ class SafetyNode(Node):
                                                  raw=True, event_callbacks=warn_on_incompatible_qos(self, CMD_REQUESTED))
         self.create_service(ArmSafety, SAFETY_ARM, self.on_arm)
         self.presence = presence.Presence(self, presence.alive_topic(presence.SAFETY), c.node_lease)
+        # 2.x experiments (the simulator's `experiment` settings): obstacles to keep robots off, and
+        # 2.x's rule for the actuator-limit flag.
+        self.api, self.obstacles, self.drive_on_goals = "", np.zeros((0, 2, 2)), None
+        self.create_subscription(String, EXPERIMENT, self.on_experiment, LATCHED)
         self.create_timer(0.02, self.check_pending)
         self.create_timer(1.0, self.report_drops)
         self.get_logger().info(
@@ -110,6 +115,7 @@ class SafetyNode(Node):
             return response
         self.armed = request
         n = request.number_of_robots if request.run_id else 0
+        self.use_experiment_settings({})   # until this run's settings arrive (on_experiment)
         self.poses, self.poses_step, self.poses_time = None, -1, -np.inf
         self.commands = np.zeros((2, n))   # nobody has a command yet
         self.pending = None
@@ -156,10 +162,44 @@ class SafetyNode(Node):
         self.poses = np.array([msg.x, msg.y, msg.theta])
         self.poses_step = msg.step
         self.poses_time = time.monotonic()
+        self.check_drive_on()
         if self.pending is not None and self.poses_step >= self.pending[0].step - 1:
             request, _ = self.pending
             self.pending = None
             self.filter(request)
+
+    def on_experiment(self, msg):
+        try:
+            settings = yaml.safe_load(msg.data) or {}
+            settings["obstacles"] = rps2.check_obstacles(settings.get("obstacles"))
+        except (yaml.YAMLError, ValueError, AttributeError) as error:
+            self.get_logger().warning("ignored experiment settings I cannot read: %s" % error)
+            return
+        if settings.get("run_id") and settings.get("run_id") == self.armed.run_id:
+            self.use_experiment_settings(settings)
+
+    def use_experiment_settings(self, settings):
+        c = self.config
+        self.api = settings.get("api") or ""
+        self.obstacles = settings.get("obstacles", np.zeros((0, 2, 2)))
+        goals = settings.get("drive_on_goals")
+        # Obstacles belong to the experiment proper: robots driving on from the chargers ignore
+        # them (as the testbed's counting does), else an enclosure could never be entered.
+        self.drive_on_goals = None if goals is None else np.array(goals, dtype=float)
+        self.certificate.obstacles = self.obstacles if self.drive_on_goals is None else np.zeros((0, 2, 2))
+        self.certificate.obstacle_offset = c.collision_offset
+        self.certificate.obstacle_radius = c.collision_diameter / 2 + c.obstacle_clearance
+        if len(self.obstacles):
+            self.get_logger().info("keeping robots off %d obstacle(s)%s" % (
+                len(self.obstacles), " once they have driven on" if self.drive_on_goals is not None else ""))
+
+    def check_drive_on(self):
+        """The drive-on phase ends when the poses reach its goals (the simulator's rule)."""
+        goals = self.drive_on_goals
+        if goals is not None and goals.shape == self.poses.shape and rps2.at_pose(
+                self.poses, goals, self.config.drive_on_position_error, self.config.drive_on_rotation_error)[0]:
+            self.drive_on_goals = None
+            self.certificate.obstacles = self.obstacles
 
     def on_requests(self, data):
         """Everything waiting on cmd_requested at once (node_tools.take_waiting): foreign arrays are
@@ -263,7 +303,10 @@ class SafetyNode(Node):
 
         self.commands[0, ids] = v
         self.commands[1, ids] = w
-        over_limits = model.exceeds_actuator_limits(self.commands, **self.config.limits)
+        if self.api == rps2.API:
+            over_limits = rps2.exceeds_wheel_limit(self.commands, self.config)
+        else:
+            over_limits = model.exceeds_actuator_limits(self.commands, **self.config.limits)
         # What the robots would drive: beyond the limits, scaled to them along the commanded arc.
         requested = model.threshold_keeping_arc(self.commands, **self.config.limits)
         safe = self.certificate(requested, self.poses)

@@ -12,6 +12,9 @@ Topics (relative to the node's namespace, /robotarium by default):
                                                     trails (robotarium_core.markers), at `viewer_rate` Hz
                                                     while someone listens (RViz, Foxglove: frame `arena`)
   status          robotarium_msgs/TestbedStatus out: every step, and once a second while idle or in lockstep
+  sensors         robotarium_msgs/SensorReadings out: every step of a 2.x experiment (robotarium_core.sensors)
+  experiment      std_msgs/String (latched)    out: the experiment's settings as YAML (api, obstacles, drive-on goals)
+  obstacles       visualization_msgs/Marker (latched) out: the experiment's obstacles as a LINE_LIST, for viewers
 Services:
   start_experiment robotarium_msgs/StartExperiment, end_experiment robotarium_msgs/EndExperiment
 Calls: safety/arm robotarium_msgs/ArmSafety (at every start and end)
@@ -56,15 +59,15 @@ from rclpy.task import Future
 from visualization_msgs.msg import MarkerArray
 from std_msgs.msg import String
 
-from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, TestbedStatus, TwistArray
+from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, SensorReadings, TestbedStatus, TwistArray
 from robotarium_msgs.srv import ArmSafety, EndExperiment, StartExperiment
 
-from robotarium_core import cdr, markers, model, outcomes, presence, scene
+from robotarium_core import cdr, markers, model, outcomes, presence, rps2, scene
 from robotarium_core.node_tools import declare_config, run_node, take_waiting
-from robotarium_core.topics import (CMD_SAFE, COMMAND_INPUT_QOS, CONFIG, DEFAULT_NAMESPACE, END_EXPERIMENT, LATCHED,
-                                    MARKERS, VIEWER_QOS,
-                                    POSE_ARRAY, POSES, RECORDING, SAFETY_ARM, SAFETY_REPORT, START_EXPERIMENT, STATUS,
-                                    TESTBED_QOS, warn_on_incompatible_qos)
+from robotarium_core.topics import (CMD_SAFE, COMMAND_INPUT_QOS, CONFIG, DEFAULT_NAMESPACE, END_EXPERIMENT, EXPERIMENT,
+                                    LATCHED, MARKERS, OBSTACLES, POSE_ARRAY, POSES, RECORDING, SAFETY_ARM, SAFETY_REPORT,
+                                    SENSORS, START_EXPERIMENT, STATUS, TESTBED_QOS, VIEWER_QOS, warn_on_incompatible_qos)
+from robotarium_sim import rps2_io
 from robotarium_sim.hardware import HardwareTestbed
 
 SAFETY_WAIT = 10.0          # s a start waits for the safety node to answer (discovery is slow on a loaded machine)
@@ -141,6 +144,10 @@ class SimulatorNode(Node):
         self.status_pub = self.create_publisher(TestbedStatus, STATUS, TESTBED_QOS)
         # The configuration of the running experiment, for the recorder and the report.
         self.config_pub = self.create_publisher(String, CONFIG, LATCHED)
+        # The 2.x API's extras (robotarium_sim.rps2_io): sensors, the experiment's settings, obstacles.
+        self.sensors_pub = self.create_publisher(SensorReadings, SENSORS, TESTBED_QOS)
+        self.experiment_pub = self.create_publisher(String, EXPERIMENT, LATCHED)
+        self.obstacles_pub = rps2_io.obstacles_publisher(self, OBSTACLES, LATCHED)
         self.commands = self.create_subscription(TwistArray, CMD_SAFE, self.on_commands, COMMAND_INPUT_QOS, raw=True,
                                                  event_callbacks=warn_on_incompatible_qos(self, CMD_SAFE))
         self.create_subscription(SafetyReport, SAFETY_REPORT, self.on_safety_report, TESTBED_QOS)
@@ -187,7 +194,16 @@ class SimulatorNode(Node):
                 raise model.RobotariumError(
                     "initial conditions need x, y and theta of length %d each, or all empty for random ones; "
                     "received lengths %s." % (n, given))
-            if request.hardware or c.hardware:
+            if request.api and request.api != rps2.API:
+                raise model.RobotariumError("api must be '' (the guide's) or '%s' (2.x); received %r."
+                                            % (rps2.API, request.api))
+            if request.api == rps2.API and (request.hardware or c.hardware):
+                raise model.RobotariumError(
+                    "the hardware-like mode models the guide's API only, not the 2.x sensors and drive-on phase: "
+                    "run this 2.x script without --hardware, on a testbed started without --hardware.")
+            if request.api == rps2.API:
+                testbed = rps2_io.testbed_for(request, poses, c)
+            elif request.hardware or c.hardware:
                 testbed = HardwareTestbed(poses, c, seed=request.seed or None)
             else:
                 testbed = model.Testbed(poses, c)
@@ -236,7 +252,10 @@ class SimulatorNode(Node):
         if self.real_time:
             self._tick_timer = self.create_timer(1.0 / c.rate, self.tick)
         self.publish_state()
+        # After the first RUNNING status, so that the recorder keeps them in the run's bag.
         self.config_pub.publish(String(data=c.to_yaml()))
+        self.experiment_pub.publish(String(data=rps2_io.settings_yaml(self.run_id, request.api, self.testbed)))
+        rps2_io.publish_obstacles(self, self.obstacles_pub, self.testbed)
         response.success = True
         response.run_id = self.run_id
         response.token = token
@@ -352,6 +371,7 @@ class SimulatorNode(Node):
         response.steps = tb.steps
         copy_counters(tb, response)
         response.stale_pose_stops = self.stale_pose_stops
+        response.obstacle_collisions = getattr(tb, "obstacle_hits", 0)
         response.report = tb.report(completed=outcome == outcomes.COMPLETED)
         response.recording = self.recording
         response.end_reason = reason
@@ -454,6 +474,8 @@ class SimulatorNode(Node):
         self.poses_pub.publish(cdr.ROBOT_POSES.build(
             sec=sec, nanosec=nanosec, frame_id="arena", run_id=self.run_id, key=self.poses_key, step=tb.steps,
             sim_time=tb.sim_time, ids=np.arange(tb.number_of_robots), x=x, y=y, theta=theta))
+        if isinstance(tb, rps2.Testbed2):
+            self.sensors_pub.publish(rps2_io.sensor_readings(tb, self.run_id, now.to_msg()))
         if self.pose_array_pub.get_subscription_count() > 0:
             self.pose_array_pub.publish(cdr.POSE_ARRAY.build(sec=sec, nanosec=nanosec, frame_id="arena",
                                                              poses=cdr.planar_poses(x, y, theta)))

@@ -1,0 +1,288 @@
+"""The Robotarium of the Robotarium Python simulator 2.x (2.1.0, MIT licence), on the ROS 2 testbed.
+
+A subclass of the guide's Robotarium (robotarium.Robotarium, the DDS backend) that adds what 2.x
+scripts use, with 2.x's names, defaults and shapes:
+- keyword-only constructor: number_of_robots, show_figure (default False), sim_in_real_time,
+  initial_conditions (default: random poses, robotarium_core.rps2.random_poses),
+  use_distance_sensors, obstacles (M x 2 x 2 line segments), skip_initialization (default False:
+  the drive-on phase), show_arena_boundaries, show_robot_patches, show_distance_endpoints,
+  show_distance_rays, show_obstacles;
+- the class constants (TIME_STEP, BOUNDARIES = [x_min, x_max, y_min, y_max], ROBOT_DIAMETER, the
+  sensor numbers, ...), from the testbed's configuration;
+- the sensor getters, each returning the readings of the step whose poses get_poses() returns
+  (the simulator computes them: robotarium_core.sensors; they travel on <ns>/sensors);
+- debug(): ends the experiment and prints 2.x's report, which the simulator counts by 2.x's rules
+  (robotarium_core.rps2), plus where the run was recorded;
+- the drive-on phase (initialize): robots start on charger slots and drive to the initial
+  conditions with 2.x's hybrid pose controller and unicycle barrier certificate, through the
+  testbed's always-on safety node like any command; the testbed counts nothing until they are
+  there (its steps count in the duration, as in 2.x).
+
+Why the client drives on (and not the simulator): it is 2.x's own algorithm, run where 2.x runs
+it (2.x's Robotarium, i.e. the script's process, is "the algorithm we use to drive robots onto
+the testbed"), so a script that cannot reach its initial conditions fails here as it would be
+rejected there; its commands pass the always-on safety node like every other, so nothing bypasses
+the guard; lockstep and real time work as for the script's own steps; and the simulator needs no
+controller of its own, only the rule for when counting starts (the poses reach the goals), which
+it applies to the same poses the client sees.
+"""
+import numpy as np
+
+from robotarium_client import robotarium as backend
+from robotarium_core import model, rps2
+from robotarium_core.config import DEFAULT
+from robotarium_core.model import RobotariumError
+
+KEYWORDS = {
+    "number_of_robots": -1, "show_figure": False, "initial_conditions": np.array([]), "use_distance_sensors": False,
+    "obstacles": None, "sim_in_real_time": True, "skip_initialization": False, "show_arena_boundaries": True,
+    "show_robot_patches": True, "show_distance_endpoints": True, "show_distance_rays": False, "show_obstacles": True,
+}
+# 2.x's drive-on controller (rps/robotarium.py initialize()).
+DRIVE_ON_CONTROLLER = dict(angular_velocity_limit=np.pi / 3.0, position_epsilon=0.03, position_error=0.05,
+                           rotation_error=0.1)
+DEADLOCK_STEPS = 5 * 30        # steps without 10 cm of progress before a robot takes a detour
+DEADLOCK_DISTANCE = 0.1        # m
+DETOUR = 0.25                  # m, how far a detour waypoint may lie from where the robot is stuck
+DRIVE_ON_SI_RADIUS = 0.25      # m between points 5 cm ahead: 2.x's create_uni_barrier_certificate() default
+SENSOR_HISTORY = 200           # readings kept (by run and step) while waiting for their poses
+
+
+def constants(config):
+    """2.x's class constants from a testbed configuration."""
+    c = config
+    return dict(
+        TIME_STEP=c.time_step, MAX_LINEAR_VELOCITY=c.max_linear_velocity, ROBOT_DIAMETER=c.robot_diameter,
+        WHEEL_RADIUS=c.wheel_radius, BASE_LENGTH=c.base_length, COLLISION_DIAMETER=c.collision_diameter,
+        COLLISION_OFFSET=c.collision_offset, BOUNDARIES=np.array(c.arena), CENTER_OFFSET=c.distance_sensor_origin_offset,
+        DISTANCE_SENSOR_ERROR=c.distance_sensor_error, DISTANCE_SENSOR_DROPOUT_PROB=c.distance_sensor_dropout_prob,
+        DISTANCE_SENSOR_OUTLIER_PROB=c.distance_sensor_outlier_prob, DISTANCE_SENSOR_RANGE=c.distance_sensor_range,
+        DISTANCE_SENSORS_ORIENTATION=c.distance_sensor_poses,
+        ENCODER_COUNTS_PER_REVOLUTION=c.encoder_counts_per_revolution, MOTOR_GEAR_RATIO=c.motor_gear_ratio,
+        IMU_ORIENTATION=np.array([*c.imu_position, 0.0]), ENCODER_NOISE_STD=c.encoder_noise_std,
+        ACCELEROMETER_NOISE_STDS=np.array(c.accelerometer_noise_std), GYRO_NOISE_STDS=np.array(c.gyro_noise_std),
+        MAGNETOMETER_NOISE_STDS=np.array(c.magnetometer_noise_std), MAGNETOMETER_Z_AVG=c.magnetometer_z_field,
+        MAGNETOMETER_XY_AVG=c.magnetometer_xy_field, ORIENTATION_NOISE_STD=c.orientation_noise_std,
+        MAX_WHEEL_VELOCITY=c.max_wheel_velocity, MAX_ANGULAR_VELOCITY=c.max_angular_velocity)
+
+
+class Robotarium(backend.Robotarium):
+    """rps.robotarium.Robotarium of the Robotarium simulator 2.x."""
+
+    def __init__(self, **kwargs):
+        unknown = sorted(set(kwargs) - set(KEYWORDS))
+        if unknown:
+            raise TypeError("Robotarium() got unknown keyword argument(s) %s; the 2.x Robotarium takes %s."
+                            % (", ".join(unknown), ", ".join(KEYWORDS)))
+        a = dict(KEYWORDS, **kwargs)
+        # 2.x's type checks, with its messages.
+        for name, kind, what in (("number_of_robots", int, "NumberOfRobots"), ("show_figure", bool, "ShowFigure"),
+                                 ("sim_in_real_time", bool, "SimInRealTime"),
+                                 ("use_distance_sensors", bool, "UseDistanceSensors"),
+                                 ("initial_conditions", np.ndarray, "InitialConditions")):
+            value = a[name]
+            if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+                raise RobotariumError("%s must be %s. Received type %s." % (
+                    what, {int: "an integer", bool: "a boolean", np.ndarray: "a numpy ndarray"}[kind],
+                    type(value).__name__))
+        self.obstacles = rps2.check_obstacles(a["obstacles"])
+        self._use_distance_sensors = a["use_distance_sensors"]
+        self._skip_initialization = bool(a["skip_initialization"])
+        self.show_arena_boundaries = a["show_arena_boundaries"]
+        self.show_robot_patches = a["show_robot_patches"]
+        self.show_distance_endpoints = a["show_distance_endpoints"]
+        self.show_distance_rays = a["show_distance_rays"]
+        self.show_obstacles = a["show_obstacles"]
+        self.initializing = True
+        self._readings_by_step = {}
+        self._readings = None
+        super().__init__(a["number_of_robots"], a["show_figure"], a["sim_in_real_time"], a["initial_conditions"])
+        if not self._skip_initialization:
+            self.initialize(self.initial_conditions)
+        self.initializing = False
+
+    # -- the 2.x API -------------------------------------------------------------------------------
+
+    def debug(self):
+        """End the experiment and print 2.x's report (and where the run was recorded)."""
+        self.call_at_scripts_end()
+
+    def get_distances(self):
+        """7 x N distance readings in metres (-1: nothing within range or a dropout; NaN without
+        use_distance_sensors)."""
+        return self._reading("distances", (7, self.number_of_robots))
+
+    def get_distance_endpoints(self):
+        """2 x 7 x N points in the arena where each distance reading lands (NaN where it reads -1)."""
+        return self._reading("distance_endpoints", (2, 7, self.number_of_robots))
+
+    def get_encoders(self):
+        """2 x N int32 wheel encoder counts (left, right) since the experiment started."""
+        return self._reading("encoders", (2, self.number_of_robots), np.int32)
+
+    def get_accelerations(self):
+        """3 x N accelerometer readings in m/s^2 (x ahead, y left, z up; -9.81 on z at rest, as 2.x)."""
+        return self._reading("accelerations", (3, self.number_of_robots))
+
+    def get_gyros(self):
+        """3 x N gyroscope readings in rad/s."""
+        return self._reading("gyros", (3, self.number_of_robots))
+
+    def get_magnetic_fields(self):
+        """3 x N magnetometer readings in microtesla."""
+        return self._reading("magnetic_fields", (3, self.number_of_robots))
+
+    def get_orientations(self):
+        """N fused yaw readings in degrees, in [0, 360)."""
+        return self._reading("orientations", (self.number_of_robots,))
+
+    def robot_colormap(self):
+        import matplotlib.pyplot as plt
+        return plt.get_cmap("tab20")
+
+    # -- the drive-on phase ---------------------------------------------------------------------------
+
+    def initialize(self, initial_conditions):
+        """Drive from the charger slots to the initial conditions (2.x's algorithm; see the module)."""
+        from rps.utilities.barrier_certificates import create_uni_barrier_certificate
+        from rps.utilities.controllers import create_pose_controller_hybrid
+        n, c = self.number_of_robots, self.config
+        print("Initializing %d robots to initial conditions..." % n)
+        label = None
+        if self.show_figure:
+            label = self._axes_handle.text(0, -0.5, "...INITIALIZING...", fontsize=20, color="b",
+                                           fontweight="bold", ha="center", va="center", zorder=999)
+        barrier = create_uni_barrier_certificate(safety_radius=self._drive_on_si_radius(initial_conditions) - 0.1,
+                                                 projection_distance=0.05)
+        controller = create_pose_controller_hybrid(**DRIVE_ON_CONTROLLER)
+        detour_controller = probe = create_pose_controller_hybrid(**DRIVE_ON_CONTROLLER)  # stateless calls
+
+        def there(x):
+            return rps2.at_pose(x, initial_conditions, c.drive_on_position_error, c.drive_on_rotation_error)
+
+        x = self.get_poses()
+        start = x.copy()
+        self.step()
+        step, timers = 0, np.zeros(n, dtype=int)
+        last = x.copy()
+        detouring = np.zeros(n, dtype=bool)
+        detours = np.zeros((3, n))
+        while not there(x)[0]:
+            if step >= c.drive_on_max_steps:
+                away = np.flatnonzero(~there(x)[1]).tolist()
+                raise RobotariumError("The drive-on phase did not bring robots %s to their initial conditions within "
+                                      "%d steps; space the initial conditions further apart, or pass "
+                                      "skip_initialization=True." % (away, step))
+            x = self.get_poses()
+            arrived = there(x)[1]
+            # Robots going deep leave first (rps2.drive_on_waiting): a crowd never walls itself in.
+            waiting = rps2.drive_on_waiting(x, start, initial_conditions, arrived, c.drive_on_wave_margin)
+            timers[waiting] = step
+            dxu = controller(x, initial_conditions)
+            dxu[:, waiting] = 0.0
+            for i in np.flatnonzero(~arrived & ~waiting):
+                moved = np.linalg.norm(last[:2, i] - x[:2, i])
+                if detouring[i]:
+                    dxu[:, i] = detour_controller(x[:, i:i + 1], detours[:, i:i + 1], np.ones(1))[0][:, 0]
+                    if moved > DEADLOCK_DISTANCE:
+                        detouring[i] = False
+                    elif step - timers[i] > DEADLOCK_STEPS:
+                        detours[:, i], timers[i] = self._detour(x[:, i]), step
+                elif step - timers[i] > DEADLOCK_STEPS and moved < DEADLOCK_DISTANCE:
+                    detouring[i] = True
+                    detours[:, i], timers[i] = self._detour(x[:, i]), step
+                elif moved > DEADLOCK_DISTANCE or np.linalg.norm(
+                        probe(x[:, i:i + 1], initial_conditions[:, i:i + 1], np.ones(1))[0]) <= 0.1:
+                    timers[i] = step
+                    last[:, i] = x[:, i]
+            step += 1
+            self.set_velocities(np.arange(n), barrier(dxu, x))
+            self.step()
+        print("At initial conditions... Starting Experiment")
+        if label is not None:
+            label.remove()
+
+    def _detour(self, pose):
+        """A random waypoint within DETOUR of a stuck robot, inside the arena (2.x: a random pose
+        +-0.25 m around it, from numpy's global generator)."""
+        x_min, x_max, y_min, y_max = self.config.arena
+        margin = self.config.robot_diameter
+        return np.array([np.clip(pose[0] + np.random.uniform(-DETOUR, DETOUR), x_min + margin, x_max - margin),
+                         np.clip(pose[1] + np.random.uniform(-DETOUR, DETOUR), y_min + margin, y_max - margin),
+                         np.random.uniform(-np.pi, np.pi)])
+
+    def _drive_on_si_radius(self, goals):
+        """The drive-on barrier's distance between points 5 cm ahead: 2.x's 0.25 m, less where the
+        initial conditions themselves are closer (they must stay reachable); never less than the
+        testbed's safety node keeps, or the goals could never be reached (an error that says so)."""
+        n = goals.shape[1]
+        if n < 2:
+            return DRIVE_ON_SI_RADIUS
+        ahead = goals[:2] + 0.05 * np.stack([np.cos(goals[2]), np.sin(goals[2])])
+        i, j = model.robot_pairs(n)
+        gaps = np.hypot(ahead[0, i] - ahead[0, j], ahead[1, i] - ahead[1, j])
+        k = int(np.argmin(gaps))
+        kept = self.config.safety_radius + self.config.projection_distance
+        if gaps[k] - 0.01 < kept:
+            raise RobotariumError(
+                "initial_conditions put the points 5 cm ahead of robots %d and %d %.3f m apart; the testbed's safety "
+                "layer keeps them at least %.2f m apart, so the drive-on phase could never bring them there. Space "
+                "the initial conditions further apart, or pass skip_initialization=True." % (i[k], j[k], gaps[k], kept))
+        return min(DRIVE_ON_SI_RADIUS, gaps[k] - 0.01)
+
+    # -- hooks of the backend ---------------------------------------------------------------------------
+
+    def _use_config(self, config):
+        super()._use_config(config)
+        self.__dict__.update(constants(config))
+
+    def _default_initial_conditions(self):
+        return rps2.random_poses(self.number_of_robots, np.random, self.config)
+
+    def _complete_start_request(self, request):
+        request.api = rps2.API
+        request.obstacles = rps2.flatten_obstacles(self.obstacles)
+        request.use_distance_sensors = self._use_distance_sensors
+        request.sensor_seed = int(np.random.randint(1, 2 ** 31))   # 2.x's noise comes from the script's numpy
+        if not self._skip_initialization:
+            start = rps2.charger_slots(self.number_of_robots, np.random, self.config, goals=self.initial_conditions)
+            request.drive_on_x, request.drive_on_y, request.drive_on_theta = request.x, request.y, request.theta
+            request.x, request.y, request.theta = (row.tolist() for row in start)
+
+    def _connect(self):
+        super()._connect()
+        from robotarium_core.topics import SENSORS, TESTBED_QOS
+        from robotarium_msgs.msg import SensorReadings
+        self._node.create_subscription(SensorReadings, SENSORS, self._on_sensors, TESTBED_QOS)
+
+    def _on_sensors(self, msg):
+        self._readings_by_step[(msg.run_id, msg.step)] = msg
+        while len(self._readings_by_step) > SENSOR_HISTORY:
+            self._readings_by_step.pop(next(iter(self._readings_by_step)))
+
+    def _advance(self, velocities):
+        poses = super()._advance(velocities)
+        self._readings = None
+        return poses
+
+    def _reading(self, field, shape, dtype=float):
+        if self._readings is None:
+            key = (self._run_id, self._last_step)
+            if not self._spin_until(lambda: key in self._readings_by_step, backend.STEP_TIMEOUT):
+                raise RuntimeError("The testbed sent no sensor readings for step %d within %.0f s."
+                                   % (self._last_step, backend.STEP_TIMEOUT))
+            self._readings = self._readings_by_step[key]
+        return np.array(getattr(self._readings, field), dtype=dtype).reshape(shape)
+
+    def _make_figure(self):
+        if self.show_figure:
+            from robotarium_client.figure2 import ArenaFigure2
+            self._arena_figure = ArenaFigure2(self)
+            self.figure, self.axes = self._arena_figure.figure, self._arena_figure.axes
+            self._fig, self._axes_handle = self.figure, self.axes
+
+
+# 2.x's class constants (Robotarium.TIME_STEP, Robotarium.BOUNDARIES, ...), from the packaged
+# configuration; an instance carries the testbed's own (_use_config).
+for _name, _value in constants(DEFAULT).items():
+    setattr(Robotarium, _name, _value)

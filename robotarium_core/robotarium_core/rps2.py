@@ -1,0 +1,306 @@
+"""The testbed's side of the Robotarium simulator 2.x API: plain numpy, no ROS.
+
+Scripts written against the Robotarium Python simulator 2.1.0 (MIT licence; rps/robotarium.py,
+rps/robotarium_abc.py, rps/utilities/misc.py: read and written anew here) are judged by its rules,
+which differ from the guide's (rps 0.0.0, robotarium_core.model):
+- "too close": two robots whose colliders (discs of `collision_diameter` 0.135 m around the point
+  `collision_offset` 0.025 m ahead of the axle) are that close, counted per pair and step;
+- "outside boundaries": steps in which some robot's centre is outside the arena (not per robot);
+- actuator limits: steps in which a command as the script set it turns a wheel faster than the
+  limit (no clipping first); a warning, not an error;
+- nothing is counted during the drive-on phase, whose steps still count in the duration.
+Beyond 2.x (which draws obstacles and lets its sensors see them but never checks them): a step in
+which a robot's collider touches a line-segment obstacle counts as an error too.
+
+Also here: where the drive-on phase starts (charger slots) and random initial conditions, both
+without 2.1.0's limits (it samples 22 charger slots, so 23 or more robots always fail, and it
+draws random poses 0.5 m apart, which 18 or more robots never fit).
+"""
+import numpy as np
+
+from robotarium_core import model
+from robotarium_core.model import RobotariumError
+from robotarium_core.sensors import SensorModel
+
+API = "2"   # StartExperiment.api of a 2.x script's experiment
+
+
+# -- obstacles ----------------------------------------------------------------------------------
+
+def check_obstacles(obstacles, arena=model.ARENA):
+    """An M x 2 x 2 float array of line segments ([[x1, y1], [x2, y2]] each) from what a script
+    passed (None or empty: none), or a RobotariumError that says what is wrong."""
+    if obstacles is None:
+        return np.zeros((0, 2, 2))
+    try:
+        segments = np.array(obstacles, dtype=float)
+    except (TypeError, ValueError):
+        raise RobotariumError("obstacles must be an M x 2 x 2 numpy array of line segments [[x1, y1], [x2, y2]]; "
+                              "received %r." % (obstacles,)) from None
+    if segments.size == 0:
+        return np.zeros((0, 2, 2))
+    if segments.ndim != 3 or segments.shape[1:] != (2, 2):
+        raise RobotariumError("obstacles must be an M x 2 x 2 array of line segments [[x1, y1], [x2, y2]]; received "
+                              "an array of shape %s." % (segments.shape,))
+    if not np.all(np.isfinite(segments)):
+        raise RobotariumError("obstacles must be finite; obstacle(s) %s hold NaN or inf."
+                              % np.flatnonzero(~np.all(np.isfinite(segments), axis=(1, 2))).tolist())
+    return segments
+
+
+def flatten_obstacles(segments):
+    """M x 2 x 2 -> [x1, y1, x2, y2, ...] (StartExperiment.obstacles)."""
+    return np.asarray(segments, dtype=float).reshape(-1).tolist()
+
+
+def unflatten_obstacles(values):
+    values = np.asarray(values, dtype=float)
+    if values.size % 4:
+        raise RobotariumError("obstacles must hold 4 numbers (x1, y1, x2, y2) per segment; received %d numbers."
+                              % values.size)
+    return check_obstacles(values.reshape(-1, 2, 2))
+
+
+def point_segment_distances(points, segments):
+    """N x M distances from points (2 x N) to segments (M x 2 x 2)."""
+    p = np.asarray(points, dtype=float).T[:, None, :]            # N x 1 x 2
+    a, b = segments[None, :, 0, :], segments[None, :, 1, :]      # 1 x M x 2
+    ab = b - a
+    length2 = np.einsum("...k,...k->...", ab, ab)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(length2 > 0, np.einsum("...k,...k->...", p - a, ab) / length2, 0.0)
+    closest = a + np.clip(t, 0.0, 1.0)[..., None] * ab
+    return np.linalg.norm(p - closest, axis=-1)
+
+
+# -- validation as 2.x does it ----------------------------------------------------------------------
+
+def colliders(poses, offset):
+    """2 x N centres of the 2.x colliders, `offset` ahead of each axle."""
+    return poses[:2] + offset * np.stack([np.cos(poses[2]), np.sin(poses[2])])
+
+
+def count_too_close(poses, diameter, offset):
+    """Pairs of robots whose colliders are within `diameter` (2.x counts each pair)."""
+    c = colliders(poses, offset)
+    i, j = model.robot_pairs(poses.shape[1])
+    return int(np.count_nonzero(np.hypot(c[0, i] - c[0, j], c[1, i] - c[1, j]) <= diameter))
+
+
+def count_obstacle_hits(poses, segments, diameter, offset):
+    """Robots whose collider touches an obstacle segment."""
+    if len(segments) == 0:
+        return 0
+    distances = point_segment_distances(colliders(poses, offset), segments)
+    return int(np.count_nonzero(np.any(distances <= diameter / 2, axis=1)))
+
+
+def exceeds_wheel_limit(dxu, config):
+    """2.x's actuator check: some wheel of the command as set faster than the limit (no clipping)."""
+    wheels = model.unicycle_to_wheels(dxu, config.wheel_radius, config.base_length)
+    return bool(np.any(np.abs(wheels) > config.max_wheel_velocity))
+
+
+def at_pose(poses, goals, position_error, rotation_error):
+    """(all there, per robot mask) as 2.x's create_at_pose."""
+    near = np.linalg.norm(poses[:2] - goals[:2], axis=0) <= position_error
+    turned = np.abs(model.wrap_angle(poses[2] - goals[2])) <= rotation_error
+    mask = near & turned
+    return bool(np.all(mask)), mask
+
+
+def debug_report(iterations, too_close, outside, actuator, obstacle_hits=0, time_step=model.TIME_STEP,
+                 completed=True):
+    """The text 2.x's Robotarium.debug() prints, character for character, and our obstacle line. A
+    run that did not complete gets no verdict that it will run: model.NOT_COMPLETED instead."""
+    lines = ["Your simulation took approximately {0:.2f} real seconds to execute.\n\n".format(iterations * time_step)]
+    hard = too_close + outside + obstacle_hits
+    if hard == 0 and not completed:
+        if actuator:
+            lines.append("WARNING: {0} out of {1} (~{2:.0f}%) timesteps had velocity command(s) exceed actuator "
+                         "limits.\n\n".format(actuator, iterations, 100 * actuator / max(iterations, 1)))
+        lines.append(model.NOT_COMPLETED)
+    elif hard == 0 and actuator == 0:
+        lines.append("No errors or warnings in your simulation!  Your script will run on the Robotarium!\n\n")
+    elif hard == 0:
+        lines.append("No hard errors detected, your script will run on the Robotarium!\n\n")
+        lines.append("WARNING: {0} out of {1} (~{2:.0f}%) timesteps had velocity command(s) exceed actuator limits.\n"
+                     "         A large percentage of exceeded actuator commands will cause noticeable\n"
+                     "         differences between this simulation and the physical Robotarium.\n"
+                     .format(actuator, iterations, 100 * actuator / max(iterations, 1)))
+    else:
+        lines.append("Errors detected, your script will NOT run on the Robotarium!\n\n")
+        lines.append("Errors:\n")
+        if too_close:
+            lines.append("\t Simulation had {0} time steps where robots were too close (potential collision).\n"
+                         .format(too_close))
+        if outside:
+            lines.append("\t Simulation had {0} time steps where robots were outside boundaries.\n".format(outside))
+        if obstacle_hits:
+            lines.append("\t Simulation had {0} time steps where robots touched obstacles.\n".format(obstacle_hits))
+        lines.append("\nPlease fix the noted errors in your simulation; otherwise, your experiment will be rejected.\n")
+    return "".join(lines)
+
+
+class Testbed2(model.Testbed):
+    """model.Testbed judged by 2.x's rules, with obstacles, sensors and the drive-on phase.
+
+    drive_on_goals: 3 x N poses the drive-on phase drives to (None: no drive-on phase). Nothing is
+    counted while it lasts; it ends when the poses after a step are all at the goals (as 2.x's
+    at_pose with the configured errors), and counting starts one step later: 2.x's loop sees those
+    poses, steps once more, then starts the experiment.
+    """
+
+    def __init__(self, initial_poses, config=model.DEFAULT, obstacles=None, drive_on_goals=None,
+                 distance_sensors=False, rng=None):
+        super().__init__(initial_poses, config)
+        self.obstacles = check_obstacles(obstacles, config.arena)
+        self.obstacle_hits = 0
+        self.drive_on_goals = None if drive_on_goals is None else np.array(drive_on_goals, dtype=float)
+        self.drive_on_done_at = None if self.drive_on_goals is not None else -1   # step whose poses reached them
+        self.applied = np.zeros((2, self.number_of_robots))
+        rng = rng if rng is not None else np.random.default_rng(config.sensor_seed)
+        self.sensors = SensorModel(config, self.number_of_robots, rng, self.obstacles, distance_sensors)
+
+    @property
+    def initializing(self):
+        return self.drive_on_done_at is None or self.steps <= self.drive_on_done_at
+
+    def step(self):
+        counting = not self.initializing
+        if counting and self.steps == self.drive_on_done_at + 1 and self.drive_on_goals is not None:
+            self.sensors.zero_encoders()   # the experiment proper starts now
+        before, commands = self.poses.copy(), self.velocities.copy()
+        kept = (self.collisions, self.boundary_violations, self.actuator_limit_iterations)
+        super().step()
+        self.collisions, self.boundary_violations, self.actuator_limit_iterations = kept
+        if counting:
+            c = self.config
+            self.collisions += count_too_close(before, c.collision_diameter, c.collision_offset)
+            self.boundary_violations += int(np.any(model.outside_arena(before, c.arena)))
+            if self.requested_exceeds_limits or exceeds_wheel_limit(commands, c):
+                self.actuator_limit_iterations += 1
+            self.obstacle_hits += count_obstacle_hits(before, self.obstacles, c.collision_diameter,
+                                                      c.collision_offset)
+        self.applied = model.threshold_keeping_arc(commands, **self.limits)
+        self.sensors.step(self.poses, self.applied)
+        if self.drive_on_done_at is None and at_pose(self.poses, self.drive_on_goals,
+                                                     self.config.drive_on_position_error,
+                                                     self.config.drive_on_rotation_error)[0]:
+            self.drive_on_done_at = self.steps
+
+    def report(self, completed=True):
+        return debug_report(self.steps, self.collisions, self.boundary_violations, self.actuator_limit_iterations,
+                            self.obstacle_hits, self.time_step, completed)
+
+
+# -- where robots start ----------------------------------------------------------------------------------
+
+def charger_slots(number_of_robots, rng, config=model.DEFAULT, goals=None):
+    """3 x N poses on charger slots, facing into the arena: along the top and bottom edges (2.x: 11
+    slots per edge, a robot radius from it), and along the left and right edges too when N needs
+    more than those hold. Slots are `charger_spacing` apart, so no two robots start closer than the
+    testbed's safety layer allows. With goals (3 x N, where the robots will drive), each robot gets
+    the slot that makes the paths shortest in total (they seldom cross); without, slots are drawn at
+    random, as 2.x draws them."""
+    x_min, x_max, y_min, y_max = config.arena
+    width = x_max - x_min - config.robot_diameter
+    height = y_max - y_min - config.robot_diameter
+    cx, cy = (x_min + x_max) / 2, (y_min + y_max) / 2
+    spacing = config.charger_spacing
+    xs = cx + np.linspace(-width / 2, width / 2, int(np.floor(width / spacing)) + 1)
+    slots = [(x, cy - height / 2, np.pi / 2) for x in xs] + [(x, cy + height / 2, -np.pi / 2) for x in xs]
+    if number_of_robots > len(slots):   # the sides, clear of the corner slots
+        side = int(np.floor((height - 2 * spacing) / spacing)) + 1
+        ys = cy + np.linspace(-height / 2 + spacing, height / 2 - spacing, side)
+        slots += [(cx - width / 2, y, 0.0) for y in ys] + [(cx + width / 2, y, np.pi) for y in ys]
+    if number_of_robots > len(slots):
+        raise RobotariumError("%d robots do not fit on charger slots %.2f m apart around this arena."
+                              % (number_of_robots, spacing))
+    slots = np.array(slots, dtype=float)
+    if goals is None:
+        return slots[rng.choice(len(slots), number_of_robots, replace=False)].T
+    from scipy.optimize import linear_sum_assignment
+    goals = np.asarray(goals, dtype=float)
+    cost = np.hypot(goals[0][:, None] - slots[:, 0][None], goals[1][:, None] - slots[:, 1][None])
+    robots, chosen = linear_sum_assignment(cost)
+    return slots[chosen[np.argsort(robots)]].T
+
+
+def depth_into_arena(poses, start):
+    """How far each robot is in from its charger slot, along the direction the slot faces."""
+    return (poses[0] - start[0]) * np.cos(start[2]) + (poses[1] - start[1]) * np.sin(start[2])
+
+
+def drive_on_waiting(poses, start, goals, arrived, margin):
+    """Which robots wait on their chargers: those whose goal is shallower than a robot still on its
+    way to a deeper goal, until that robot has gone `margin` deeper than this goal (or arrived).
+    Robots at their goals then never wall in the ones still to come, even in a crowd of 50."""
+    goal_depth = depth_into_arena(goals, start)
+    depth = depth_into_arena(poses, start)
+    travelling = ~arrived
+    waiting = np.zeros(poses.shape[1], dtype=bool)
+    for i in range(poses.shape[1]):
+        ahead = travelling & (goal_depth > goal_depth[i] + margin)
+        waiting[i] = np.any(depth[ahead] < goal_depth[i] + margin)
+    return waiting
+
+
+def random_poses(number_of_robots, rng, config=model.DEFAULT):
+    """3 x N random initial conditions as 2.x draws them (uniform in a centred box, at least
+    `random_pose_spacing` apart, headings uniform), with the spacing lowered in steps of 5 cm down
+    to `random_pose_min_spacing` where N robots do not fit, and, below that, random cells of a grid
+    of that spacing. 2.1.0 always asks for 0.5 m, which 18 or more robots never fit."""
+    width, height = config.random_pose_area
+    spacing, floor = config.random_pose_spacing, config.random_pose_min_spacing
+    while spacing >= floor - 1e-9:
+        accepted = []
+        if number_of_robots <= int(np.floor(width * height / spacing ** 2)):
+            for _ in range(10000):   # 2.x's rejection sampling, with its attempt budget
+                candidate = (rng.random(2) - 0.5) * [width, height]
+                if not accepted or np.all(np.linalg.norm(np.array(accepted) - candidate, axis=1) >= spacing):
+                    accepted.append(candidate)
+                    if len(accepted) == number_of_robots:
+                        break
+        if len(accepted) == number_of_robots:
+            positions = np.array(accepted).T
+            break
+        spacing -= 0.05
+    else:
+        return _crowd_poses(number_of_robots, rng, config)
+    x_min, x_max, y_min, y_max = config.arena
+    centre = np.array([[(x_min + x_max) / 2], [(y_min + y_max) / 2]])
+    return np.vstack([positions + centre, rng.random(number_of_robots) * 2 * np.pi - np.pi])
+
+
+def _crowd_poses(number_of_robots, rng, config):
+    """Random cells of a grid, for more robots than fit `random_pose_min_spacing` apart at random:
+    the grid keeps that distance (less, down to 0.25 m, where N needs it) from the charger slots, so
+    robots that have arrived never block those still driving on, and each heading is drawn until
+    the points 5 cm ahead stay farther apart than the safety layer keeps them (0.17 m) plus 2 cm."""
+    x_min, x_max, y_min, y_max = config.arena
+    clear = config.random_pose_min_spacing
+    width = x_max - x_min - config.robot_diameter - 2 * clear
+    height = y_max - y_min - config.robot_diameter - 2 * clear
+    spacing = clear
+    while True:
+        xs = np.linspace(-width / 2, width / 2, int(np.floor(width / spacing + 1e-9)) + 1)
+        ys = np.linspace(-height / 2, height / 2, int(np.floor(height / spacing + 1e-9)) + 1)
+        if len(xs) * len(ys) >= number_of_robots or spacing <= 0.25:
+            break
+        spacing -= 0.01
+    cells = np.array([(x, y) for x in xs for y in ys]) + [(x_min + x_max) / 2, (y_min + y_max) / 2]
+    if number_of_robots > len(cells):
+        raise RobotariumError("%d robots do not fit %.2f m apart in the arena." % (number_of_robots, spacing))
+    positions = cells[rng.choice(len(cells), number_of_robots, replace=False)]
+    gap = config.safety_radius + config.projection_distance + 0.02
+    ahead = np.full((number_of_robots, 2), np.inf)
+    headings = np.zeros(number_of_robots)
+    for i, p in enumerate(positions):
+        for _ in range(1000):
+            theta = rng.random() * 2 * np.pi - np.pi
+            point = p + config.projection_distance * np.array([np.cos(theta), np.sin(theta)])
+            if np.all(np.linalg.norm(ahead[:i] - point, axis=1) >= gap):
+                break
+        headings[i], ahead[i] = theta, point
+    return np.vstack([positions.T, headings])
