@@ -54,6 +54,7 @@ from collections import deque
 import numpy as np
 import yaml
 from rclpy.node import Node
+from std_msgs.msg import String
 
 from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, TwistArray
 from robotarium_msgs.srv import ArmSafety
