@@ -8,9 +8,9 @@ on r.axes is recorded as data for the video (robotarium_recording.drawing), not 
 from robotarium_recording.arena_figure import ArenaFigure, is_interactive, pyplot
 
 
-def live_figure(arena, robot_radius, poses):
+def live_figure(arena, robot_radius, poses, figure_class=ArenaFigure):
     plt = pyplot()
-    arena_figure = ArenaFigure.live(arena, robot_radius, poses, plt=plt)
+    arena_figure = figure_class.live(arena, robot_radius, poses, plt=plt)
     arena_figure.interactive = is_interactive(plt)
     if arena_figure.interactive:
         plt.ion()

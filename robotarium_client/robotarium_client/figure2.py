@@ -1,29 +1,28 @@
-"""The arena figure of the 2.x Robotarium: the guide's figure (figure.ArenaFigure) laid out as 2.x
-lays out its own (the arena with 5 cm of padding, no axes), with the obstacles and, when the
-script asks for them, each robot's distance-sensor endpoints and rays (2.x show_* switches)."""
+"""The arena figure of the 2.x Robotarium: the guide's live figure (robotarium_recording's
+ArenaFigure) laid out as 2.x lays out its own (the arena with 5 cm of padding, no axes), with the
+obstacles and, when the script asks for them, each robot's distance-sensor endpoints and rays
+(2.x show_* switches)."""
 import numpy as np
 
-from robotarium_client.figure import ArenaFigure
+from robotarium_recording.arena_figure import ArenaFigure
 
 
 class ArenaFigure2(ArenaFigure):
-    def __init__(self, robotarium):
-        r = robotarium
-        self.robotarium = r
+    robotarium = None   # set by dress(): until then update() only moves the robots
+
+    def dress(self, robotarium):
+        """2.x's layout and extras for `robotarium` (a robotarium2.Robotarium)."""
+        r = self.robotarium = robotarium
         x_min, x_max, y_min, y_max = r.config.arena
-        super().__init__(r.boundaries, r.robot_radius, r.poses)
         padding, scale = 0.05, 2.5
         self.figure.set_size_inches((x_max - x_min + 2 * padding) * scale, (y_max - y_min + 2 * padding) * scale)
         self.axes.set_xlim(x_min - padding, x_max + padding)
         self.axes.set_ylim(y_min - padding, y_max + padding)
-        if not r.show_arena_boundaries:
-            self.axes.patches[-1].set_visible(False)   # the arena rectangle, added last by ArenaFigure
-        if not r.show_robot_patches:
-            for patch in self.axes.patches[:-1]:
-                patch.set_visible(False)
+        self.boundary.set_visible(bool(r.show_arena_boundaries))
+        for robots in (self.chassis, self.wheels, self.leds):
+            robots.set_visible(bool(r.show_robot_patches))
         if r.show_obstacles:
-            for (x1, y1), (x2, y2) in r.obstacles:
-                self.axes.plot([x1, x2], [y1, y2], linewidth=4, color="0.5")
+            self.draw_obstacles(r.obstacles)
         cmap = r.robot_colormap()
         sensors = r._use_distance_sensors
         self.endpoints = [self.axes.scatter(np.full(7, np.nan), np.full(7, np.nan), s=50, color=cmap(i % 20), zorder=3)
@@ -31,11 +30,15 @@ class ArenaFigure2(ArenaFigure):
         self.rays = [[self.axes.plot([np.nan, np.nan], [np.nan, np.nan], linewidth=0.5, color=cmap(i % 20),
                                      zorder=2)[0] for _ in range(7)]
                      for i in range(r.number_of_robots)] if sensors and r.show_distance_rays else []
+        # The figure's own, not the script's drawing (robotarium_recording.drawing ignores these).
+        self.own_artists.update(self.endpoints)
+        self.own_artists.update(line for lines in self.rays for line in lines)
         self.figure.subplots_adjust(left=0.01, right=0.99, bottom=0.01, top=0.99)
+        self.size_ids()
 
     def update(self, poses):
         r = self.robotarium
-        if (self.endpoints or self.rays) and not r.initializing:
+        if r is not None and (self.endpoints or self.rays) and not r.initializing:
             ends = r.get_distance_endpoints()
             for i, scatter in enumerate(self.endpoints):
                 scatter.set_offsets(ends[:, :, i].T)

@@ -275,11 +275,17 @@ class Robotarium(backend.Robotarium):
         return np.array(getattr(self._readings, field), dtype=dtype).reshape(shape)
 
     def _make_figure(self):
-        if self.show_figure:
-            from robotarium_client.figure2 import ArenaFigure2
-            self._arena_figure = ArenaFigure2(self)
-            self.figure, self.axes = self._arena_figure.figure, self._arena_figure.axes
+        super()._make_figure()
+        if self._arena_figure is not None:
             self._fig, self._axes_handle = self.figure, self.axes
+
+    def _new_arena_figure(self):
+        """The live figure in 2.x's layout (robotarium_abc's _make_figure watches what is drawn on it)."""
+        from robotarium_client.figure import live_figure
+        from robotarium_client.figure2 import ArenaFigure2
+        arena_figure = live_figure(self.config.arena, self.robot_radius, self.poses, ArenaFigure2)
+        arena_figure.dress(self)
+        return arena_figure
 
 
 # 2.x's class constants (Robotarium.TIME_STEP, Robotarium.BOUNDARIES, ...), from the packaged

@@ -90,11 +90,15 @@ class RobotariumABC(abc.ABC):
         What the script then draws on r.axes is watched, so that the video of the run shows it."""
         self._arena_figure = self._drawing = None
         if self.show_figure:
-            from robotarium_client.figure import live_figure
             from robotarium_recording.drawing import DrawingWatcher
-            self._arena_figure = live_figure(self.config.arena, self.robot_radius, self.poses)
+            self._arena_figure = self._new_arena_figure()
             self.figure, self.axes = self._arena_figure.figure, self._arena_figure.axes
             self._drawing = DrawingWatcher(self.axes, self._arena_figure.own_artists)
+
+    def _new_arena_figure(self):
+        """The live figure in rps's layout (a 2.x Robotarium lays it out as 2.x does)."""
+        from robotarium_client.figure import live_figure
+        return live_figure(self.config.arena, self.robot_radius, self.poses)
 
     def _record_drawing(self, step):
         """Hand what the script changed on r.axes since the last call to the backend, as drawn for
