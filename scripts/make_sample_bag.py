@@ -16,12 +16,14 @@ import argparse
 import math
 import os
 import shutil
+import sys
 import tempfile
 import time
 
 import numpy as np
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, REPO)
 from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id  # noqa: E402
 from geometry_msgs.msg import Twist  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
