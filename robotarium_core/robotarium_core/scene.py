@@ -1,6 +1,6 @@
 """What a viewer draws of the testbed: the arena, each robot (footprint, heading, id) and its recent
 trail. Plain numpy: the simulator's `markers` topic (robotarium_core.markers) and the Foxglove view
-of a live or recorded run (robotarium_recording.view) draw the same geometry from it.
+of a live or recorded run (robotarium_recording.foxglove_scene) draw the same geometry from it.
 
 Everything is in the `arena` frame (metres, the poses' frame); z is up, the arena floor at z = 0.
 """
