@@ -21,6 +21,7 @@ setup(
         "console_scripts": [
             "recorder = robotarium_recording.recorder_node:main",
             "replay = robotarium_recording.replay_node:main",
+            "view = robotarium_recording.view_node:main",
         ],
     },
 )

@@ -117,21 +117,34 @@ def cmd_up(args):
         say("a testbed already answers in %s on ROS_DOMAIN_ID %s; not starting a second one"
             % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
         return 1
+    view = None
+    if args.view:   # first: a port in use is said before any node starts
+        from robotarium_recording.view_node import ViewProcess
+        view = ViewProcess(ns, args.view_host, args.view_port)
+        if not view.wait_ready():
+            view.stop()
+            say("the Foxglove view could not start (its message is above); no testbed was started")
+            return 1
     interruption = Interruption()
     testbed = LocalTestbed(record=not args.no_record, quiet=False, bags_dir=args.bags_dir,
                            config_file=args.config, hardware=args.hardware).start()
     try:
-        say("testbed up in namespace %s on ROS_DOMAIN_ID %s (simulator%s, safety%s). It runs as long as this "
+        say("testbed up in namespace %s on ROS_DOMAIN_ID %s (simulator%s, safety%s%s). It runs as long as this "
             "command does: Ctrl-C (or SIGTERM, SIGHUP) stops it." % (
                 ns, os.environ.get("ROS_DOMAIN_ID", "0"), " hardware-like" if args.hardware else "",
-                "" if args.no_record else ", recorder"))
+                "" if args.no_record else ", recorder", ", Foxglove view" if view else ""))
         while interruption.signum is None:
             failed = testbed.failed()
             if failed:
                 say("node(s) exited: %s; stopping the testbed" % failed)
                 break
+            if view is not None and view.failed():
+                say("the Foxglove view exited (its message is above); the testbed runs on")
+                view = None
             time.sleep(0.2)
     finally:
+        if view is not None:
+            view.stop()
         testbed.stop()   # a running experiment is ended and its recording closed
         interruption.restore()
     say("testbed stopped" + (" (%s)" % interruption.name if interruption.signum else ""))
@@ -648,6 +661,11 @@ def cmd_replay(argv):
     return replay_main(argv)
 
 
+def cmd_view(argv):
+    from robotarium_recording.view_node import main as view_main
+    return view_main(argv)
+
+
 def cmd_report(argv):
     from robotarium_recording.results import main as report_main
     return report_main(argv)
@@ -655,7 +673,8 @@ def cmd_report(argv):
 
 # Commands whose own parser (shared with `ros2 run`) reads all their arguments, --help included.
 DELEGATED = {"replay": (cmd_replay, "republish a recorded run (in experiment time; --figure draws it)"),
-             "report": (cmd_report, "recompute the results of a recorded run (report, plot, video, page)")}
+             "report": (cmd_report, "recompute the results of a recorded run (report, plot, video, page)"),
+             "view": (cmd_view, "serve the testbed live to Foxglove: the scene, status, commands and poses")}
 
 RUN_EPILOG = """\
 whatever happens, the run folder (the last line printed names it) gets log.txt, report.txt (its first
@@ -691,6 +710,10 @@ def main(argv=None):
     up.add_argument("--hardware", action="store_true",
                     help="run every experiment hardware-like: tracking and command latency, pose noise, wheel "
                          "dynamics (the numbers: hardware section of testbed.yaml)")
+    up.add_argument("--view", action="store_true",
+                    help="also serve the testbed to Foxglove, as ./robotarium view does (--view-host, --view-port)")
+    from robotarium_recording.view_node import add_view_arguments
+    add_view_arguments(up, prefix="view-")
     up.set_defaults(func=cmd_up)
 
     run = sub.add_parser("run", help="run a Robotarium script against the testbed", epilog=RUN_EPILOG,
