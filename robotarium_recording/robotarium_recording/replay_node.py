@@ -1,6 +1,6 @@
 """Replay a recorded run: republish its topics with the original timing, so any subscriber sees it again.
 
-    ./robotarium replay BAG [--rate R] [--loop] [--figure] [--namespace NS] [--timing T] [--into-live]
+    ./robotarium replay BAG [--rate R] [--loop] [--figure] [--view] [--namespace NS] [--timing T] [--into-live]
     ros2 run robotarium_recording replay BAG ...
 
 Every recorded topic except /rosout (the log lines stay in the bag: republishing them would mix
@@ -12,7 +12,10 @@ them was best effort; transient local only if all of them were). Pause and resum
 (or p) when started from a terminal, q quits; or the service <ns>/replay/pause
 (std_srvs/SetBool: true pauses, false resumes). --figure draws the run as its live figure was
 (arena_figure.ArenaFigure with ids and what the script drew); with no display (Agg) the replay is
-written as a video to --figure-file (default <bag>/replay.mp4).
+written as a video to --figure-file (default <bag>/replay.mp4). --view also serves the replay to
+Foxglove: the view node (view_node.py, as `./robotarium view` runs it for a live testbed) in a
+process of its own subscribes to the republished topics like any viewer, and the replay starts once
+it has matched; so the live view and the replay's share one path, DDS included.
 """
 import argparse
 import os
@@ -29,10 +32,12 @@ from std_srvs.srv import SetBool
 
 from robotarium_recording.bag import Bag
 from robotarium_recording.recorder_node import message_class
+from robotarium_recording.view_node import ViewProcess, add_view_arguments
 
 SKIPPED_TOPICS = {"/rosout"}
 FIGURE_HZ = 15
 LIVE_CHECK = 3.0   # s to wait for a live testbed's start_experiment service before replaying
+VIEW_MATCH = 15.0  # s to wait for --view's subscriptions to match the replay's publishers
 
 
 class ReplayClock:
@@ -284,6 +289,10 @@ def build_parser():
     parser.add_argument("--into-live", action="store_true", help=(
         "publish even where a live testbed answers (its nodes, recorder and clients would take the replay "
         "for live traffic); without it such a replay is refused"))
+    parser.add_argument("--view", action="store_true", help=(
+        "also serve the replay to Foxglove, as ./robotarium view does for a live testbed (--view-host, --view-port): "
+        "the view subscribes to the republished topics; it stops with the replay (--loop keeps both going)"))
+    add_view_arguments(parser, prefix="view-")
     parser.add_argument("--delay", type=float, default=0.5, help=(
         "seconds to wait before the first message, so that subscribers discover the new publishers (default 0.5)"))
     return parser
@@ -299,6 +308,23 @@ def live_testbed_answers(node, namespace, timeout):
         node.destroy_client(client)
 
 
+def wait_for_view(node, poses_topic):
+    """Until the view's subscriptions matched the replay's publishers (the poses' first: the scene is
+    made of them), so that the view gets the replay from its first message."""
+    from robotarium_core.topics import readers_matched
+    publishers = list(node.publishers_by_topic.values())
+    first = node.publishers_by_topic.get(poses_topic)
+    deadline = time.monotonic() + VIEW_MATCH
+    while time.monotonic() < deadline:
+        if (first is None or readers_matched(node, first, required_node="view")) and all(
+                readers_matched(node, publisher) for publisher in publishers):
+            return True
+        time.sleep(0.05)
+    print("[replay] the view has not subscribed to every topic after %.0f s; replaying anyway" % VIEW_MATCH,
+          file=sys.stderr)
+    return False
+
+
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
@@ -312,7 +338,7 @@ def main(argv=None):
         return 2
     timing = args.timing or ("experiment" if any(s.mode == "lockstep" for s in bag.statuses()[:50]) else "recorded")
     rclpy.init(args=["replay"] + argv)
-    node = keyboard = figure = None
+    node = keyboard = figure = view = None
     try:
         node = ReplayNode(bag, rate=args.rate, loop=args.loop, namespace=args.namespace, timing=timing)
         # Discovery takes a moment (seconds on a loaded machine): the check waits up to as long as
@@ -325,6 +351,12 @@ def main(argv=None):
                   % (node.namespace, os.environ.get("ROS_DOMAIN_ID", "0")), file=sys.stderr)
             return 2
         poses_topic = bag.topic("poses", required=False)
+        if args.view:
+            view = ViewProcess(node.namespace, args.view_host, args.view_port)
+            if not view.wait_ready():
+                print("replay: the Foxglove view could not start (its message is above)", file=sys.stderr)
+                return 1
+            wait_for_view(node, poses_topic)
         if args.figure and poses_topic in node.publishers_by_topic:
             figure = Figure(bag, args.figure_file or os.path.join(bag.path, "replay.mp4"))
         keyboard = Keyboard()
@@ -341,6 +373,8 @@ def main(argv=None):
             keyboard.close()
         if figure is not None:
             figure.close()
+        if view is not None:
+            view.stop()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
