@@ -109,3 +109,12 @@ def test_the_video_is_in_experiment_time_at_1280_by_800(tmp_path):
     reader = imageio_ffmpeg.read_frames(path)
     assert next(reader)["size"] == (1280, 800)
     reader.close()
+
+
+def test_a_2x_runs_obstacles_are_in_the_plot(tmp_path):
+    track = _circles(2, 30)
+    wall = [[[-1.2, -0.8], [-1.2, 0.8]]]   # a vertical wall left of the robots' circles
+    without = plot_trajectories(track, [], DEFAULT, str(tmp_path / "plain.png"))
+    with_wall = plot_trajectories(track, [], DEFAULT, str(tmp_path / "wall.png"), obstacles=wall)
+    grey = [np.all(np.abs(matplotlib.image.imread(p)[..., :3] - 0.5) < 0.02, axis=-1).sum() for p in (without, with_wall)]
+    assert grey[1] - grey[0] > 1000, grey   # the thick grey line of 2.x's walls

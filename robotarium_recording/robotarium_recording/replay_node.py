@@ -180,6 +180,7 @@ class Figure:
             from robotarium_recording.drawing import DrawingPainter, DrawingState
             self.view = ArenaFigure.window(self.config.arena, self.config.robot_radius, poses, self.plt,
                                            title="replay of %s" % self.bag.name)
+            self.view.draw_obstacles(self.bag.experiment().get("obstacles") or ())   # a 2.x run's walls
             self.painter, self.state = DrawingPainter(self.view.axes), DrawingState()
             self.view.figure.show()
         self.view.update(poses)
@@ -211,7 +212,7 @@ class Figure:
             folder, name = os.path.split(os.path.abspath(self.path))
             os.makedirs(folder, exist_ok=True)
             written = render_video(self.bag.poses(), self.bag.drawings(), self.config, folder, self.bag.name,
-                                   name=os.path.splitext(name)[0])
+                                   name=os.path.splitext(name)[0], obstacles=self.bag.experiment().get("obstacles") or ())
             if written:
                 print("[replay] no display: the replay is the video %s" % written, file=sys.stderr)
 
