@@ -101,7 +101,7 @@ def run_stack(script, seed, env, real_time, timeout):
         return "timed out", timeout, timeout
     command = time.perf_counter() - start
     output = out.stdout + out.stderr
-    folder = re.search(r"outputs in (\S+)", output)
+    folder = re.search(r"results in (\S+) \(open", output)
     try:
         with open(os.path.join(os.path.dirname(script), folder.group(1), "run.json")) as f:
             script_wall = json.load(f)["wall_time"]
