@@ -15,7 +15,6 @@ import argparse
 import glob
 import os
 import platform
-import re
 import shutil
 import subprocess
 import sys
@@ -23,6 +22,7 @@ import tempfile
 import time
 
 from bench_guide_scripts import GUIDE, report_counts
+from guide_outcome import parse_outcome
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 OUTCOME = os.path.join(REPO, "bench", "guide_outcome.py")
@@ -39,12 +39,16 @@ def run(script, seed, max_steps, env, hardware, timeout):
     except subprocess.TimeoutExpired:
         return None, timeout
     text = out.stdout + out.stderr
-    outcome = re.search(r"\[outcome\] steps=(\d+) goal_error=(\S+) \(([^)]*)\) finished=(\w+)", text)
+    outcome = parse_outcome(text)
     counts = report_counts(text)
     if outcome is None or counts is None:
+        # say why on stderr (the table stays readable on stdout)
+        print("%s (%s): no outcome; the run's last lines:\n%s" % (
+            os.path.basename(script), "hardware-like" if hardware else "ideal", "\n".join(text.splitlines()[-15:])),
+            file=sys.stderr, flush=True)
         return None, time.perf_counter() - start
-    steps, error, _, finished = outcome.groups()
-    return (int(steps), error, finished == "yes", counts[2], counts[1], counts[3]), time.perf_counter() - start
+    steps, error, _, finished = outcome
+    return (steps, error, finished, counts[2], counts[1], counts[3]), time.perf_counter() - start
 
 
 def cell(result):

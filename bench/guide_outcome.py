@@ -5,6 +5,8 @@ script unchanged and then prints one line
 
     [outcome] steps=K goal_error=E (what E measures) finished=yes|no
 
+(parse_outcome() reads it back; what E measures may itself hold parentheses.)
+
 K: the step() calls the script made. E: how far the script is from its own goal at its end, in
 metres, measured as the script itself measures it where it has a stopping test (the variables it
 tested), else on the final poses: the largest distance of a robot from its goal point; for a
@@ -13,12 +15,31 @@ robots' centroid. The scripts with unreachable goals (3.5.2, 3.5.3) have none (n
 that has not finished after MAX_STEPS steps is stopped there (finished=no) and ends its experiment.
 """
 import os
+import re
 import sys
 
 import numpy as np
 
 from robotarium_client import session
 from robotarium_client.robotarium_abc import RobotariumABC
+
+
+OUTCOME_LINE = re.compile(r"^\[outcome\] steps=(\d+) goal_error=(\S+) \((.*)\) finished=(yes|no)$", re.MULTILINE)
+
+
+def outcome_line(steps, error, what, finished):
+    return "[outcome] steps=%d goal_error=%s (%s) finished=%s" % (
+        steps, "n/a" if error is None else "%.4f" % error, what, "yes" if finished else "no")
+
+
+def parse_outcome(text):
+    """(steps, goal error as printed, what it measures, finished) from the last outcome line in
+    text, or None. Greedy up to ") finished=": what E measures may hold parentheses itself."""
+    lines = OUTCOME_LINE.findall(text)
+    if not lines:
+        return None
+    steps, error, what, finished = lines[-1]
+    return int(steps), error, what, finished == "yes"
 
 
 class StepBudgetSpent(Exception):
@@ -84,8 +105,7 @@ def main():
     r = made[-1]
     number = ".".join(os.path.basename(script).split("_")[:3])
     error, what = goal_error(number, g, r.poses)
-    print("[outcome] steps=%d goal_error=%s (%s) finished=%s" % (
-        r._iterations, "n/a" if error is None else "%.4f" % error, what, "yes" if finished else "no"), flush=True)
+    print(outcome_line(r._iterations, error, what, finished), flush=True)
 
 
 if __name__ == "__main__":
