@@ -144,6 +144,9 @@ FIELDS = {
     "orientation_noise_std": Field("degrees, noise of the fused yaw", 0.0, low_open=False, used_by=(SIMULATOR,)),
     "sensor_seed": Field("seed of the sensors' noise where an experiment brings none", 0, 2**31 - 1,
                          low_open=False, used_by=(SIMULATOR,), integer=True),
+    "standard_sensor_rate": Field("Hz of simulated time at which a 2.x experiment's sensors are also published per "
+                                  "robot on standard message types (sensor_msgs Imu, MagneticField, Range); 0: off",
+                                  0.0, 100.0, low_open=False, used_by=(SIMULATOR,)),
     "random_pose_spacing": Field("m between random 2.x initial conditions where N allows", 0.0, used_by=(CLIENT,)),
     "random_pose_min_spacing": Field("m; random 2.x initial conditions are never closer", 0.0, used_by=(CLIENT,)),
     "random_pose_area": Field("m, width and height of the box random 2.x initial conditions lie in", 0.0,
@@ -269,6 +272,7 @@ class TestbedConfig:
     magnetometer_z_field: float
     orientation_noise_std: float
     sensor_seed: int
+    standard_sensor_rate: float
     random_pose_spacing: float
     random_pose_min_spacing: float
     random_pose_area: tuple
