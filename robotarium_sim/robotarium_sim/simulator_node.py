@@ -13,6 +13,10 @@ Topics (relative to the node's namespace, /robotarium by default):
                                                     while someone listens (RViz, Foxglove: frame `arena`)
   status          robotarium_msgs/TestbedStatus out: every step, and once a second while idle or in lockstep
   sensors         robotarium_msgs/SensorReadings out: every step of a 2.x experiment (robotarium_core.sensors)
+  robot_<i>/imu   sensor_msgs/Imu              out: the same sensors per robot on standard types, for ROS tools
+  robot_<i>/mag   sensor_msgs/MagneticField         (rviz, Foxglove, ros2 topic echo) and the bag: 2.x experiments,
+  robot_<i>/range sensor_msgs/Range (7 a period)    at `standard_sensor_rate` Hz of simulated time, stamped and valued
+                                                    as that step's sensors in SI units (rps2_io.StandardSensors)
   experiment      std_msgs/String (latched)    out: the experiment's settings as YAML (api, obstacles, drive-on goals)
   obstacles       visualization_msgs/Marker (latched) out: the experiment's obstacles as a LINE_LIST, for viewers
 Services:
@@ -148,6 +152,8 @@ class SimulatorNode(Node):
         self.sensors_pub = self.create_publisher(SensorReadings, SENSORS, TESTBED_QOS)
         self.experiment_pub = self.create_publisher(String, EXPERIMENT, LATCHED)
         self.obstacles_pub = rps2_io.obstacles_publisher(self, OBSTACLES, LATCHED)
+        # The same sensors per robot on standard types for ROS tools, throttled by simulated time.
+        self.standard_sensors = rps2_io.StandardSensors(self, self.config.standard_sensor_rate)
         self.commands = self.create_subscription(TwistArray, CMD_SAFE, self.on_commands, COMMAND_INPUT_QOS, raw=True,
                                                  event_callbacks=warn_on_incompatible_qos(self, CMD_SAFE))
         self.create_subscription(SafetyReport, SAFETY_REPORT, self.on_safety_report, TESTBED_QOS)
@@ -249,6 +255,8 @@ class SimulatorNode(Node):
         self._clock_start = self._last_tick = time.monotonic()
         self.trails.reset()
         self.watch_client(run_id)
+        if isinstance(testbed, rps2.Testbed2):
+            self.standard_sensors.start(testbed)
         if self.real_time:
             self._tick_timer = self.create_timer(1.0 / c.rate, self.tick)
         self.publish_state()
@@ -476,6 +484,8 @@ class SimulatorNode(Node):
             sim_time=tb.sim_time, ids=np.arange(tb.number_of_robots), x=x, y=y, theta=theta))
         if isinstance(tb, rps2.Testbed2):
             self.sensors_pub.publish(rps2_io.sensor_readings(tb, self.run_id, now.to_msg()))
+            if self.standard_sensors.due(tb):
+                self.standard_sensors.publish(tb, sec, nanosec)
         if self.pose_array_pub.get_subscription_count() > 0:
             self.pose_array_pub.publish(cdr.POSE_ARRAY.build(sec=sec, nanosec=nanosec, frame_id="arena",
                                                              poses=cdr.planar_poses(x, y, theta)))
