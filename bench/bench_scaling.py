@@ -8,7 +8,11 @@ mirrored through the arena's centre, so every path crosses the middle and the sa
 barrier certificate has work to do. Printed per N: steps per second of the loop, and the CPU time
 each process spent per step (the client's includes its own controller, which is small), with
 each one's share of the total.
-Run: ./robotarium bench scaling [--robots 1 5 10 20 50 100] [--steps 600] [--no-record]
+With --api 2 the client is the 2.x Robotarium (robotarium_client.robotarium2, distance sensors on,
+no drive-on phase), so the simulator publishes the 2.x sensors too, and --standard-sensor-rate R
+sets the rate of their per-robot standard topics (robot_<i>/imu, mag, range; 0: off) to compare.
+Run: ./robotarium bench scaling [--robots 1 5 10 20 50 100] [--steps 600] [--no-record] [--api 2]
+     [--standard-sensor-rate R]
 """
 import argparse
 import contextlib
@@ -45,16 +49,18 @@ def grid(n, spacing=0.2):
     return np.array([x, y, np.random.default_rng(n).uniform(-np.pi, np.pi, n)])
 
 
-def write_config(folder):
+def write_config(folder, standard_sensor_rate=None):
     from robotarium_core.config import DEFAULT
     values = dict(DEFAULT.to_dict(), max_robots=ROBOT_LIMIT)
+    if standard_sensor_rate is not None:
+        values["standard_sensor_rate"] = standard_sensor_rate
     path = os.path.join(folder, "testbed_%d_robots.yaml" % ROBOT_LIMIT)
     with open(path, "w") as f:
         yaml.safe_dump({"/**": {"ros__parameters": values}}, f, sort_keys=False)
     return path
 
 
-def run(n, steps, config_file, processes):
+def run(n, steps, config_file, processes, api=""):
     from robotarium_client import session
     from robotarium_client.robotarium import Robotarium
     from rps.utilities.controllers import create_clf_unicycle_position_controller
@@ -64,7 +70,12 @@ def run(n, steps, config_file, processes):
     start = grid(n)
     goals = -start[:2]
     controller = create_clf_unicycle_position_controller()
-    r = Robotarium(number_of_robots=n, show_figure=False, initial_conditions=start, sim_in_real_time=False)
+    if api == "2":
+        from robotarium_client.robotarium2 import Robotarium as Robotarium2
+        r = Robotarium2(number_of_robots=n, show_figure=False, initial_conditions=start, sim_in_real_time=False,
+                        skip_initialization=True, use_distance_sensors=True)
+    else:
+        r = Robotarium(number_of_robots=n, show_figure=False, initial_conditions=start, sim_in_real_time=False)
     for _ in range(5):   # warm up (first messages, first QP set-up)
         x = r.get_poses()
         r.set_velocities(np.arange(n), controller(x, goals))
@@ -89,21 +100,27 @@ def main():
     parser.add_argument("--robots", type=int, nargs="+", default=[1, 5, 10, 20, 50, 100])
     parser.add_argument("--steps", type=int, default=600, help="lockstep steps per N")
     parser.add_argument("--no-record", action="store_true", help="leave the recorder out")
+    parser.add_argument("--api", choices=["", "2"], default="", help="'2': the 2.x client (sensors published)")
+    parser.add_argument("--standard-sensor-rate", type=float, default=None,
+                        help="Hz of the 2.x sensors' per-robot standard topics (default: the configuration's)")
     args = parser.parse_args()
     if max(args.robots) > ROBOT_LIMIT:
         parser.error("at most %d robots" % ROBOT_LIMIT)
 
     os.environ["ROS_DOMAIN_ID"] = str(unique_domain_id())
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    os.environ["ROBOTARIUM_RPS"] = "guide"   # rps is the guide's (its controller); --api 2 imports the 2.x class itself
     from robotarium_client.testbed import LocalTestbed
 
     work = tempfile.mkdtemp(prefix="robotarium-scaling-")
     testbed = LocalTestbed(log_dir=os.path.join(work, "log"), record=not args.no_record,
-                           bags_dir=os.path.join(work, "bags"), ns="/scaling", config_file=write_config(work))
+                           bags_dir=os.path.join(work, "bags"), ns="/scaling",
+                           config_file=write_config(work, args.standard_sensor_rate))
     os.environ["ROBOTARIUM_NAMESPACE"] = "/scaling"
-    print("scaling benchmark, %s, %s, %d cores, Python %s, load average %.1f, recorder %s" % (
+    print("scaling benchmark, %s, %s, %d cores, Python %s, load average %.1f, recorder %s, api %s%s" % (
         time.strftime("%Y-%m-%d"), platform.machine(), os.cpu_count(), platform.python_version(),
-        os.getloadavg()[0], "off" if args.no_record else "on"))
+        os.getloadavg()[0], "off" if args.no_record else "on", args.api or "guide",
+        "" if args.standard_sensor_rate is None else ", standard_sensor_rate %g" % args.standard_sensor_rate))
     names = ["client", "safety", "simulator"] + ([] if args.no_record else ["recorder"])
     print("CPU time per step (ms) and share of the total, per process:")
     print("%5s %9s %9s | %s | %s" % ("N", "steps/s", "ms/step", " ".join("%9s" % n for n in names),
@@ -112,7 +129,7 @@ def main():
         testbed.start()
         processes = {name: process.pid for name, (process, _) in testbed.processes.items()}
         for n in args.robots:
-            rate, cpu, counts = run(n, args.steps, testbed.config_file, processes)
+            rate, cpu, counts = run(n, args.steps, testbed.config_file, processes, args.api)
             total = sum(cpu.values())
             print("%5d %9.0f %9.3f | %s | %s" % (
                 n, rate, 1e3 / rate, " ".join("%9.3f" % cpu[name] for name in names),
