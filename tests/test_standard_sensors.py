@@ -12,6 +12,7 @@ import os
 
 import numpy as np
 import pytest
+import yaml
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, MagneticField, Range
 
@@ -200,9 +201,14 @@ def stamp_ns(msg):
     return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
 
 
+RATE = 10.0
+
+
 def test_a_2x_experiment_publishes_them_at_the_rate_and_they_are_recorded(tmp_path):
     n, steps = 3, 45
-    stack = Stack(tmp_path)
+    config = tmp_path / "testbed.yaml"     # the packaged configuration has them off (their cost: README)
+    config.write_text(yaml.safe_dump({"/**": {"ros__parameters": dict(DEFAULT.to_dict(), standard_sensor_rate=RATE)}}))
+    stack = Stack(tmp_path, config_file=config)
     try:
         probe = stack.probe
         readings = probe.collect(SensorReadings, NS + "/sensors")
@@ -219,8 +225,8 @@ def test_a_2x_experiment_publishes_them_at_the_rate_and_they_are_recorded(tmp_pa
         assert probe.spin_until(lambda: any(p.step == 0 for p in stack.poses), 10)
         for k in range(1, steps + 1):
             stack.step(k, V, W)
-        due = [k for k in range(1, steps + 1) if int(k * DEFAULT.time_step * DEFAULT.standard_sensor_rate + 1e-9)
-               > int((k - 1) * DEFAULT.time_step * DEFAULT.standard_sensor_rate + 1e-9)]
+        due = [k for k in range(1, steps + 1) if int(k * DEFAULT.time_step * RATE + 1e-9)
+               > int((k - 1) * DEFAULT.time_step * RATE + 1e-9)]
         assert len(due) == 14 and due[:4] == [4, 7, 10, 13]    # 10 Hz of the 0.033 s steps' time
         done = lambda: all(len(got[(i, "imu")]) == len(due) and len(got[(i, "range")]) == 7 * len(due)  # noqa: E731
                            for i in range(n)) and len(readings) >= steps + 1
@@ -234,6 +240,8 @@ def test_a_2x_experiment_publishes_them_at_the_rate_and_they_are_recorded(tmp_pa
                 check_against_readings(imu, mag, ranges[7 * j:7 * j + 7], as_readings(by_stamp[stamp_ns(imu)]), i)
         ended = stack.end()
         stack.wait_closed(ended.recording)
+        # the packaged configuration: none of them (no publisher, so nothing for the recorder either)
+        assert DEFAULT.standard_sensor_rate == 0.0
     finally:
         stack.close()
 
