@@ -22,6 +22,23 @@ OUR_EXAMPLES = sorted(p for p in glob.glob(os.path.join(REPO, "examples", "*.py"
 # All of them run in CI (about 5 minutes together in lockstep: 3.3.1, 3.6.1 and 3.8.2 have 5000
 # iterations each).
 GUIDE_EXAMPLES = sorted(glob.glob(os.path.join(REPO, "examples", "guide", "*.py")))
+RUNNING = []   # the module's LocalTestbed while it runs: a failure shows its nodes' logs
+
+
+def testbed_logs(lines=40):
+    """The end of each testbed node's log and which nodes exited: what a failed run's message
+    needs to tell a testbed fault from a script's (CI keeps no temporary folders)."""
+    text = []
+    for tb in RUNNING:
+        text.append("--- testbed nodes that exited (name: exit code): %s" % (tb.failed() or "none"))
+        for name in tb.names:
+            try:
+                with open(os.path.join(tb.log_dir, name + ".log"), errors="replace") as f:
+                    tail = f.read().splitlines()[-lines:]
+            except OSError as error:
+                tail = ["(no log: %s)" % error]
+            text.append("--- %s.log, last %d lines:\n%s" % (name, lines, "\n".join(tail)))
+    return "\n".join(text)
 
 
 @pytest.fixture(scope="module")
@@ -38,9 +55,11 @@ def testbed(tmp_path_factory):
     finally:
         os.environ.clear()
         os.environ.update(saved)
+    RUNNING.append(tb)
     try:
         yield env, bags
     finally:
+        RUNNING.remove(tb)
         tb.stop()
 
 
@@ -63,13 +82,16 @@ def run(env, script, *args, timeout=600):
         except subprocess.TimeoutExpired:
             os.killpg(process.pid, signal.SIGKILL)
             out, err = process.communicate()
-        raise AssertionError("%s did not finish within %d s:\n%s%s" % (script_args or script, timeout, out, err))
+        raise AssertionError("%s did not finish within %d s:\n%s%s\n%s" % (script_args or script, timeout, out, err,
+                                                                        testbed_logs()))
+    if process.returncode != 0:
+        err += "\n" + testbed_logs()
     return subprocess.CompletedProcess(process.args, process.returncode, out, err)
 
 
 def run_folder(bags, output):
     info = [line for line in output.splitlines() if " recorded in " in line]
-    assert info, "the run was not recorded:\n" + output
+    assert info, "the run was not recorded:\n" + output + "\n" + testbed_logs()
     return info[-1].split(" recorded in ")[-1].strip()
 
 
