@@ -68,7 +68,8 @@ def run(env, script, *args, timeout=600):
     runs use this module's testbed, never one of their own (--no-local-testbed)."""
     flags, script_args = (args[:args.index("--")], args[args.index("--") + 1:]) if "--" in args else (args, ())
     flags = ("--no-local-testbed", *flags)
-    cwd = os.path.dirname(script_args[-1] if script_args else script)
+    # in the folder of the script that runs (the last .py argument: run_seeded.py runs the one after it)
+    cwd = os.path.dirname(([a for a in (script, *script_args) if str(a).endswith(".py")])[-1])
     process = subprocess.Popen([sys.executable, "-m", "robotarium_client.cli", "run", *flags, script, *script_args],
                                env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd,
                                start_new_session=True)
