@@ -75,8 +75,11 @@ class NodeProcess:
             cmd += ["--ros-args", *ros_args]
         self.log_path = log_path
         self._log = open(log_path, "wb") if log_path else subprocess.DEVNULL
-        self.proc = subprocess.Popen(cmd, env=env or node_env(domain_id), stdout=self._log,
-                                     stderr=subprocess.STDOUT, start_new_session=True, cwd=REPO)
+        # the lifeline: a node winds down when this process is gone, also when a test run crashes
+        from robotarium_core import lifeline
+        env, pass_fds = lifeline.for_child(env or node_env(domain_id))
+        self.proc = subprocess.Popen(cmd, env=env, stdout=self._log, stderr=subprocess.STDOUT,
+                                     start_new_session=True, cwd=REPO, pass_fds=pass_fds)
 
     def alive(self):
         return self.proc.poll() is None
