@@ -16,3 +16,24 @@ def live_figure(arena, robot_radius, poses, figure_class=ArenaFigure):
         plt.ion()
         plt.show()
     return arena_figure
+
+
+def skip_headless_idle_draws():
+    """Make canvas.draw_idle() on the Agg backend (no display) a no-op, as it is on a screen
+    with nobody waiting for the next frame: a request to redraw "when the GUI is idle", which
+    matplotlib's base class honours on Agg by rendering at once. Scripts that redraw their figures
+    every step (2.x's ekf_experiment.py: three figures, 2000 steps) spent their time rendering
+    pictures nobody sees. draw(), savefig() and everything that reads a figure still render it
+    fully. Canvases of screen backends define their own draw_idle and are untouched."""
+    from matplotlib.backend_bases import FigureCanvasBase
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    if getattr(FigureCanvasBase.draw_idle, "skips_agg", False):
+        return
+    draw_idle = FigureCanvasBase.draw_idle
+
+    def draw_idle_unless_headless(self, *args, **kwargs):
+        if type(self) is not FigureCanvasAgg:
+            return draw_idle(self, *args, **kwargs)
+
+    draw_idle_unless_headless.skips_agg = True
+    FigureCanvasBase.draw_idle = draw_idle_unless_headless

@@ -79,6 +79,9 @@ def run(script, script_args):
     sys.path.insert(0, os.path.dirname(script))
     for signum in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(signum, _raise_interrupted)
+    if os.environ.get("MPLBACKEND", "").lower() == "agg":   # headless (./robotarium run chose it)
+        from robotarium_client.figure import skip_headless_idle_draws
+        skip_headless_idle_draws()
     try:
         runpy.run_path(script, run_name="__main__")
     except SystemExit as exit_:
