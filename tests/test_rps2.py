@@ -359,8 +359,7 @@ def rps2_utilities():
 def test_the_drive_on_phase_brings_many_robots_to_random_initial_conditions(rps2_utilities, n, capsys):
     from robotarium_client.robotarium2 import Robotarium
     r = InProcess(n, 1)
-    for name in ("initialize", "_detour", "_drive_on_si_radius"):
-        setattr(r, name, getattr(Robotarium, name).__get__(r))
+    r.initialize = Robotarium.initialize.__get__(r)
     r.initialize(r.goals)
     assert rps2.at_pose(r.tb.poses, r.goals, 0.05, 0.2)[0]
     assert not r.tb.initializing or r.tb.drive_on_done_at == r.tb.steps - 1

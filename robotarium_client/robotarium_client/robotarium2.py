@@ -29,7 +29,7 @@ it applies to the same poses the client sees.
 import numpy as np
 
 from robotarium_client import robotarium as backend
-from robotarium_core import model, rps2
+from robotarium_core import rps2
 from robotarium_core.config import DEFAULT
 from robotarium_core.model import RobotariumError
 
@@ -41,10 +41,6 @@ KEYWORDS = {
 # 2.x's drive-on controller (rps/robotarium.py initialize()).
 DRIVE_ON_CONTROLLER = dict(angular_velocity_limit=np.pi / 3.0, position_epsilon=0.03, position_error=0.05,
                            rotation_error=0.1)
-DEADLOCK_STEPS = 5 * 30        # steps without 10 cm of progress before a robot takes a detour
-DEADLOCK_DISTANCE = 0.1        # m
-DETOUR = 0.25                  # m, how far a detour waypoint may lie from where the robot is stuck
-DRIVE_ON_SI_RADIUS = 0.25      # m between points 5 cm ahead: 2.x's create_uni_barrier_certificate() default
 SENSOR_HISTORY = 200           # readings kept (by run and step) while waiting for their poses
 
 
@@ -143,92 +139,24 @@ class Robotarium(backend.Robotarium):
     # -- the drive-on phase ---------------------------------------------------------------------------
 
     def initialize(self, initial_conditions):
-        """Drive from the charger slots to the initial conditions (2.x's algorithm; see the module)."""
+        """Drive from the charger slots to the initial conditions (2.x's algorithm, rps2.DriveOn; see
+        the module)."""
         from rps.utilities.barrier_certificates import create_uni_barrier_certificate
         from rps.utilities.controllers import create_pose_controller_hybrid
-        n, c = self.number_of_robots, self.config
+        n = self.number_of_robots
         print("Initializing %d robots to initial conditions..." % n)
         label = None
         if self.show_figure:
             label = self._axes_handle.text(0, -0.5, "...INITIALIZING...", fontsize=20, color="b",
                                            fontweight="bold", ha="center", va="center", zorder=999)
-        barrier = create_uni_barrier_certificate(safety_radius=self._drive_on_si_radius(initial_conditions) - 0.1,
-                                                 projection_distance=0.05)
-        controller = create_pose_controller_hybrid(**DRIVE_ON_CONTROLLER)
-        detour_controller = probe = create_pose_controller_hybrid(**DRIVE_ON_CONTROLLER)  # stateless calls
-
-        def there(x):
-            return rps2.at_pose(x, initial_conditions, c.drive_on_position_error, c.drive_on_rotation_error)
-
-        x = self.get_poses()
-        start = x.copy()
-        self.step()
-        step, timers = 0, np.zeros(n, dtype=int)
-        last = x.copy()
-        detouring = np.zeros(n, dtype=bool)
-        detours = np.zeros((3, n))
-        while not there(x)[0]:
-            if step >= c.drive_on_max_steps:
-                away = np.flatnonzero(~there(x)[1]).tolist()
-                raise RobotariumError("The drive-on phase did not bring robots %s to their initial conditions within "
-                                      "%d steps; space the initial conditions further apart, or pass "
-                                      "skip_initialization=True." % (away, step))
-            x = self.get_poses()
-            arrived = there(x)[1]
-            # Robots going deep leave first (rps2.drive_on_waiting): a crowd never walls itself in.
-            waiting = rps2.drive_on_waiting(x, start, initial_conditions, arrived, c.drive_on_wave_margin)
-            timers[waiting] = step
-            dxu = controller(x, initial_conditions)
-            dxu[:, waiting] = 0.0
-            for i in np.flatnonzero(~arrived & ~waiting):
-                moved = np.linalg.norm(last[:2, i] - x[:2, i])
-                if detouring[i]:
-                    dxu[:, i] = detour_controller(x[:, i:i + 1], detours[:, i:i + 1], np.ones(1))[0][:, 0]
-                    if moved > DEADLOCK_DISTANCE:
-                        detouring[i] = False
-                    elif step - timers[i] > DEADLOCK_STEPS:
-                        detours[:, i], timers[i] = self._detour(x[:, i]), step
-                elif step - timers[i] > DEADLOCK_STEPS and moved < DEADLOCK_DISTANCE:
-                    detouring[i] = True
-                    detours[:, i], timers[i] = self._detour(x[:, i]), step
-                elif moved > DEADLOCK_DISTANCE or np.linalg.norm(
-                        probe(x[:, i:i + 1], initial_conditions[:, i:i + 1], np.ones(1))[0]) <= 0.1:
-                    timers[i] = step
-                    last[:, i] = x[:, i]
-            step += 1
-            self.set_velocities(np.arange(n), barrier(dxu, x))
-            self.step()
+        radius = rps2.drive_on_si_radius(initial_conditions, self.config)
+        drive_on = rps2.DriveOn(initial_conditions, self.config, create_pose_controller_hybrid(**DRIVE_ON_CONTROLLER),
+                                create_uni_barrier_certificate(safety_radius=radius - 0.1, projection_distance=0.05),
+                                np.random)
+        drive_on.run(self.get_poses, lambda dxu: self.set_velocities(np.arange(n), dxu), self.step)
         print("At initial conditions... Starting Experiment")
         if label is not None:
             label.remove()
-
-    def _detour(self, pose):
-        """A random waypoint within DETOUR of a stuck robot, inside the arena (2.x: a random pose
-        +-0.25 m around it, from numpy's global generator)."""
-        x_min, x_max, y_min, y_max = self.config.arena
-        margin = self.config.robot_diameter
-        return np.array([np.clip(pose[0] + np.random.uniform(-DETOUR, DETOUR), x_min + margin, x_max - margin),
-                         np.clip(pose[1] + np.random.uniform(-DETOUR, DETOUR), y_min + margin, y_max - margin),
-                         np.random.uniform(-np.pi, np.pi)])
-
-    def _drive_on_si_radius(self, goals):
-        """The drive-on barrier's distance between points 5 cm ahead: 2.x's 0.25 m, less where the
-        initial conditions themselves are closer (they must stay reachable); never less than the
-        testbed's safety node keeps, or the goals could never be reached (an error that says so)."""
-        n = goals.shape[1]
-        if n < 2:
-            return DRIVE_ON_SI_RADIUS
-        ahead = goals[:2] + 0.05 * np.stack([np.cos(goals[2]), np.sin(goals[2])])
-        i, j = model.robot_pairs(n)
-        gaps = np.hypot(ahead[0, i] - ahead[0, j], ahead[1, i] - ahead[1, j])
-        k = int(np.argmin(gaps))
-        kept = self.config.safety_radius + self.config.projection_distance
-        if gaps[k] - 0.01 < kept:
-            raise RobotariumError(
-                "initial_conditions put the points 5 cm ahead of robots %d and %d %.3f m apart; the testbed's safety "
-                "layer keeps them at least %.2f m apart, so the drive-on phase could never bring them there. Space "
-                "the initial conditions further apart, or pass skip_initialization=True." % (i[k], j[k], gaps[k], kept))
-        return min(DRIVE_ON_SI_RADIUS, gaps[k] - 0.01)
 
     # -- hooks of the backend ---------------------------------------------------------------------------
 

@@ -304,3 +304,111 @@ def _crowd_poses(number_of_robots, rng, config):
                 break
         headings[i], ahead[i] = theta, point
     return np.vstack([positions.T, headings])
+
+
+# -- the drive-on phase ------------------------------------------------------------------------------
+
+DRIVE_ON_SI_RADIUS = 0.25   # m between points 5 cm ahead: 2.x's create_uni_barrier_certificate() default
+
+
+def drive_on_si_radius(goals, config=model.DEFAULT):
+    """The drive-on barrier's distance between points 5 cm ahead: 2.x's 0.25 m, less where the
+    initial conditions themselves are closer (they must stay reachable); never less than the
+    testbed's safety node keeps, or the goals could never be reached (an error that says so)."""
+    n = goals.shape[1]
+    if n < 2:
+        return DRIVE_ON_SI_RADIUS
+    ahead = colliders(goals, config.projection_distance)
+    i, j = model.robot_pairs(n)
+    gaps = np.hypot(ahead[0, i] - ahead[0, j], ahead[1, i] - ahead[1, j])
+    k = int(np.argmin(gaps))
+    kept = config.safety_radius + config.projection_distance
+    if gaps[k] - 0.01 < kept:
+        raise RobotariumError(
+            "initial_conditions put the points %.0f cm ahead of robots %d and %d %.3f m apart; the testbed's safety "
+            "layer keeps them at least %.2f m apart, so the drive-on phase could never bring them there. Space "
+            "the initial conditions further apart, or pass skip_initialization=True."
+            % (100 * config.projection_distance, i[k], j[k], gaps[k], kept))
+    return min(DRIVE_ON_SI_RADIUS, gaps[k] - 0.01)
+
+
+class DriveOn:
+    """The drive-on phase (2.x's Robotarium.initialize, rps/robotarium.py), in plain numpy: robots
+    drive from their charger slots to `goals` with 2.x's hybrid pose controller, through 2.x's
+    unicycle barrier certificate, and a robot that makes no progress for DEADLOCK_STEPS takes a
+    random detour (a waypoint within DETOUR of where it is stuck), as in 2.x.
+
+    controller: 2.x's hybrid pose controller, f(states, poses, approach) -> (dxu, approach); barrier:
+    2.x's unicycle certificate f(dxu, x); rng: where detours are drawn (2.x: numpy's global
+    generator).
+    """
+    DEADLOCK_STEPS = 5 * 30   # steps without DEADLOCK_DISTANCE of progress before a robot takes a detour
+    DEADLOCK_DISTANCE = 0.1   # m
+    DETOUR = 0.25             # m, how far a detour waypoint may lie from where the robot is stuck
+
+    def __init__(self, goals, config, controller, barrier, rng=np.random):
+        self.goals, self.config = np.asarray(goals, dtype=float), config
+        self.controller, self.barrier, self.rng = controller, barrier, rng
+        self.number_of_robots = self.goals.shape[1]
+        self.steps = 0
+
+    def there(self, poses):
+        """(all there, per robot mask): the drive-on phase's end, as the testbed judges it."""
+        c = self.config
+        return at_pose(poses, self.goals, c.drive_on_position_error, c.drive_on_rotation_error)
+
+    def run(self, get_poses, set_velocities, step):
+        """Drive on, through the caller's get_poses() -> 3 x N, set_velocities(2 x N) and step(),
+        in 2.x's order (poses, step, then per loop: poses, commands, step; the loop ends on the
+        poses it last read, so one step follows the poses at the goals). Returns the loop's steps;
+        raises a RobotariumError naming the robots still away after drive_on_max_steps."""
+        n, c, goals = self.number_of_robots, self.config, self.goals
+        x = get_poses()
+        start = x.copy()
+        step()
+        timers = np.zeros(n, dtype=int)
+        last = x.copy()
+        detouring = np.zeros(n, dtype=bool)
+        detours = np.zeros((3, n))
+        approach = np.ones(n)
+        while not self.there(x)[0]:
+            if self.steps >= c.drive_on_max_steps:
+                away = np.flatnonzero(~self.there(x)[1]).tolist()
+                raise RobotariumError("The drive-on phase did not bring robots %s to their initial conditions within "
+                                      "%d steps; space the initial conditions further apart, or pass "
+                                      "skip_initialization=True." % (away, self.steps))
+            x = get_poses()
+            arrived = self.there(x)[1]
+            # Robots going deep leave first (drive_on_waiting): a crowd never walls itself in.
+            waiting = drive_on_waiting(x, start, goals, arrived, c.drive_on_wave_margin)
+            timers[waiting] = self.steps
+            dxu, approach = self.controller(x, goals, approach)
+            dxu[:, waiting] = 0.0
+            for i in np.flatnonzero(~arrived & ~waiting):
+                moved = np.linalg.norm(last[:2, i] - x[:2, i])
+                if detouring[i]:
+                    dxu[:, i] = self.controller(x[:, i:i + 1], detours[:, i:i + 1], np.ones(1))[0][:, 0]
+                    if moved > self.DEADLOCK_DISTANCE:
+                        detouring[i] = False
+                    elif self.steps - timers[i] > self.DEADLOCK_STEPS:
+                        detours[:, i], timers[i] = self.detour(x[:, i]), self.steps
+                elif self.steps - timers[i] > self.DEADLOCK_STEPS and moved < self.DEADLOCK_DISTANCE:
+                    detouring[i] = True
+                    detours[:, i], timers[i] = self.detour(x[:, i]), self.steps
+                elif moved > self.DEADLOCK_DISTANCE or np.linalg.norm(
+                        self.controller(x[:, i:i + 1], goals[:, i:i + 1], np.ones(1))[0]) <= 0.1:
+                    timers[i] = self.steps
+                    last[:, i] = x[:, i]
+            self.steps += 1
+            set_velocities(self.barrier(dxu, x))
+            step()
+        return self.steps
+
+    def detour(self, pose):
+        """A random waypoint within DETOUR of a stuck robot, inside the arena (2.x: a random pose
+        +-0.25 m around it, from numpy's global generator)."""
+        x_min, x_max, y_min, y_max = self.config.arena
+        margin = self.config.robot_diameter
+        return np.array([np.clip(pose[0] + self.rng.uniform(-self.DETOUR, self.DETOUR), x_min + margin, x_max - margin),
+                         np.clip(pose[1] + self.rng.uniform(-self.DETOUR, self.DETOUR), y_min + margin, y_max - margin),
+                         self.rng.uniform(-np.pi, np.pi)])
