@@ -371,6 +371,7 @@ class DriveOn:
         detouring = np.zeros(n, dtype=bool)
         detours = np.zeros((3, n))
         approach = np.ones(n)
+        settling = np.zeros(n, dtype=int)   # steps near the goal, not there
         while not self.there(x)[0]:
             if self.steps >= c.drive_on_max_steps:
                 away = np.flatnonzero(~self.there(x)[1]).tolist()
@@ -379,12 +380,24 @@ class DriveOn:
                                       "skip_initialization=True." % (away, self.steps))
             x = get_poses()
             arrived = self.there(x)[1]
+            # A robot within the position error of its goal only has to turn: it takes no detours (they
+            # would push its neighbours off their goals) and holds back no one (drive_on_waiting).
+            near = np.hypot(*(x[:2] - goals[:2])) <= c.drive_on_position_error
             # Robots going deep leave first (drive_on_waiting): a crowd never walls itself in.
-            waiting = drive_on_waiting(x, start, goals, arrived, c.drive_on_wave_margin)
-            timers[waiting] = self.steps
+            waiting = drive_on_waiting(x, start, goals, arrived | near, c.drive_on_wave_margin)
+            timers[waiting | near] = self.steps
+            detouring[near] = False
+            last[:, near] = x[:, near]
+            # The hybrid controller drives a robot to within 2 cm of its position before it turns; one
+            # that cannot get there (a neighbour's barrier in the way) turns where it is, once it has
+            # been near for DEADLOCK_STEPS. A robot pushed out of the position error approaches again
+            # (the controller alone would leave one that faces its goal standing still).
+            settling = np.where(near & ~arrived, settling + 1, 0)
+            approach[~near] = 1.0
+            approach[settling > self.DEADLOCK_STEPS] = 0.0
             dxu, approach = self.controller(x, goals, approach)
             dxu[:, waiting] = 0.0
-            for i in np.flatnonzero(~arrived & ~waiting):
+            for i in np.flatnonzero(~arrived & ~waiting & ~near):
                 moved = np.linalg.norm(last[:2, i] - x[:2, i])
                 if detouring[i]:
                     dxu[:, i] = self.controller(x[:, i:i + 1], detours[:, i:i + 1], np.ones(1))[0][:, 0]
