@@ -238,12 +238,9 @@ def drive_on_waiting(poses, start, goals, arrived, margin):
     Robots at their goals then never wall in the ones still to come, even in a crowd of 50."""
     goal_depth = depth_into_arena(goals, start)
     depth = depth_into_arena(poses, start)
-    travelling = ~arrived
-    waiting = np.zeros(poses.shape[1], dtype=bool)
-    for i in range(poses.shape[1]):
-        ahead = travelling & (goal_depth > goal_depth[i] + margin)
-        waiting[i] = np.any(depth[ahead] < goal_depth[i] + margin)
-    return waiting
+    line = goal_depth[:, None] + margin   # row i: robot i's goal depth plus the margin
+    ahead = ~arrived[None, :] & (goal_depth[None, :] > line)
+    return np.any(ahead & (depth[None, :] < line), axis=1)
 
 
 def random_poses(number_of_robots, rng, config=model.DEFAULT):
@@ -397,31 +394,33 @@ class DriveOn:
             approach[settling > self.DEADLOCK_STEPS] = 0.0
             dxu, approach = self.controller(x, goals, approach)
             dxu[:, waiting] = 0.0
-            for i in np.flatnonzero(~arrived & ~waiting & ~near):
-                moved = np.linalg.norm(last[:2, i] - x[:2, i])
-                if detouring[i]:
-                    dxu[:, i] = self.controller(x[:, i:i + 1], detours[:, i:i + 1], np.ones(1))[0][:, 0]
-                    if moved > self.DEADLOCK_DISTANCE:
-                        detouring[i] = False
-                    elif self.steps - timers[i] > self.DEADLOCK_STEPS:
-                        detours[:, i], timers[i] = self.detour(x[:, i]), self.steps
-                elif self.steps - timers[i] > self.DEADLOCK_STEPS and moved < self.DEADLOCK_DISTANCE:
-                    detouring[i] = True
-                    detours[:, i], timers[i] = self.detour(x[:, i]), self.steps
-                elif moved > self.DEADLOCK_DISTANCE or np.linalg.norm(
-                        self.controller(x[:, i:i + 1], goals[:, i:i + 1], np.ones(1))[0]) <= 0.1:
-                    timers[i] = self.steps
-                    last[:, i] = x[:, i]
+            # 2.x's deadlock rule: a robot that has not moved DEADLOCK_DISTANCE for DEADLOCK_STEPS (while
+            # its controller still asks for more than 0.1) drives to a random waypoint until it has.
+            active = ~arrived & ~waiting & ~near
+            moved = np.hypot(*(last[:2] - x[:2])) > self.DEADLOCK_DISTANCE
+            idle = self.steps - timers > self.DEADLOCK_STEPS
+            on = active & detouring
+            if np.any(on):
+                dxu[:, on] = self.controller(x[:, on], detours[:, on], np.ones(np.count_nonzero(on)))[0]
+            new = active & ~detouring & idle & ~moved
+            pulling = np.linalg.norm(self.controller(x, goals, np.ones(n))[0], axis=0) > 0.1
+            progress = active & ~detouring & ~new & (moved | ~pulling)
+            detouring[on & moved] = False
+            detouring[new] = True
+            draw = new | (on & ~moved & idle)
+            detours[:, draw] = self.detours(x[:, draw])
+            timers[draw | progress] = self.steps
+            last[:, progress] = x[:, progress]
             self.steps += 1
             set_velocities(self.barrier(dxu, x))
             step()
         return self.steps
 
-    def detour(self, pose):
-        """A random waypoint within DETOUR of a stuck robot, inside the arena (2.x: a random pose
-        +-0.25 m around it, from numpy's global generator)."""
+    def detours(self, poses):
+        """3 x K random waypoints, each within DETOUR of a stuck robot (poses 3 x K), inside the arena
+        (2.x: a random pose +-0.25 m around it, from numpy's global generator)."""
         x_min, x_max, y_min, y_max = self.config.arena
-        margin = self.config.robot_diameter
-        return np.array([np.clip(pose[0] + self.rng.uniform(-self.DETOUR, self.DETOUR), x_min + margin, x_max - margin),
-                         np.clip(pose[1] + self.rng.uniform(-self.DETOUR, self.DETOUR), y_min + margin, y_max - margin),
-                         self.rng.uniform(-np.pi, np.pi)])
+        margin, k = self.config.robot_diameter, poses.shape[1]
+        return np.vstack([np.clip(poses[0] + self.rng.uniform(-self.DETOUR, self.DETOUR, k), x_min + margin, x_max - margin),
+                          np.clip(poses[1] + self.rng.uniform(-self.DETOUR, self.DETOUR, k), y_min + margin, y_max - margin),
+                          self.rng.uniform(-np.pi, np.pi, k)])
