@@ -20,6 +20,8 @@ import pytest
 from devtools.rosutil import REPO
 from robotarium_core import model, rps2, sensors
 from robotarium_core.config import DEFAULT
+# The guide's, imported before the rps2_utilities fixture puts the 2.x modules first.
+from rps.utilities.misc import generate_initial_conditions as guide_generate_initial_conditions
 
 REFERENCE = os.path.join(os.path.dirname(REPO), "shared", "reference", "robotarium_python_simulator-2.1.0")
 REFERENCE_PYTHON = os.path.join(REPO, ".venv-reference", "bin", "python")
@@ -306,21 +308,23 @@ def test_charger_slots_and_random_poses_for_every_robot_count(n):
 
 class InProcess:
     """What Robotarium2.initialize uses, on robotarium_core's model with the safety node's certificate
-    in between, as on the stack (the stack runs in test_rps2_examples)."""
+    in between, as on the stack (the stack runs in test_rps2_examples); counts, at every step, the
+    pairs 2.x would call too close and the centres the testbed calls collided."""
     show_figure = False
 
-    def __init__(self, n, seed):
+    def __init__(self, n, seed, goals=None, config=DEFAULT):
         from robotarium_safety.barrier_certificates import create_unicycle_barrier_certificate_with_centre_boundary
         rng = np.random.default_rng(seed)
         np.random.seed(seed)   # the detours draw from numpy's global generator, as 2.x
-        self.config, self.number_of_robots = DEFAULT, n
-        self.goals = rps2.random_poses(n, rng, DEFAULT)
-        self.tb = rps2.Testbed2(rps2.charger_slots(n, rng, goals=self.goals), DEFAULT, drive_on_goals=self.goals)
-        c = DEFAULT
+        self.config, self.number_of_robots = config, n
+        self.goals = rps2.random_poses(n, rng, config) if goals is None else goals
+        self.tb = rps2.Testbed2(rps2.charger_slots(n, rng, goals=self.goals), config, drive_on_goals=self.goals)
+        c = config
         self.certificate = create_unicycle_barrier_certificate_with_centre_boundary(
             barrier_gain=c.barrier_gain, safety_radius=c.safety_radius, projection_distance=c.projection_distance,
             magnitude_limit=c.magnitude_limit, boundary_points=np.array(c.arena), boundary_margin=c.boundary_margin)
         self.v = np.zeros((2, n))
+        self.too_close = self.collisions = 0
 
     def get_poses(self):
         return self.tb.poses.copy()
@@ -329,9 +333,23 @@ class InProcess:
         self.v[:, ids] = v
 
     def step(self):
+        c = self.config
+        self.too_close += rps2.count_too_close(self.tb.poses, c.collision_diameter, c.collision_offset)
+        self.collisions += model.count_collisions(self.tb.poses, c.robot_diameter)
         safe = self.certificate(self.v, self.tb.poses)
         self.tb.set_commands(np.arange(self.number_of_robots), safe[0], safe[1])
         self.tb.step()
+
+    def initialize(self):
+        from robotarium_client.robotarium2 import Robotarium
+        Robotarium.initialize(self, self.goals)
+
+
+def guide_initial_conditions(n, seed):
+    """What a 2.x script gets from the guide's generate_initial_conditions(N) (a 0.3 m grid in 3 x
+    1.8 m; its bottom row lies 4.5 cm in from the bottom chargers)."""
+    np.random.seed(seed)
+    return guide_generate_initial_conditions(n)
 
 
 @pytest.fixture(scope="module")
@@ -354,16 +372,45 @@ def rps2_utilities():
 
 
 # 23: the first count 2.1.0 cannot start (22 charger slots); 30: beyond 2.x's 0.5 m random poses
-# and two edges' worth of 2.x's slots. 50 robots in a crowd do not reach their poses yet (README).
-@pytest.mark.parametrize("n", [23, 30])
-def test_the_drive_on_phase_brings_many_robots_to_random_initial_conditions(rps2_utilities, n, capsys):
-    from robotarium_client.robotarium2 import Robotarium
-    r = InProcess(n, 1)
-    r.initialize = Robotarium.initialize.__get__(r)
-    r.initialize(r.goals)
-    assert rps2.at_pose(r.tb.poses, r.goals, 0.05, 0.2)[0]
-    assert not r.tb.initializing or r.tb.drive_on_done_at == r.tb.steps - 1
-    assert "At initial conditions... Starting Experiment" in capsys.readouterr().out
+# and two edges' worth of 2.x's slots; 40: the sides' slots; 50: every slot taken, and a crowd of
+# random initial conditions closer than 0.3 m (rps2._crowd_poses). Also the guide's 0.3 m grid,
+# which a script may pass as initial_conditions.
+# Measured (N = 23-50, seeds 0-4, both kinds: 60 of 60 arrive in 672-3220 steps); here a sample,
+# with the slowest (50, seed 2, guide grid: 3220 steps) and slowest random (50, seed 3: 2331).
+@pytest.mark.parametrize("n, seed, kind", [(23, 1, "random"), (30, 1, "random"), (40, 2, "random"),
+                                           (50, 0, "random"), (50, 3, "random"),
+                                           (45, 0, "guide"), (50, 1, "guide"), (50, 2, "guide")])
+def test_the_drive_on_phase_brings_many_robots_to_their_initial_conditions(rps2_utilities, n, seed, kind, capsys):
+    r = InProcess(n, seed, guide_initial_conditions(n, seed) if kind == "guide" else None)
+    r.initialize()
+    assert rps2.at_pose(r.tb.poses, r.goals, DEFAULT.drive_on_position_error, DEFAULT.drive_on_rotation_error)[0]
+    # 2.x's count: its first step, then one per loop, the last one after the poses at the goals.
+    assert r.tb.drive_on_done_at == r.tb.steps - 1 and not r.tb.initializing
+    assert r.tb.steps <= DEFAULT.drive_on_max_steps + 1
+    assert (r.too_close, r.collisions) == (0, 0)
+    out = capsys.readouterr().out
+    assert "Initializing %d robots to initial conditions..." % n in out
+    assert "At initial conditions... Starting Experiment" in out
+    r.tb.step()   # counting starts: robots at their initial conditions are not too close
+    assert (r.tb.collisions, r.tb.boundary_violations) == (0, 0)
+
+
+def test_a_drive_on_phase_that_cannot_finish_names_the_robots_still_away(rps2_utilities, capsys):
+    r = InProcess(3, 0, config=dataclasses.replace(DEFAULT, drive_on_max_steps=20))
+    with pytest.raises(model.RobotariumError, match=r"did not bring robots \[0, 1, 2\] to their initial "
+                                                    r"conditions within 20 steps"):
+        r.initialize()
+    assert r.tb.steps == 21
+
+
+def test_the_drive_on_barrier_radius_is_2x_unless_the_goals_are_closer():
+    far = np.array([[-1.0, 1.0], [0.0, 0.0], [0.0, 0.0]])
+    assert rps2.drive_on_si_radius(far) == 0.25
+    near = np.array([[0.0, 0.2], [0.0, 0.0], [0.0, 0.0]])   # points ahead 0.2 m apart
+    assert rps2.drive_on_si_radius(near) == pytest.approx(0.19)
+    facing = np.array([[0.0, 0.25], [0.0, 0.0], [0.0, np.pi]])   # points ahead 0.15 m apart: unreachable
+    with pytest.raises(model.RobotariumError, match="robots 0 and 1 0.150 m apart"):
+        rps2.drive_on_si_radius(facing)
 
 
 # -- recognising a 2.x script ---------------------------------------------------------------------------
