@@ -14,9 +14,10 @@ scripts use, with 2.x's names, defaults and shapes:
 - debug(): ends the experiment and prints 2.x's report, which the simulator counts by 2.x's rules
   (robotarium_core.rps2), plus where the run was recorded;
 - the drive-on phase (initialize): robots start on charger slots and drive to the initial
-  conditions with 2.x's hybrid pose controller and unicycle barrier certificate, through the
-  testbed's always-on safety node like any command; the testbed counts nothing until they are
-  there (its steps count in the duration, as in 2.x).
+  conditions with 2.x's hybrid pose controller and unicycle barrier certificate (the loop:
+  robotarium_core.rps2.DriveOn, which also lets a crowd of 50 settle), through the testbed's
+  always-on safety node like any command; the testbed counts nothing until they are there (its
+  steps count in the duration, as in 2.x).
 
 Why the client drives on (and not the simulator): it is 2.x's own algorithm, run where 2.x runs
 it (2.x's Robotarium, i.e. the script's process, is "the algorithm we use to drive robots onto

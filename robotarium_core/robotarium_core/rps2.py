@@ -12,9 +12,9 @@ which differ from the guide's (rps 0.0.0, robotarium_core.model):
 Beyond 2.x (which draws obstacles and lets its sensors see them but never checks them): a step in
 which a robot's collider touches a line-segment obstacle counts as an error too.
 
-Also here: where the drive-on phase starts (charger slots) and random initial conditions, both
-without 2.1.0's limits (it samples 22 charger slots, so 23 or more robots always fail, and it
-draws random poses 0.5 m apart, which 18 or more robots never fit).
+Also here: the drive-on phase (DriveOn), where it starts (charger slots) and random initial
+conditions, the last two without 2.1.0's limits (it samples 22 charger slots, so 23 or more
+robots always fail, and it draws random poses 0.5 m apart, which 18 or more robots never fit).
 """
 import numpy as np
 
@@ -334,6 +334,13 @@ class DriveOn:
     drive from their charger slots to `goals` with 2.x's hybrid pose controller, through 2.x's
     unicycle barrier certificate, and a robot that makes no progress for DEADLOCK_STEPS takes a
     random detour (a waypoint within DETOUR of where it is stuck), as in 2.x.
+
+    Beyond 2.x, so that a crowd of up to 50 robots settles (2.x's rules made robots 2-5 cm from
+    their goals, blocked by a neighbour while finishing, take detours that pushed their neighbours
+    off theirs, for ever): robots going deep leave their chargers first (drive_on_waiting); a robot
+    within drive_on_position_error of its goal takes no detour and holds back no one; one that
+    stays there without arriving for DEADLOCK_STEPS turns where it is instead of first closing
+    the last 2 cm; and one pushed out of it approaches again.
 
     controller: 2.x's hybrid pose controller, f(states, poses, approach) -> (dxu, approach); barrier:
     2.x's unicycle certificate f(dxu, x); rng: where detours are drawn (2.x: numpy's global
