@@ -24,12 +24,16 @@ from rclpy.node import Node
 from devtools import PACKAGE_SOURCES, REPO
 from robotarium_core.topics import CMD_SAFE, SAFETY_ARM, TESTBED_QOS
 
-# Domain ids 1..232 are valid with Fast DDS. Each one handed out is held with an exclusive lock
+# Domain ids 1..101 only: DDS derives its UDP ports from the domain (7400 + 250 x domain + ...), and
+# above 101 they fall in Linux's ephemeral port range (32768-60999), where any process's outgoing
+# socket may hold a port a participant needs, and fewer participants fit below 65535 (ROS 2's
+# "About Domain ID"; its own test helper, domain_coordinator, uses 1..100). Each one handed out is
+# held with an exclusive lock
 # on a file until this process exits, so no two processes on this machine (two pytest runs, a
 # benchmark, another checkout's tests) ever share a domain, and no test of this process gets a
 # domain an earlier test used (a module's testbed may still be running on it).
 _DOMAIN_LOCKS = os.path.join(tempfile.gettempdir(), "robotarium-domains")
-_MAX_DOMAIN_ID = 232
+_MAX_DOMAIN_ID = 101
 _held = []        # lock file descriptors, closed (released) when the process exits
 _cursor = [None]  # where the next search starts: after the last domain handed out
 

@@ -25,7 +25,7 @@ GUIDE_EXAMPLES = sorted(glob.glob(os.path.join(REPO, "examples", "guide", "*.py"
 RUNNING = []   # the module's LocalTestbed while it runs: a failure shows its nodes' logs
 
 
-def testbed_logs(lines=40):
+def logs_of_the_testbed(lines=40):
     """The end of each testbed node's log and which nodes exited: what a failed run's message
     needs to tell a testbed fault from a script's (CI keeps no temporary folders)."""
     text = []
@@ -84,15 +84,15 @@ def run(env, script, *args, timeout=600):
             os.killpg(process.pid, signal.SIGKILL)
             out, err = process.communicate()
         raise AssertionError("%s did not finish within %d s:\n%s%s\n%s" % (script_args or script, timeout, out, err,
-                                                                        testbed_logs()))
+                                                                        logs_of_the_testbed()))
     if process.returncode != 0:
-        err += "\n" + testbed_logs()
+        err += "\n" + logs_of_the_testbed()
     return subprocess.CompletedProcess(process.args, process.returncode, out, err)
 
 
 def run_folder(bags, output):
     info = [line for line in output.splitlines() if " recorded in " in line]
-    assert info, "the run was not recorded:\n" + output + "\n" + testbed_logs()
+    assert info, "the run was not recorded:\n" + output + "\n" + logs_of_the_testbed()
     return info[-1].split(" recorded in ")[-1].strip()
 
 
