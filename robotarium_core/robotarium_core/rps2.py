@@ -400,6 +400,10 @@ class DriveOn:
             approach[~near] = 1.0
             approach[settling > self.DEADLOCK_STEPS] = 0.0
             dxu, approach = self.controller(x, goals, approach)
+            # whether the controller still asks for more than 0.1 (2.x's "progress" probe); read here,
+            # before any command is replaced: for every robot it is used on (not near: approach 1) it
+            # is what a fresh call with approach 1 would say
+            pulling = np.linalg.norm(dxu, axis=0) > 0.1
             dxu[:, waiting] = 0.0
             # 2.x's deadlock rule: a robot that has not moved DEADLOCK_DISTANCE for DEADLOCK_STEPS (while
             # its controller still asks for more than 0.1) drives to a random waypoint until it has.
@@ -410,7 +414,6 @@ class DriveOn:
             if np.any(on):
                 dxu[:, on] = self.controller(x[:, on], detours[:, on], np.ones(np.count_nonzero(on)))[0]
             new = active & ~detouring & idle & ~moved
-            pulling = np.linalg.norm(self.controller(x, goals, np.ones(n))[0], axis=0) > 0.1
             progress = active & ~detouring & ~new & (moved | ~pulling)
             detouring[on & moved] = False
             detouring[new] = True

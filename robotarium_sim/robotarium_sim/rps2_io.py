@@ -238,7 +238,7 @@ class StandardSensors:
         """Whether this step is the first at or past the next multiple of the period."""
         if self.rate <= 0 or testbed.steps == 0:
             return False
-        period = math.floor(testbed.steps * testbed.time_step * self.rate + 1e-9)
+        period = math.floor(testbed.sim_time * self.rate + 1e-9)
         if period <= self._last_period:
             return False
         self._last_period = period
