@@ -206,7 +206,7 @@ RATE = 10.0
 
 def test_a_2x_experiment_publishes_them_at_the_rate_and_they_are_recorded(tmp_path):
     n, steps = 3, 45
-    config = tmp_path / "testbed.yaml"     # the packaged configuration has them off (their cost: README)
+    config = tmp_path / "testbed.yaml"     # the rate set here, whatever the packaged default
     config.write_text(yaml.safe_dump({"/**": {"ros__parameters": dict(DEFAULT.to_dict(), standard_sensor_rate=RATE)}}))
     stack = Stack(tmp_path, config_file=config)
     try:
