@@ -248,19 +248,30 @@ class CliRun:
 class SafetyStandIn:
     """The safety node's part, played by a probe, for tests that drive the simulator alone: it
     answers <ns>/safety/arm (so the simulator starts experiments and hands it the safety key) and
-    publishes command arrays on cmd_safe carrying that key, as the safety node does."""
+    publishes command arrays on cmd_safe carrying that key, as the safety node does. A real-time
+    array sent unnumbered (step 0) is marked as the safety node marks it: the newest poses' step
+    plus one (robotarium_core.model.StepGate takes nothing else)."""
 
     def __init__(self, probe, ns="/robotarium"):
-        from robotarium_msgs.msg import TwistArray
+        from robotarium_msgs.msg import RobotPoses, TwistArray
         from robotarium_msgs.srv import ArmSafety
         self.probe = probe
         self.armed = ArmSafety.Request()
         self.arms = []    # every ArmSafety request received
         self.service = probe.node.create_service(ArmSafety, "%s/%s" % (ns, SAFETY_ARM), self._on_arm)
         self.publisher = probe.node.create_publisher(TwistArray, "%s/%s" % (ns, CMD_SAFE), TESTBED_QOS)
+        self.poses_step = -1
+        self.poses = probe.node.create_subscription(RobotPoses, "%s/poses" % ns, self._on_poses, TESTBED_QOS, raw=True)
+
+    def _on_poses(self, data):
+        from robotarium_core import cdr
+        msg = cdr.ROBOT_POSES.parse(data)
+        if msg.key == self.armed.poses_key:
+            self.poses_step = max(self.poses_step, msg.step)
 
     def _on_arm(self, request, response):
         self.armed = request
+        self.poses_step = -1
         self.arms.append(request)
         response.success = True
         return response
@@ -273,4 +284,11 @@ class SafetyStandIn:
     def publish(self, msg):
         """Publish `msg` (a TwistArray) on cmd_safe with the safety key of the armed experiment."""
         msg.token = self.armed.safety_key
+        if self.armed.real_time and msg.step == 0:
+            from robotarium_core.node_tools import take_waiting
+            for data in take_waiting(self.poses):
+                self._on_poses(data)
+            if self.poses_step < 0 and not self.probe.spin_until(lambda: self.poses_step >= 0, 10):
+                raise TimeoutError("no poses of the armed experiment within 10 s")
+            msg.step = self.poses_step + 1
         self.publisher.publish(msg)

@@ -200,7 +200,8 @@ DROP_REASONS = {
     "nonfinite": "NaN or inf in a velocity",
     "length_mismatch": "ids and twists of different lengths, or an id given twice",
     "unknown_id": "an id that is not a robot of this experiment",
-    "stale": "a lockstep step that was already taken",
+    "stale": "not for the step the testbed is at: a lockstep step already taken or not the next one, a second "
+             "array for one step, or (real time) filtered at poses the testbed has left",
 }
 
 
@@ -217,6 +218,57 @@ def check_commands(ids, v, w, number_of_robots):
     if not (np.all(np.isfinite(v)) and np.all(np.isfinite(w))):
         return "nonfinite"
     return None
+
+
+class StepGate:
+    """The simulator's rule for the safe arrays it applies (issue 22): each cmd_safe array carries
+    in its `step` the step it produces, that is the pose step it was filtered at plus one (the
+    safety node's robotarium_safety.guard.Guard marks it so), and the barrier certificate's guarantee
+    is about one step from exactly those poses. So:
+      lockstep:  an array is applied only when it produces the next step (step == steps + 1), and
+                 the one applied steps the testbed: at most one array per step, each filtered at
+                 the poses it moves from. A re-send, a burst of arrays filtered at one pose, a
+                 step ahead or behind, adds no step and no motion.
+      real time: an array replaces the commands in force; it is taken only when filtered at the
+                 poses of the current tick (step == steps + 1) or of the one before (step ==
+                 steps: it crossed a tick on its way), and never one filtered at older poses
+                 than the array in force (a reordering). Arrays never add up: whatever comes
+                 within a tick, one set of commands is in force during each step. An array of
+                 stops is taken whatever its step: it cannot move a robot.
+    Why one tick late is covered: the array was filtered at the poses p_{k-1} and then moves the
+    robots from p_k, which its own step k-1 -> k (filtered at p_{k-2} or later, the same rule) put
+    at most T v_max = 6.6 mm from p_{k-1}; the boundary rows keep each centre boundary_margin
+    (55 mm) inside the arena and their bound falls as gap^3, so a second step at the allowed speed
+    stays inside; for pairs, a certificate used for two steps closes at most 2 collision_barrier_rate
+    (0.4) of the squared gap, and the change of heading in one step (omega_max T = 0.12 rad) adds
+    at most 2 v_max T sin(0.12) = 1.6 mm for the pair, inside collision_margin (5 mm). A command
+    held over several ticks (a script slower than the tick) is outside the certificate's guarantee,
+    as the real robots' firmware holds it too (barrier_certificates, assumption 1); command_timeout
+    ends it.
+
+    Pure: the simulator node calls `admit` for every valid array before applying it, and the
+    property test (tests/test_safety_guarantee.py) runs the same object on adversarial streams."""
+
+    def __init__(self, real_time):
+        self.real_time = real_time
+        self.in_force = 0   # real time: the step of the array in force (0: none yet)
+
+    def admit(self, step, steps, stop=False):
+        """None when the array marked `step` may be applied now that the testbed has taken
+        `steps` steps (then, in lockstep, the caller steps the testbed); else why not, in words
+        (its drop reason is "stale")."""
+        if not self.real_time:
+            if step == steps + 1:
+                return None
+            return "step %d is not the next one (the testbed is at step %d)" % (step, steps)
+        if stop:
+            return None
+        if step not in (steps, steps + 1):
+            return "filtered at the poses of step %d; the testbed is at step %d" % (step - 1, steps)
+        if step < self.in_force:
+            return "filtered at older poses (step %d) than the commands in force (step %d)" % (step - 1, self.in_force - 1)
+        self.in_force = step
+        return None
 
 
 NOT_COMPLETED = "The run did not complete, so there is no acceptance estimate.\n"

@@ -32,8 +32,11 @@ matched it (at most `lockstep_wait`): the first commands of a run are never lost
 In lockstep the client numbers its command arrays: step k is sent right after the client saw the
 poses of step k - 1. Those poses may reach this node a moment after the command (two topics, no
 ordering between them), so a numbered command waits here until the poses it was computed from
-have arrived (at most `lockstep_wait`). That keeps lockstep deterministic. Unnumbered commands
-(step 0, real time) use the newest poses, if they are younger than `pose_timeout`.
+have arrived (at most `lockstep_wait`). That keeps lockstep deterministic. Real-time commands use
+the newest poses, if they are younger than `pose_timeout`. Whoever sends arrays with the token,
+in whatever order and with whatever step numbers, each array forwarded is filtered at the poses
+of the step it will move the robots from, at most one per lockstep step, and marked with the
+step it produces (robotarium_safety.guard; the simulator applies nothing else: model.StepGate).
 
 Poses come in and cmd_safe goes out as CDR bytes read and written with numpy (robotarium_core.cdr):
 rclpy's message objects, one per robot for a Twist[], cost more than the barrier QP.
@@ -48,6 +51,7 @@ STATUS_STOP_NO_POSES with its pose_age; the simulator's status counts them as st
 and logged: the first of a spell at once, then at most once a second, and the spell's end.
 """
 import sys
+from itertools import chain
 import time
 from collections import deque
 
@@ -59,9 +63,10 @@ from std_msgs.msg import String
 from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, TwistArray
 from robotarium_msgs.srv import ArmSafety
 from robotarium_safety.barrier_certificates import create_unicycle_barrier_certificate_with_centre_boundary
+from robotarium_safety.guard import Guard, filter_commands
 from robotarium_core import cdr, model, presence, rps2
 from robotarium_core.node_tools import declare_config, run_node, take_waiting
-from robotarium_core.topics import (CMD_REQUESTED, CMD_SAFE, COMMAND_INPUT_QOS, DEFAULT_NAMESPACE, EXPERIMENT, LATCHED,
+from robotarium_core.topics import (CMD_REQUESTED, CMD_SAFE, command_input_qos, DEFAULT_NAMESPACE, EXPERIMENT, LATCHED,
                                     POSES, SAFETY_ARM, SAFETY_REPORT, TESTBED_QOS, readers_matched,
                                     warn_on_incompatible_qos)
 
@@ -79,8 +84,8 @@ class SafetyNode(Node):
         self.poses_step = -1
         self.poses_time = -np.inf    # monotonic receive time
         self.commands = None         # 2 x N, the current requested command of every robot
-        self.pending = None          # (commands, received) a numbered command waiting for its poses
-        self.last_step = 0           # the last numbered step forwarded
+        self.guard = Guard(True, c.lockstep_wait)   # what is forwarded, at which poses (issue 22)
+        self.last_step = 0           # the last step forwarded
         self.held = deque()          # (request, received) commands waiting for the simulator to match cmd_safe
         self._simulator_matched = (False, -1)   # (matched, our writer's match count when last checked)
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
@@ -93,7 +98,7 @@ class SafetyNode(Node):
         self.report_pub = self.create_publisher(SafetyReport, SAFETY_REPORT, TESTBED_QOS)
         # Poses first: the executor serves ready subscriptions in the order they were created.
         self.poses_subscription = self.create_subscription(RobotPoses, POSES, self.on_poses, TESTBED_QOS, raw=True)
-        self.requests = self.create_subscription(TwistArray, CMD_REQUESTED, self.on_requests, COMMAND_INPUT_QOS,
+        self.requests = self.create_subscription(TwistArray, CMD_REQUESTED, self.on_requests, command_input_qos(c.command_queue_depth),
                                                  raw=True, event_callbacks=warn_on_incompatible_qos(self, CMD_REQUESTED))
         self.create_service(ArmSafety, SAFETY_ARM, self.on_arm)
         self.presence = presence.Presence(self, presence.alive_topic(presence.SAFETY), c.node_lease)
@@ -119,7 +124,7 @@ class SafetyNode(Node):
         self.use_experiment_settings({})   # until this run's settings arrive (on_experiment)
         self.poses, self.poses_step, self.poses_time = None, -1, -np.inf
         self.commands = np.zeros((2, n))   # nobody has a command yet
-        self.pending = None
+        self.guard = Guard(bool(request.real_time), self.config.lockstep_wait)
         self.held.clear()
         self.last_step = 0
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
@@ -164,10 +169,7 @@ class SafetyNode(Node):
         self.poses_step = msg.step
         self.poses_time = time.monotonic()
         self.check_drive_on()
-        if self.pending is not None and self.poses_step >= self.pending[0].step - 1:
-            request, _ = self.pending
-            self.pending = None
-            self.filter(request)
+        self.decide(*self.guard.on_poses(msg.step))
 
     def on_experiment(self, msg):
         try:
@@ -206,7 +208,8 @@ class SafetyNode(Node):
         """Everything waiting on cmd_requested at once (node_tools.take_waiting): foreign arrays are
         dropped in microseconds; of the client's own, in real time only the newest counts (as on
         the robots' firmware), in lockstep each is a step."""
-        valid = [request for request in map(self.check_request, [data, *take_waiting(self.requests)]) if request]
+        # One at a time, as taken: an array refused is freed before the next is taken.
+        valid = [request for request in map(self.check_request, chain([data], take_waiting(self.requests))) if request]
         if self.armed.real_time:
             valid = valid[-1:]
         for request in valid:
@@ -223,10 +226,9 @@ class SafetyNode(Node):
             return self.drop(error.reason, str(error))
 
     def on_request(self, request):
-        armed = self.armed
-        if not armed.real_time and 0 < request.step <= self.last_step:
-            return self.drop("stale", "step %d was forwarded already" % request.step)
         if self.held or not self.simulator_listens():
+            if len(self.held) >= self.config.held_commands_limit:   # a flood before the simulator matched
+                return self.drop("stale", "more than held_commands_limit arrays wait for the simulator")
             self.held.append((request, time.monotonic()))   # in order, behind any already held
             return
         self.accept(request)
@@ -256,38 +258,35 @@ class SafetyNode(Node):
             self.accept(self.held.popleft()[0])
 
     def accept(self, request):
-        if request.step > 0 and (self.poses is None or request.step - 1 > self.poses_step):
-            if self.pending is not None and self.pending[0].step == request.step:
-                return self.drop("stale", "step %d is waiting for its poses already" % request.step)
-            if self.pending is not None:  # a newer step: the client gave up on the old one
-                self.filter(self.pending[0])
-            self.pending = (request, time.monotonic())
-            return
-        self.filter(request)
+        if self.armed.real_time:
+            # A real-time command is filtered with the newest poses that have come (and marked with their step).
+            for data in take_waiting(self.poses_subscription):
+                self.on_poses(data)
+        self.decide(*self.guard.on_request(request, time.monotonic()))
+
+    def decide(self, forward, drops):
+        """Do what the guard decided: count its drops, filter and send what it forwards."""
+        for reason, text in drops:
+            self.drop(reason, text)
+        for request, step in forward:
+            self.filter(request, step)
 
     def check_pending(self):
         self.release_held()
-        if self.pending is not None and time.monotonic() - self.pending[1] > self.config.lockstep_wait:
-            request, _ = self.pending
-            self.pending = None
-            self.warn_once("late_poses", "poses for step %d did not come in time; filtering with step %d"
-                           % (request.step - 1, self.poses_step))
-            self.filter(request)
+        self.decide([], self.guard.expire(time.monotonic()))
 
-    def filter(self, request):
+    def filter(self, request, step):
+        """Filter `request` at the newest poses and send it marked `step` (the step it produces:
+        the guard forwards an array only when the newest poses are those of step - 1 in lockstep)."""
         started = time.perf_counter()
         ids, v, w = request.ids, request.v, request.omega
-        report = SafetyReport(step=request.step)
-        self.last_step = max(self.last_step, request.step)
+        report = SafetyReport(step=step)
+        self.last_step = max(self.last_step, step)
 
-        # In lockstep (numbered commands) time stands still between steps: only real-time poses age,
-        # and a real-time command is filtered with the newest poses that have come.
-        if request.step == 0:
-            for data in take_waiting(self.poses_subscription):
-                self.on_poses(data)
+        # In lockstep time stands still between steps: only real-time poses age.
         now = time.monotonic()
         report.pose_age = now - self.poses_time if self.poses is not None else -1.0
-        if self.poses is None or (request.step == 0 and report.pose_age > self.config.pose_timeout):
+        if self.poses is None or (self.armed.real_time and report.pose_age > self.config.pose_timeout):
             self.note_stale_stop(now, report.pose_age)
             return self.send_stop(request, report, SafetyReport.STATUS_STOP_NO_POSES, started)
         if self._stale_spell is not None:
@@ -304,25 +303,15 @@ class SafetyNode(Node):
 
         self.commands[0, ids] = v
         self.commands[1, ids] = w
-        if self.api == rps2.API:
-            over_limits = rps2.exceeds_wheel_limit(self.commands, self.config)
-        else:
-            over_limits = model.exceeds_actuator_limits(self.commands, **self.config.limits)
-        # What the robots would drive: beyond the limits, scaled to them along the commanded arc.
-        requested = model.threshold_keeping_arc(self.commands, **self.config.limits)
-        safe = self.certificate(requested, self.poses)
+        # The debug report's actuator count judges the script's own commands (over_limits), never
+        # our interventions.
+        safe, requested, over_limits, fell_back = filter_commands(self.certificate, self.commands, self.poses,
+                                                                  self.config, self.api)
         info = self.certificate.info
-        if info["fallback"]:
+        if fell_back:
             self.warn_once("solver", "barrier certificate failed (%s): sending stop" % info["reason"])
             status = SafetyReport.STATUS_STOP_SOLVER_FAILED
-            safe = np.zeros_like(requested)
         else:
-            # The certificate bounds speed, not wheel speeds: where it replaced a command, make the
-            # replacement drivable (keeping its arc); the debug report's actuator count judges the
-            # script's own commands (requested_exceeds_limits), never our interventions.
-            changed = np.any(safe != requested, axis=0)
-            if np.any(changed):
-                safe[:, changed] = model.threshold_keeping_arc(safe[:, changed], **self.config.limits)
             status = (SafetyReport.STATUS_SOLVED if np.any(safe != requested) else
                       SafetyReport.STATUS_SATURATED if np.any(requested != self.commands) else
                       SafetyReport.STATUS_PASSTHROUGH)
@@ -331,7 +320,7 @@ class SafetyNode(Node):
         report.solver_status = info["status"]
         report.max_change = float(change.max()) if n else 0.0
         report.robots_changed = int(np.count_nonzero(change.max(axis=0) > self.config.intervention_tolerance))
-        self.publish(request, np.arange(n), safe[0], safe[1], report, started, over_limits)
+        self.publish(step, np.arange(n), safe[0], safe[1], report, started, over_limits)
 
     def note_stale_stop(self, now, age):
         """Count a stop for want of recent poses; log the first of a spell, then once a second."""
@@ -362,13 +351,13 @@ class SafetyNode(Node):
             ids = np.arange(self.armed.number_of_robots)
         report.status = status
         report.solver_status = ""
-        self.publish(request, ids, np.zeros(len(ids)), np.zeros(len(ids)), report, started)
+        self.publish(report.step, ids, np.zeros(len(ids)), np.zeros(len(ids)), report, started)
 
-    def publish(self, request, ids, v, w, report, started, requested_exceeds_limits=False):
+    def publish(self, step, ids, v, w, report, started, requested_exceeds_limits=False):
         now = self.get_clock().now()
         sec, nanosec = now.seconds_nanoseconds()
         self.safe_pub.publish(cdr.TWIST_ARRAY.build(
-            sec=sec, nanosec=nanosec, frame_id="arena", token=self.armed.safety_key, step=request.step, ids=ids,
+            sec=sec, nanosec=nanosec, frame_id="arena", token=self.armed.safety_key, step=step, ids=ids,
             twists=cdr.twists(v, w), requested_exceeds_limits=bool(requested_exceeds_limits)))
         report.header.stamp = now.to_msg()
         report.header.frame_id = "arena"

@@ -34,9 +34,12 @@ node's presence is lost, every robot stops at once.
 
 Modes, chosen per experiment: real time (a timer at `rate` Hz; a robot whose last command is older
 than `command_timeout` stops) or lockstep (exactly one step per accepted command array, as fast as
-commands come, so a run is deterministic). In lockstep a command array's `step` is the step it
-produces; one whose step was already taken is a re-send and is ignored, so a client may re-send
-safely when a message was lost before discovery completed (step 0 means "unnumbered": always taken).
+commands come, so a run is deterministic). A cmd_safe array's `step` is the step it produces:
+the safety node filtered it at the poses of the step before (robotarium_safety.guard). Lockstep
+applies only the array for the next step, one per step; real time only one filtered at the
+current tick's poses or the one before (model.StepGate says why that keeps the certificate's
+guarantee). Any other array (a re-send, a burst, a step ahead or behind) is dropped as "stale"
+and adds no motion.
 
 Poses and pose_array go out as CDR bytes made with numpy (robotarium_core.cdr): rclpy's message
 objects, one per robot for a PoseArray, cost more than the whole step at N = 20.
@@ -52,6 +55,7 @@ import hashlib
 import re
 import secrets
 import sys
+from itertools import chain
 import time
 
 import numpy as np
@@ -68,7 +72,7 @@ from robotarium_msgs.srv import ArmSafety, EndExperiment, StartExperiment
 
 from robotarium_core import cdr, markers, model, outcomes, presence, rps2, scene
 from robotarium_core.node_tools import declare_config, run_node, take_waiting
-from robotarium_core.topics import (CMD_SAFE, COMMAND_INPUT_QOS, CONFIG, DEFAULT_NAMESPACE, END_EXPERIMENT, EXPERIMENT,
+from robotarium_core.topics import (CMD_SAFE, command_input_qos, CONFIG, DEFAULT_NAMESPACE, END_EXPERIMENT, EXPERIMENT,
                                     LATCHED, MARKERS, OBSTACLES, POSE_ARRAY, POSES, RECORDING, SAFETY_ARM, SAFETY_REPORT,
                                     SENSORS, START_EXPERIMENT, STATUS, TESTBED_QOS, VIEWER_QOS, warn_on_incompatible_qos)
 from robotarium_sim import rps2_io
@@ -119,6 +123,7 @@ class SimulatorNode(Node):
         self.config = declare_config(self)
         self.testbed = None
         self.real_time = True
+        self.gate = model.StepGate(True)
         self.experiment = ""
         self.run_id = ""
         self._run_ids = set()   # every run id this simulator gave
@@ -154,7 +159,8 @@ class SimulatorNode(Node):
         self.obstacles_pub = rps2_io.obstacles_publisher(self, OBSTACLES, LATCHED)
         # The same sensors per robot on standard types for ROS tools, throttled by simulated time.
         self.standard_sensors = rps2_io.StandardSensors(self, self.config.standard_sensor_rate)
-        self.commands = self.create_subscription(TwistArray, CMD_SAFE, self.on_commands, COMMAND_INPUT_QOS, raw=True,
+        self.commands = self.create_subscription(TwistArray, CMD_SAFE, self.on_commands,
+                                                 command_input_qos(self.config.command_queue_depth), raw=True,
                                                  event_callbacks=warn_on_incompatible_qos(self, CMD_SAFE))
         self.create_subscription(SafetyReport, SAFETY_REPORT, self.on_safety_report, TESTBED_QOS)
         self.create_subscription(String, RECORDING, self.on_recording, LATCHED)
@@ -239,6 +245,7 @@ class SimulatorNode(Node):
 
         self.testbed = testbed
         self.real_time = bool(request.real_time)
+        self.gate = model.StepGate(self.real_time)
         self.experiment = name
         self.run_id = run_id
         self.token, self.safety_key, self.poses_key = token, safety_key, poses_key
@@ -412,7 +419,7 @@ class SimulatorNode(Node):
     def on_commands(self, data):
         """Everything waiting on cmd_safe at once (node_tools.take_waiting), so that a flood of
         foreign arrays never fills the queue and pushes the safety node's out."""
-        for each in [data, *take_waiting(self.commands)]:
+        for each in chain([data], take_waiting(self.commands)):   # one at a time: a refused one is freed at once
             self.on_command(each)
 
     def on_command(self, data):
@@ -423,11 +430,13 @@ class SimulatorNode(Node):
             msg = cdr.parse_commands(data, tb.number_of_robots, token=self.safety_key)
         except cdr.CdrError as error:
             return self.drop(error.reason, str(error))
-        if not self.real_time and 0 < msg.step <= tb.steps:
-            return self.drop("stale", "step %d was taken already" % msg.step)  # a re-send: already applied
         problem = model.check_commands(msg.ids, msg.v, msg.omega, tb.number_of_robots)
         if problem is not None:
             return self.drop(problem, "step %d" % msg.step)
+        # Only an array filtered at the poses it will move the robots from (model.StepGate).
+        wrong_step = self.gate.admit(msg.step, tb.steps, stop=not (np.any(msg.v) or np.any(msg.omega)))
+        if wrong_step is not None:
+            return self.drop("stale", wrong_step)
         self.commands_accepted += 1
         self.last_command_step = tb.steps + (0 if self.real_time else 1)
         now = time.monotonic()

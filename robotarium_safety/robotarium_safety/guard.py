@@ -1,0 +1,108 @@
+"""Which requested arrays the safety node filters, at which poses, and how it marks them (issue 22).
+Plain Python, no ROS: the safety node calls it, and tests/test_safety_guarantee.py runs it on
+adversarial streams together with the simulator's rule (robotarium_core.model.StepGate).
+
+The barrier certificate's guarantee is about one step from the poses a command was filtered at.
+Whoever sends arrays with the experiment's token (the client, or a process that copied the token
+off the wire: without SROS2 it is no secret), in whatever order and with whatever step numbers,
+the commands applied must each have been filtered at the poses they move the robots from. So
+every forwarded array is marked with the step it produces (cmd_safe `step`: the pose step it was
+filtered at, plus one), and:
+
+  lockstep:  an array for step k is filtered exactly at the poses of step k - 1, once they came,
+             and at most one array is forwarded per step. Unnumbered (step 0) means "the next
+             step". An array for a step already forwarded, already past, or further ahead than a
+             client can be (it sends step k after it saw the poses of k - 1, which may reach us a
+             moment after its array: so at most two ahead of our newest poses) is dropped as
+             "stale"; one waiting for its poses longer than lockstep_wait too.
+  real time: the newest array is filtered at the newest poses (the node takes every poses message
+             waiting first) and marked with their step plus one; the simulator takes it only on
+             that tick or the next (StepGate).
+
+What is waiting is bounded: at most the two steps a client can be ahead (WAITING_STEPS).
+"""
+import numpy as np
+
+from robotarium_core import model, rps2
+
+WAITING_STEPS = 2   # lockstep: a client's array may come before the poses it was computed from (see above)
+
+
+class Guard:
+    """The safety node's decisions for one experiment. Feed it the run's poses steps
+    (`on_poses`) and the client's parsed arrays (`on_request`, `expire`); each returns
+    (forward, drops): forward, a list of (request, step) to filter now at the newest poses and
+    send marked `step`; drops, a list of (reason, words) to count."""
+
+    def __init__(self, real_time, lockstep_wait):
+        self.real_time = real_time
+        self.lockstep_wait = lockstep_wait
+        self.poses_step = -1      # the newest poses' step (-1: none yet)
+        self.forwarded = 0        # lockstep: the last step forwarded
+        self.waiting = {}         # lockstep: step -> (request, received) waiting for the poses of step - 1
+
+    def on_poses(self, step):
+        if step <= self.poses_step:
+            return [], []         # older or the same (a reordering): the newest stay
+        self.poses_step = step
+        if self.real_time:
+            return [], []
+        drops = [("stale", "step %d: the testbed is past it" % k) for k in sorted(self.waiting) if k <= step]
+        for k in [k for k in self.waiting if k <= step]:
+            del self.waiting[k]
+        waiting = self.waiting.pop(step + 1, None)
+        if waiting is None:
+            return [], drops
+        self.forwarded = step + 1
+        return [(waiting[0], step + 1)], drops
+
+    def on_request(self, request, now):
+        if self.real_time:
+            return [(request, self.poses_step + 1)], []
+        step = request.step or self.poses_step + 1   # unnumbered: the next step
+        if step == 0:
+            return [(request, 0)], []   # unnumbered before any poses: the node sends a stop (it moves nothing)
+        if step <= self.forwarded:
+            return [], [("stale", "step %d was forwarded already" % step)]
+        if step <= self.poses_step:
+            return [], [("stale", "step %d: the testbed is past it (at step %d)" % (step, self.poses_step))]
+        if step == self.poses_step + 1 and self.poses_step >= 0:
+            self.forwarded = step
+            return [(request, step)], []
+        if step > self.poses_step + WAITING_STEPS or step < 1:
+            return [], [("stale", "step %d: the testbed is at step %d" % (step, self.poses_step))]
+        if step in self.waiting:
+            return [], [("stale", "step %d is waiting for its poses already" % step)]
+        self.waiting[step] = (request, now)
+        return [], []
+
+    def expire(self, now):
+        """Arrays that waited longer than lockstep_wait for their poses: dropped."""
+        late = [k for k, (_, received) in self.waiting.items() if now - received > self.lockstep_wait]
+        for k in late:
+            del self.waiting[k]
+        return [("stale", "the poses of step %d did not come within lockstep_wait" % (k - 1)) for k in late]
+
+
+def filter_commands(certificate, commands, poses, config, api=""):
+    """What the safety node sends for the requested `commands` (2 x N) at `poses`: the commands
+    scaled to the wheel limits along their arc, through the certificate; a stop if the solver
+    failed, else its answer with the columns it changed scaled to the wheel limits (keeping the
+    arc). Returns (safe, requested, over_limits, fell_back): `requested` is the scaled request,
+    over_limits whether the script's own commands exceed the actuator limits (2.x's rule for
+    2.x experiments)."""
+    if api == rps2.API:
+        over_limits = rps2.exceeds_wheel_limit(commands, config)
+    else:
+        over_limits = model.exceeds_actuator_limits(commands, **config.limits)
+    # What the robots would drive: beyond the limits, scaled to them along the commanded arc.
+    requested = model.threshold_keeping_arc(commands, **config.limits)
+    safe = certificate(requested, poses)
+    if certificate.info["fallback"]:
+        return np.zeros_like(requested), requested, over_limits, True
+    # The certificate bounds speed, not wheel speeds: where it replaced a command, make the
+    # replacement drivable (keeping its arc).
+    changed = np.any(safe != requested, axis=0)
+    if np.any(changed):
+        safe[:, changed] = model.threshold_keeping_arc(safe[:, changed], **config.limits)
+    return safe, requested, over_limits, False
