@@ -12,6 +12,10 @@ faults) tests/data/steps_forever.py in a subprocess. For each fault, --repeats t
   - a 1 kHz flood (devtools/flood.py: foreign and malformed arrays and a 2.4 MB one twice a
     second, on both command topics) during a real-time 8-robot run: command timeouts, arrays
     counted against arrays sent; a lockstep 8-robot run with and without it: steps/s;
+  - memory: the resident set of the simulator and the safety node before and after a flood at the
+    highest rate one local process can send (foreign, malformed, forged with the token copied
+    off the wire, and 2.4 MB arrays mixed in, on both command topics) during a real-time 8-robot
+    run; and the run's command timeouts under a 1 kHz flood of foreign arrays;
   - the cost of refusing an array at a node: robotarium_core.cdr on a foreign array and on a
     100,000-twist one, against rclpy's deserialization of the latter.
 Run: ./robotarium bench faults [--repeats 3]
@@ -148,9 +152,47 @@ def node_lost(tb, name):
         tb.heal()
 
 
-def flood(tb, seconds):
-    return NodeProcess("devtools.flood", tb.domain, args=["--seconds", str(seconds)],
+def flood(tb, seconds, *extra):
+    return NodeProcess("devtools.flood", tb.domain, args=["--seconds", str(seconds), *extra],
                        log_path=os.path.join(tb.work, "flood_%d.log" % time.time_ns()))
+
+
+def rss_mb(pid):
+    """Resident set of a process, MB (VmRSS)."""
+    with open("/proc/%d/status" % pid) as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def flood_memory(tb, seconds, rate="0", huge_every="50", settle=3.0):
+    """RSS of the simulator and the safety node before and after a flood of `seconds` at `rate`
+    (0: as fast as the flood process can send), forged arrays included, during a real-time run
+    of 8 robots. Returns ({node: (before, peak, after)}, arrays sent per second on cmd_requested,
+    command timeouts)."""
+    names = ("simulator", "safety")
+    r = client(EIGHT, real_time=True)
+    started = time.monotonic()
+    while time.monotonic() - started < 2.0:   # warm up: the run's own traffic
+        drive(r, np.full(8, 0.0), np.full(8, 0.3))
+    before = {name: rss_mb(tb.nodes[name].proc.pid) for name in names}
+    peak = dict(before)
+    flooding = flood(tb, seconds, "--rate", rate, "--huge-every", huge_every, "--forge")
+    while flooding.alive():
+        drive(r, np.full(8, 0.0), np.full(8, 0.3))
+        for name in names:
+            peak[name] = max(peak[name], rss_mb(tb.nodes[name].proc.pid))
+    started = time.monotonic()
+    while time.monotonic() - started < settle:
+        drive(r, np.full(8, 0.0), np.full(8, 0.3))
+    after = {name: rss_mb(tb.nodes[name].proc.pid) for name in names}
+    r.call_at_scripts_end()
+    out = flooding.output().strip().splitlines()
+    sent = json.loads(out[-1]) if out and out[-1].startswith("{") else {}
+    on_requested = sent.get(NS + "/cmd_requested", {})
+    rate_sent = (sum(on_requested.values()) - on_requested.get("refused", 0)) / seconds
+    return {name: (before[name], peak[name], after[name]) for name in names}, rate_sent, r.run_info["command_timeouts"]
 
 
 def flooded_real_time(tb):
@@ -212,12 +254,25 @@ def parse_costs():
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--flood-seconds", type=float, default=60.0, help="the memory case's flood")
+    parser.add_argument("--only", choices=["memory"], help="run only this case")
     args = parser.parse_args()
     print("faults benchmark, %s, %s, %d cores, Python %s, load average %.1f" % (
         time.strftime("%Y-%m-%d"), platform.machine(), os.cpu_count(), platform.python_version(), os.getloadavg()[0]))
     work = tempfile.mkdtemp(prefix="bench_faults_")
     tb = Testbed(work)
     rows = []
+    if args.only == "memory":
+        try:
+            for _ in range(args.repeats):
+                rss, rate, timeouts = flood_memory(tb, args.flood_seconds)
+                print("memory (RSS, MB) before / peak / after a %g s flood: %s; %.0f arrays/s on cmd_requested; "
+                      "command timeouts %d" % (args.flood_seconds, ", ".join(
+                          "%s %.1f / %.1f / %.1f (%+.1f)" % (name, b, p, a, a - b) for name, (b, p, a) in rss.items()),
+                          rate, timeouts), flush=True)
+        finally:
+            tb.close()
+        return
     try:
         for label, fn in (
                 ("client kill -9, lockstep -> experiment ended", lambda: script_client(tb, signal.SIGKILL, "lockstep")),
@@ -237,6 +292,13 @@ def main():
         for _ in range(args.repeats):
             sent, counted, timeouts, steps = flooded_real_time(tb)
             print("  sent %s, counted %s, command timeouts %s, %d steps" % (sent, counted, timeouts, steps))
+        print("\nmemory (RSS, MB) before / peak / after a %g s flood at the highest rate one process sends "
+              "(foreign, malformed, forged, 2.4 MB every 50th), real-time 8-robot run:" % args.flood_seconds)
+        for _ in range(args.repeats):
+            rss, rate, timeouts = flood_memory(tb, args.flood_seconds)
+            print("  %s; %.0f arrays/s on cmd_requested; command timeouts %d" % (
+                ", ".join("%s %.1f / %.1f / %.1f (%+.1f)" % (name, b, p, a, a - b) for name, (b, p, a) in rss.items()),
+                rate, timeouts))
         quiet = [lockstep_rate(tb, False) for _ in range(args.repeats)]
         loud = [lockstep_rate(tb, True) for _ in range(args.repeats)]
         print("lockstep 8 robots, 200 steps: %.0f steps/s quiet, %.0f steps/s flooded (median; ratio %.2f)" % (

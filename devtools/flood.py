@@ -1,7 +1,7 @@
 """A careless or hostile neighbour on the testbed's DDS domain: floods both command topics.
 
     python -m devtools.flood [--namespace /robotarium] [--rate 1000] [--seconds 3] [--robots 8]
-                             [--huge-every 500] [--poses RUN_ID]
+                             [--huge-every 500] [--poses RUN_ID] [--forge]
 
 It publishes, on cmd_requested and on cmd_safe each, `rate` arrays a second for `seconds`,
 taking turns: a well-formed array of `robots` twists at full speed with a token that is not the
@@ -10,7 +10,13 @@ cut short inside the header); every `huge_every`-th array is 100,000 twists (2.4
 --poses it also publishes poses claiming RUN_ID with every robot 1 m from any other. Publishers
 are reliable, keep-all and wait until the testbed's nodes have matched them, so that every array
 sent reaches them: it prints "flooding" when it begins, and at the end one JSON line
-{topic: {kind: count}} of what it sent.
+{topic: {kind: count}} of what it sent. --rate 0: as fast as it can.
+
+With --forge it first copies the running experiment's token off the wire (the client's arrays on
+cmd_requested: without SROS2 the token is no secret) and then also sends, on cmd_requested,
+arrays with that token driving every robot straight ahead at full speed: "forged_next" (step 0,
+unnumbered) and "forged_step" (the client's newest step seen, -2 to +3: re-sends, the next
+step, steps ahead), and in place of each huge array a "forged_huge" (100,000 twists with the token).
 """
 import argparse
 import json
@@ -18,6 +24,7 @@ import time
 
 import numpy as np
 import rclpy
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -46,6 +53,53 @@ def arrays(robots):
     }
 
 
+def publish(publisher, data, counts, kind):
+    """Publish and count; at the highest rate the readers' acknowledgements may not keep up and
+    DDS refuses the array after blocking a while: counted as "refused" (never sent)."""
+    try:
+        publisher.publish(data)
+        counts[kind] += 1
+    except rclpy_implementation.RCLError:
+        counts["refused"] = counts.get("refused", 0) + 1
+
+
+class Forger:
+    """Arrays with the experiment's token, copied from the client's arrays on cmd_requested."""
+
+    def __init__(self, node, topic, robots):
+        self.node = node
+        self.token, self.step = None, 0
+        self.robots = robots
+        self.full_ahead = cdr.twists(np.full(robots, 0.2), np.zeros(robots))
+        self.rng = np.random.default_rng(11)
+        # (a short history: the flood's own arrays come back here too, and a keep-all reader would slow it)
+        node.create_subscription(TwistArray, topic, self.on_array, QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE),
+                                 raw=True)
+
+    def on_array(self, data):
+        try:
+            msg = cdr.TWIST_ARRAY.parse(data, max_elements=1000)
+        except cdr.CdrError:
+            return
+        if msg.token and msg.token != "f" * 32 and msg.frame_id != "forged":   # not our own arrays
+            self.token = msg.token
+            self.step = max(self.step, msg.step)
+
+    def wait_for_token(self, deadline):
+        while self.token is None:
+            if time.monotonic() > deadline:
+                raise SystemExit("flood: no array with a token seen on cmd_requested (is a client running?)")
+            rclpy.spin_once(self.node, timeout_sec=0.05)
+
+    def array(self, kind):
+        if kind == "forged_huge":
+            return cdr.TWIST_ARRAY.build(frame_id="forged", token=self.token, step=self.step + 1, ids=np.arange(HUGE) % self.robots,
+                                         twists=cdr.twists(np.full(HUGE, 0.2), np.zeros(HUGE)))
+        step = 0 if kind == "forged_next" else max(0, self.step + int(self.rng.integers(-2, 4)))
+        return cdr.TWIST_ARRAY.build(frame_id="forged", token=self.token, step=step, ids=np.arange(self.robots),
+                                     twists=self.full_ahead)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--namespace", default="/robotarium")
@@ -54,6 +108,8 @@ def main(argv=None):
     parser.add_argument("--robots", type=int, default=8)
     parser.add_argument("--huge-every", type=int, default=500)
     parser.add_argument("--poses", metavar="RUN_ID", help="also publish fake poses of this run")
+    parser.add_argument("--forge", action="store_true",
+                        help="copy the experiment's token from cmd_requested and send arrays with it too")
     args = parser.parse_args(argv)
 
     rclpy.init()
@@ -75,26 +131,35 @@ def main(argv=None):
         time.sleep(0.05)
     kinds = arrays(args.robots)
     turn = ["foreign", "no_token", "bad_encapsulation", "truncated"]
+    forged = Forger(node, topics[0], args.robots) if args.forge else None
+    if forged is not None:
+        forged.wait_for_token(deadline + 30)
     far = np.arange(args.robots, dtype=float)
     fake = RobotPoses(run_id=args.poses or "", ids=list(range(args.robots)), x=list(-1.5 + far * 0.4),
                       y=[0.0] * args.robots, theta=[0.0] * args.robots)
     sent = {topic: dict.fromkeys(turn + ["huge"], 0) for topic in topics}
+    if forged is not None:
+        sent[topics[0]].update(forged_next=0, forged_step=0, forged_huge=0)
     sent["poses"] = 0
-    period = 1.0 / args.rate
+    period = 1.0 / args.rate if args.rate > 0 else 0.0
     print("flooding", flush=True)
     start = time.monotonic()
     k = 0
     while time.monotonic() - start < args.seconds:
         kind = "huge" if args.huge_every and k % args.huge_every == args.huge_every - 1 else turn[k % len(turn)]
         for topic, publisher in publishers.items():
-            publisher.publish(kinds[kind])
-            sent[topic][kind] += 1
+            publish(publisher, kinds[kind], sent[topic], kind)
+        if forged is not None:
+            rclpy.spin_once(node, timeout_sec=0)   # the client's newest step
+            forge = "forged_huge" if kind == "huge" else ("forged_next", "forged_step")[k % 2]
+            publish(publishers[topics[0]], forged.array(forge), sent[topics[0]], forge)
         if poses_pub is not None and k % 10 == 0:   # 100 Hz of fake poses, ahead of the real ones
             fake.step = 10 ** 6 + k
             poses_pub.publish(fake)
             sent["poses"] += 1
         k += 1
-        time.sleep(max(0.0, start + k * period - time.monotonic()))
+        if period:
+            time.sleep(max(0.0, start + k * period - time.monotonic()))
     for publisher in publishers.values():
         publisher.wait_for_all_acked()
     print(json.dumps(sent), flush=True)

@@ -37,6 +37,7 @@ ENCAPSULATION = b"\x00\x01\x00\x00"     # plain CDR, little endian
 
 
 _COUNT = struct.Struct("<I")   # string lengths and sequence counts
+MAX_STRING = 4096   # bytes of a string field parse accepts by default (frame_id, token)
 
 
 FOREIGN, OVERSIZED, MALFORMED = "foreign", "oversized", "malformed"
@@ -180,7 +181,7 @@ class Layout:
         self.fields = tuple(fields)
         self.Message = namedtuple(type_name.rsplit("/", 1)[-1], [name for name, _ in self.fields])
 
-    def parse(self, data, max_elements=None, max_string=4096):
+    def parse(self, data, max_elements=None, max_string=MAX_STRING):
         """The fields of a serialized message (numpy arrays are read-only views of `data`).
         Raises CdrError when the bytes do not hold this layout, or when a sequence is longer
         than max_elements or a string longer than max_string."""
@@ -265,12 +266,24 @@ _TWIST_ARRAY_HEAD = Layout("robotarium_msgs/msg/TwistArray", HEADER + (("token",
 Commands = namedtuple("Commands", "token step ids v omega requested_exceeds_limits sec nanosec")
 
 
+def max_twist_array_bytes(max_robots):
+    """The most bytes a serialized TwistArray of at most `max_robots` robots can take: the
+    encapsulation, the header with a frame_id of MAX_STRING bytes, a token of as many, the step,
+    max_robots ids and twists, the flag, and every alignment pad (at most 7 bytes each)."""
+    return 4 + 8 + 2 * (4 + MAX_STRING) + 8 + (4 + 4 * max_robots) + (4 + 48 * max_robots) + 1 + 5 * 7
+
+
 def parse_commands(data, max_robots, token=None):
     """A TwistArray's serialized bytes (a raw=True subscription) -> Commands, or CdrError with its
-    reason: FOREIGN when `token` (str) is given and the array carries another, before anything
-    after the token is read; OVERSIZED when ids or twists hold more than `max_robots` entries,
-    from their count fields alone; MALFORMED when the bytes are not a TwistArray. Ids and twists
-    of different lengths, unknown ids and NaN are left to robotarium_core.model.check_commands."""
+    reason: OVERSIZED when the bytes are more than an array of `max_robots` robots can take
+    (max_twist_array_bytes: from their length alone, before anything is read), or when ids or
+    twists hold more than `max_robots` entries, from their count fields alone; FOREIGN when
+    `token` (str) is given and the array carries another, before anything after the token is
+    read; MALFORMED when the bytes are not a TwistArray. Ids and twists of different lengths,
+    unknown ids and NaN are left to robotarium_core.model.check_commands."""
+    if len(data) > max_twist_array_bytes(max_robots):
+        raise CdrError("%d bytes: more than an array of %d robots can take (%d)"
+                       % (len(data), max_robots, max_twist_array_bytes(max_robots)), OVERSIZED)
     if token is not None and _TWIST_ARRAY_HEAD.parse(data).token != token:
         raise CdrError("the array does not carry the running experiment's token", FOREIGN)
     msg = TWIST_ARRAY.parse(data, max_elements=max_robots)

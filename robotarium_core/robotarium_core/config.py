@@ -64,6 +64,10 @@ FIELDS = {
     "lockstep_wait": Field("s a lockstep command waits for the poses it was computed from", 0.0, used_by=(SAFETY,)),
     "intervention_tolerance": Field("m/s or rad/s; a safe command further than this from the requested one is "
                                     "a safety intervention", 0.0, 1.0, low_open=False),
+    "command_queue_depth": Field("arrays each command input (cmd_requested, cmd_safe) keeps until its node takes them",
+                                 1, 100000, low_open=False, integer=True),
+    "held_commands_limit": Field("arrays the safety node holds until the simulator matched its cmd_safe writer", 1,
+                                 100000, low_open=False, used_by=(SAFETY,), integer=True),
     "time_limit": Field("s of testbed time after which the client ends an experiment (0: no limit)", 0.0,
                         low_open=False, used_by=(CLIENT,)),
     "client_lease": Field("s; a client gone this long (killed, crashed, network lost) loses its experiment", 0.1, 60.0,
@@ -225,6 +229,8 @@ class TestbedConfig:
     pose_timeout: float
     lockstep_wait: float
     intervention_tolerance: float
+    command_queue_depth: int
+    held_commands_limit: int
     time_limit: float
     client_lease: float
     node_lease: float

@@ -4,6 +4,7 @@ of rclpy's default executor) until a signal or its lifeline says stop, then wind
 
 Kept apart from model.py and config.py (no ROS there); the nodes themselves stay thin shells.
 """
+import ctypes
 import math
 import os
 import signal
@@ -126,6 +127,27 @@ def take_waiting(subscription, limit=10_000):
             yield taken[0]
 
 
+DDS_PROFILE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "dds_profile.xml")
+MMAP_THRESHOLD = 256 * 1024   # bytes: larger blocks are mapped for themselves and go back to the system when freed
+_M_MMAP_THRESHOLD = -3         # glibc's mallopt parameter
+
+
+def bounded_memory():
+    """Make a flood cost no memory that stays (issue 22): DDS readers allocate a sample's buffer
+    when it arrives and free it when it is taken (dds_profile.xml; a profile file the user set
+    is kept, and with it their choice), and the C allocator returns every block of more than
+    MMAP_THRESHOLD to the system as soon as it is freed (glibc raises that threshold by itself
+    after the first large block was freed, and then keeps freed 2.4 MB arrays in the process).
+    Called before rclpy.init."""
+    if "FASTRTPS_DEFAULT_PROFILES_FILE" not in os.environ:
+        os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = DDS_PROFILE
+        os.environ["RMW_FASTRTPS_USE_QOS_FROM_XML"] = "1"   # only for the policies our code leaves to the middleware
+    try:
+        ctypes.CDLL("libc.so.6").mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD)
+    except (OSError, AttributeError):
+        pass   # not glibc: its own rules apply
+
+
 def run_node(make_node, name, args=None, before_destroy=None):
     """rclpy.init, make the node (a bad parameter exits with code 2 and its message), spin until a
     stop is requested (StopRequest), wind down, then clean up. Returns the process exit code.
@@ -136,6 +158,7 @@ def run_node(make_node, name, args=None, before_destroy=None):
     the process that started the testbed, the simulator ends the running experiment and the recorder
     records that end and closes the bag before anything exits. Nodes started with `ros2 run` get
     no lifeline and stop on the signals alone."""
+    bounded_memory()
     # rclpy's own handlers would shut the context down at the first signal, before the wind-down.
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop = StopRequest()

@@ -27,18 +27,27 @@ history.
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from robotarium_core.config import DEFAULT
+
 DEFAULT_NAMESPACE = "robotarium"
 
 TESTBED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
-# The testbed's command inputs (cmd_requested at the safety node, cmd_safe at the simulator) read
-# serialized arrays and drop foreign ones in microseconds (robotarium_core.cdr), so their queue
-# only has to outlast a moment's stall of the node: 1000 arrays are one second of a 1 kHz flood
-# before a client's array could be pushed out. Volatile: any reliable publisher matches
-# (ros2 topic pub's default, rclpy's, rclcpp's).
-COMMAND_INPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                               durability=DurabilityPolicy.VOLATILE)
+
+
+def command_input_qos(depth):
+    """The testbed's command inputs (cmd_requested at the safety node, cmd_safe at the simulator)
+    read serialized arrays and drop foreign ones in microseconds (robotarium_core.cdr), so their
+    queue only has to outlast a moment's stall of the node: `depth` is the configuration's
+    command_queue_depth (1000: a second of a 1 kHz flood before a client's array could be pushed
+    out). Keep-last, so a flood never grows it. Volatile: any reliable publisher matches (ros2
+    topic pub's default, rclpy's, rclcpp's)."""
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+COMMAND_INPUT_QOS = command_input_qos(DEFAULT.command_queue_depth)
 # What the script drew on r.axes, change by change (robotarium_recording.drawing): a deeper history,
 # so that a recorder matching late still gets the first drawing of a fast lockstep run.
 DRAWING_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE,
