@@ -1,7 +1,7 @@
 """A careless or hostile neighbour on the testbed's DDS domain: floods both command topics.
 
     python -m devtools.flood [--namespace /robotarium] [--rate 1000] [--seconds 3] [--robots 8]
-                             [--huge-every 500] [--poses RUN_ID] [--forge]
+                             [--huge-every 500] [--poses RUN_ID] [--forge [--burst 1]]
 
 It publishes, on cmd_requested and on cmd_safe each, `rate` arrays a second for `seconds`,
 taking turns: a well-formed array of `robots` twists at full speed with a token that is not the
@@ -16,7 +16,8 @@ With --forge it first copies the running experiment's token off the wire (the cl
 cmd_requested: without SROS2 the token is no secret) and then also sends, on cmd_requested,
 arrays with that token driving every robot straight ahead at full speed: "forged_next" (step 0,
 unnumbered) and "forged_step" (the client's newest step seen, -2 to +3: re-sends, the next
-step, steps ahead), and in place of each huge array a "forged_huge" (100,000 twists with the token).
+step, steps ahead), --burst of them back to back each time, and in place of each huge array a
+"forged_huge" (100,000 twists with the token).
 """
 import argparse
 import json
@@ -110,6 +111,7 @@ def main(argv=None):
     parser.add_argument("--poses", metavar="RUN_ID", help="also publish fake poses of this run")
     parser.add_argument("--forge", action="store_true",
                         help="copy the experiment's token from cmd_requested and send arrays with it too")
+    parser.add_argument("--burst", type=int, default=1, help="forged arrays sent back to back each time (with --forge)")
     args = parser.parse_args(argv)
 
     rclpy.init()
@@ -152,7 +154,8 @@ def main(argv=None):
         if forged is not None:
             rclpy.spin_once(node, timeout_sec=0)   # the client's newest step
             forge = "forged_huge" if kind == "huge" else ("forged_next", "forged_step")[k % 2]
-            publish(publishers[topics[0]], forged.array(forge), sent[topics[0]], forge)
+            for _ in range(1 if forge == "forged_huge" else args.burst):
+                publish(publishers[topics[0]], forged.array(forge), sent[topics[0]], forge)
         if poses_pub is not None and k % 10 == 0:   # 100 Hz of fake poses, ahead of the real ones
             fake.step = 10 ** 6 + k
             poses_pub.publish(fake)

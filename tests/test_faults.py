@@ -315,10 +315,11 @@ def test_a_flood_on_both_command_topics_costs_the_experiment_nothing(healthy, tm
     for _ in range(15):   # half a second more: the flood's last arrays are counted
         drive(r, np.full(8, 0.02), np.full(8, 0.3))
 
-    def all_counted(s):
+    def all_counted(s):   # (a 2.4 MB array is refused from its length, before its token is read: oversized)
         return all(dropped(s, topic, "foreign") == sent[NS + "/" + topic]["foreign"] + sent[NS + "/" + topic]["no_token"]
-                   + sent[NS + "/" + topic]["huge"] and dropped(s, topic, "malformed") == sent[NS + "/" + topic][
-                       "bad_encapsulation"] + sent[NS + "/" + topic]["truncated"] for topic in ("cmd_requested", "cmd_safe"))
+                   and dropped(s, topic, "oversized") == sent[NS + "/" + topic]["huge"]
+                   and dropped(s, topic, "malformed") == sent[NS + "/" + topic]["bad_encapsulation"]
+                   + sent[NS + "/" + topic]["truncated"] for topic in ("cmd_requested", "cmd_safe"))
     counted = lab.wait_status(r._run_id, all_counted, 10)
     last = lab.last_status(r._run_id)
     assert counted is not None, (sent, "cmd_requested", last.dropped_cmd_requested, "cmd_safe", last.dropped_cmd_safe)
@@ -370,6 +371,78 @@ def test_the_clients_own_oversized_and_huge_arrays(healthy):
         assert r.run_info["actuator_limit_iterations"] == 1, r.run_info   # the script's command, as rps judges
     finally:
         lab.probe.node.destroy_publisher(pub)
+
+
+def test_a_forger_with_the_copied_token_never_pushes_robots_out(healthy, tmp_path):
+    """The issue's attack (22): a process copies the client's token off the wire and floods
+    cmd_requested with arrays driving every robot straight at the wall at full speed, in bursts of
+    10 (2 kHz): unnumbered, re-sends of the client's steps, steps ahead, and 2.4 MB ones. Four robots 0.3 m
+    from the right wall, facing it, while the lockstep client keeps them still: the forged arrays
+    move them (the guarantee is about what is applied, not who sent it) but every array applied
+    was filtered at the poses it moved them from, so they stop at the boundary margin, inside and
+    apart. Before, the safety node forwarded many arrays filtered at one pose and the simulator
+    took each as a step: the robots ended 0.3-0.5 m outside."""
+    lab = healthy
+    start = np.array([[1.25] * 4, [-0.6, -0.2, 0.2, 0.6], [0.0] * 4])
+    r = client(start)
+    forger = NodeProcess("devtools.flood", lab.domain, args=["--forge", "--seconds", "6", "--robots", "4", "--rate", "200",
+                                                             "--burst", "10", "--huge-every", "100"], log_path=tmp_path / "forger.log")
+    try:
+        while "flooding" not in forger.output():   # it needs the client's arrays on the wire to copy the token
+            assert forger.alive(), forger.output()
+            drive(r, np.zeros(4), np.zeros(4))
+        while forger.alive():
+            drive(r, np.zeros(4), np.zeros(4))
+        sent = sent_by(forger)[NS + "/cmd_requested"]
+        for _ in range(10):
+            drive(r, np.zeros(4), np.zeros(4))
+        r.call_at_scripts_end()
+    finally:
+        forger.close()
+    assert sent["forged_next"] + sent["forged_step"] > 1000, sent
+    assert lab.probe.spin_until(lambda: any(p.run_id == r._run_id and p.step == r.run_info["steps"] for p in lab.poses), 10)
+    mine = [p for p in lab.poses if p.run_id == r._run_id]
+    x = np.array([p.x for p in mine])
+    y = np.array([p.y for p in mine])
+    assert x.max() > 1.35, "the forged arrays never moved the robots: the test proves nothing (%.3f)" % x.max()
+    assert x.max() <= DEFAULT.arena[1] - DEFAULT.boundary_margin + 1e-9, "a robot reached x = %.3f" % x.max()
+    assert np.all(np.abs(y) < DEFAULT.arena[3])
+    assert r.run_info["boundary_violations"] == 0 and r.run_info["collisions"] == 0, r.run_info
+    assert r.run_info["dropped"]["cmd_requested"]["stale"] > 0   # wrong-step arrays were dropped and counted
+
+
+def rss_mb(pid):
+    """Resident set of a process, MB (VmRSS)."""
+    with open("/proc/%d/status" % pid) as f:
+        return next(int(line.split()[1]) / 1024 for line in f if line.startswith("VmRSS:"))
+
+
+def test_a_flood_at_the_highest_rate_leaves_no_memory_behind(healthy, tmp_path):
+    """10 s of the highest rate one process sends, on both command topics: foreign and malformed
+    arrays, arrays with the client's copied token (any step), and every 50th one of 2.4 MB (with
+    and without the token), during a real-time run. The simulator's and the safety node's
+    resident memory come back within 10 MB of where they were (each oversized array used to keep
+    about 1 MB for good: 84 -> 472 MB), and oversized arrays are refused from their length."""
+    lab = healthy
+    nodes = {name: lab.nodes[name].proc.pid for name in ("simulator", "safety")}
+    r = client(EIGHT, real_time=True)
+    for _ in range(60):   # the run's own traffic first: what a run needs is allocated before we measure
+        drive(r, np.full(8, 0.0), np.full(8, 0.3))
+    before = {name: rss_mb(pid) for name, pid in nodes.items()}
+    flooding = NodeProcess("devtools.flood", lab.domain, args=["--forge", "--seconds", "10", "--rate", "0",
+                                                               "--huge-every", "50"], log_path=tmp_path / "flood.log")
+    while flooding.alive():
+        drive(r, np.full(8, 0.0), np.full(8, 0.3))
+    sent = sent_by(flooding)
+    for _ in range(60):   # two seconds of the run after it
+        drive(r, np.full(8, 0.0), np.full(8, 0.3))
+    after = {name: rss_mb(pid) for name, pid in nodes.items()}
+    r.call_at_scripts_end()
+    huge = sent[NS + "/cmd_requested"]["huge"] + sent[NS + "/cmd_requested"]["forged_huge"]
+    assert huge >= 20, sent   # 48 MB or more of oversized arrays at the safety node
+    for name in nodes:
+        assert after[name] - before[name] < 10, (name, before, after, sent)
+    assert r.run_info["dropped"]["cmd_requested"]["oversized"] >= sent[NS + "/cmd_requested"]["forged_huge"]
 
 
 # -- a lost client frees the testbed ----------------------------------------------------------------
