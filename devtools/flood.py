@@ -15,9 +15,9 @@ sent reaches them: it prints "flooding" when it begins, and at the end one JSON 
 With --forge it first copies the running experiment's token off the wire (the client's arrays on
 cmd_requested: without SROS2 the token is no secret) and then also sends, on cmd_requested,
 arrays with that token driving every robot straight ahead at full speed: "forged_next" (step 0,
-unnumbered) and "forged_step" (the client's newest step seen, -2 to +3: re-sends, the next
-step, steps ahead), --burst of them back to back each time, and in place of each huge array a
-"forged_huge" (100,000 twists with the token).
+unnumbered) and "forged_step" (from the client's newest step seen, -2 to +1, on: re-sends, the
+next step, steps ahead), --burst of them back to back each time (forged_step: consecutive steps),
+and in place of each huge array a "forged_huge" (100,000 twists with the token).
 """
 import argparse
 import json
@@ -92,11 +92,12 @@ class Forger:
                 raise SystemExit("flood: no array with a token seen on cmd_requested (is a client running?)")
             rclpy.spin_once(self.node, timeout_sec=0.05)
 
-    def array(self, kind):
+    def array(self, kind, offset=0):
         if kind == "forged_huge":
-            return cdr.TWIST_ARRAY.build(frame_id="forged", token=self.token, step=self.step + 1, ids=np.arange(HUGE) % self.robots,
+            return cdr.TWIST_ARRAY.build(frame_id="forged", token=self.token, step=self.step + 1,
+                                         ids=np.arange(HUGE) % self.robots,
                                          twists=cdr.twists(np.full(HUGE, 0.2), np.zeros(HUGE)))
-        step = 0 if kind == "forged_next" else max(0, self.step + int(self.rng.integers(-2, 4)))
+        step = 0 if kind == "forged_next" else max(0, self.step + offset)
         return cdr.TWIST_ARRAY.build(frame_id="forged", token=self.token, step=step, ids=np.arange(self.robots),
                                      twists=self.full_ahead)
 
@@ -154,8 +155,9 @@ def main(argv=None):
         if forged is not None:
             rclpy.spin_once(node, timeout_sec=0)   # the client's newest step
             forge = "forged_huge" if kind == "huge" else ("forged_next", "forged_step")[k % 2]
-            for _ in range(1 if forge == "forged_huge" else args.burst):
-                publish(publishers[topics[0]], forged.array(forge), sent[topics[0]], forge)
+            offset = int(forged.rng.integers(-2, 2))   # a run of steps from just behind the client's to ahead
+            for i in range(1 if forge == "forged_huge" else args.burst):
+                publish(publishers[topics[0]], forged.array(forge, offset + i), sent[topics[0]], forge)
         if poses_pub is not None and k % 10 == 0:   # 100 Hz of fake poses, ahead of the real ones
             fake.step = 10 ** 6 + k
             poses_pub.publish(fake)

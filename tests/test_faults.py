@@ -385,8 +385,8 @@ def test_a_forger_with_the_copied_token_never_pushes_robots_out(healthy, tmp_pat
     lab = healthy
     start = np.array([[1.25] * 4, [-0.6, -0.2, 0.2, 0.6], [0.0] * 4])
     r = client(start)
-    forger = NodeProcess("devtools.flood", lab.domain, args=["--forge", "--seconds", "6", "--robots", "4", "--rate", "200",
-                                                             "--burst", "10", "--huge-every", "100"], log_path=tmp_path / "forger.log")
+    forger = NodeProcess("devtools.flood", lab.domain, log_path=tmp_path / "forger.log", args=[
+        "--forge", "--seconds", "6", "--robots", "4", "--rate", "200", "--burst", "10", "--huge-every", "100"])
     try:
         while "flooding" not in forger.output():   # it needs the client's arrays on the wire to copy the token
             assert forger.alive(), forger.output()

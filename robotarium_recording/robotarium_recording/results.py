@@ -16,7 +16,7 @@ run, the printed output and data files. From a bag folder this makes, beside the
 How the report is recomputed, as the simulator counts (robotarium_core.model.Testbed.step): step
 k+1 counts collisions and robots outside the arena on the poses of step k (before the move) and
 an actuator-limit iteration when the commands in force exceed the wheel limits. In lockstep mode
-the k-th valid command array on cmd_safe is exactly the one applied at step k; in real-time mode
+the valid command array on cmd_safe marked step k is exactly the one applied at step k; in real-time mode
 the commands in force at a tick are the ones stamped before that tick's poses, stopped after the
 0.5 s timeout, which can differ from the simulator for a command that crossed a tick (the
 cross-check then says so).
@@ -88,14 +88,14 @@ def safety_interventions(bag, tolerance):
 
 
 def _commands_in_force_lockstep(commands, n, steps):
-    """(velocities 2 x N, requested_exceeds_limits) in force at each step 1..steps: the k-th
-    valid array sets them."""
+    """(velocities 2 x N, requested_exceeds_limits) in force at each step 1..steps: the valid
+    array marked with step k sets them (model.StepGate: the simulator applies no other)."""
     velocities = np.zeros((2, n))
     applied = 0
     for cmd in commands:
         if applied >= steps:
             break
-        if model.check_commands(cmd.ids, cmd.v, cmd.omega, n) is not None:
+        if model.check_commands(cmd.ids, cmd.v, cmd.omega, n) is not None or cmd.step != applied + 1:
             continue   # the simulator drops it without stepping
         velocities[0, cmd.ids] = cmd.v
         velocities[1, cmd.ids] = cmd.omega

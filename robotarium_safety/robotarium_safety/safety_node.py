@@ -98,8 +98,9 @@ class SafetyNode(Node):
         self.report_pub = self.create_publisher(SafetyReport, SAFETY_REPORT, TESTBED_QOS)
         # Poses first: the executor serves ready subscriptions in the order they were created.
         self.poses_subscription = self.create_subscription(RobotPoses, POSES, self.on_poses, TESTBED_QOS, raw=True)
-        self.requests = self.create_subscription(TwistArray, CMD_REQUESTED, self.on_requests, command_input_qos(c.command_queue_depth),
-                                                 raw=True, event_callbacks=warn_on_incompatible_qos(self, CMD_REQUESTED))
+        self.requests = self.create_subscription(TwistArray, CMD_REQUESTED, self.on_requests,
+                                                 command_input_qos(c.command_queue_depth), raw=True,
+                                                 event_callbacks=warn_on_incompatible_qos(self, CMD_REQUESTED))
         self.create_service(ArmSafety, SAFETY_ARM, self.on_arm)
         self.presence = presence.Presence(self, presence.alive_topic(presence.SAFETY), c.node_lease)
         # 2.x experiments (the simulator's `experiment` settings): obstacles to keep robots off, and
