@@ -27,6 +27,7 @@ import time
 import numpy as np
 import rclpy
 from rclpy.impl.implementation_singleton import rclpy_implementation
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -166,8 +167,8 @@ def main(argv=None):
         k += 1
         if period:
             time.sleep(max(0.0, start + k * period - time.monotonic()))
-    for publisher in publishers.values():
-        publisher.wait_for_all_acked()
+    for publisher in publishers.values():   # what is still in flight reaches the nodes (a slow recorder may never ack it all)
+        publisher.wait_for_all_acked(Duration(seconds=5))
     print(json.dumps(sent), flush=True)
     # Out at once: after a flood at the highest rate DDS's clean-up can hang for minutes, and the
     # callers wait for this process to end.
