@@ -100,31 +100,30 @@ class Workers:
         return [name for name, p in self.processes.items() if p.poll() is not None]
 
     def stop(self):
-        """SIGTERM to each whole group (a running job's ./robotarium stops its testbed and writes what it has),
-        SIGKILL what is left after STOP_GRACE."""
+        """Stop the jobs first (each ./robotarium ends its experiment and writes its results), then the
+        clusters (SIGTERM to each cluster's main process: it lets its worker finish and exits), and SIGKILL
+        what is left of a cluster after STOP_GRACE."""
+        from robotarium_portal import tasks
+        (tasks.jobs_dir() / "stopping").touch()
+        for pgid_file in tasks.jobs_dir().glob("*.pgid"):
+            try:
+                tasks.stop_group(int(pgid_file.read_text()))
+            except ValueError:
+                pass
         for process in self.processes.values():
-            _signal_group(process.pid, signal.SIGTERM)
+            if process.poll() is None:
+                process.send_signal(signal.SIGTERM)
         deadline = time.monotonic() + STOP_GRACE
         for process in self.processes.values():
-            while time.monotonic() < deadline and _group_alive(process.pid):
-                time.sleep(0.2)
-            _signal_group(process.pid, signal.SIGKILL)
+            try:
+                process.wait(timeout=max(0.1, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                pass
+            try:
+                os.killpg(process.pid, signal.SIGKILL)   # the cluster's own processes, whatever is left
+            except ProcessLookupError:
+                pass
             process.wait()
-
-
-def _signal_group(pgid, sig):
-    try:
-        os.killpg(pgid, sig)
-    except ProcessLookupError:
-        pass
-
-
-def _group_alive(pgid):
-    try:
-        os.killpg(pgid, 0)
-        return True
-    except ProcessLookupError:
-        return False
 
 
 def main(argv=None):
@@ -148,6 +147,8 @@ def main(argv=None):
 
     from robotarium_portal import tasks
     from robotarium_portal.wsgi import application
+    for stale in [tasks.jobs_dir() / "stopping", *tasks.jobs_dir().glob("*.pgid")]:   # of a previous life
+        stale.unlink(missing_ok=True)
     tasks.reconcile()   # before any worker: the jobs again from the experiments' states
     hosts = ["localhost", "127.0.0.1", "[::1]"] + args.allowed_host + (
         [args.host] if args.host not in ("0.0.0.0", "::") else [])
@@ -165,8 +166,9 @@ def main(argv=None):
     settings.ALLOWED_HOSTS = hosts
     workers = Workers(data, env)
     workers.start()
-    mail = ("the SMTP server %s:%s" % (settings.EMAIL_HOST, settings.EMAIL_PORT)
-            if settings.EMAIL_BACKEND.endswith("smtp.EmailBackend") else "%s (one file per message)" % settings.MAIL_DIR)
+    mailer = settings.MAILERS["default"]
+    mail = ("the SMTP server %s:%s" % (mailer["OPTIONS"]["host"], mailer["OPTIONS"]["port"])
+            if mailer["BACKEND"].endswith("smtp.EmailBackend") else "%s (one file per message)" % settings.MAIL_DIR)
     print("[robotarium] the Robotarium portal is at %s" % url, flush=True)
     print("[robotarium] data (database, experiments, worker logs) in %s; mail goes to %s" % (data, mail), flush=True)
     print("[robotarium] runs on ROS_DOMAIN_ID %s, verification on %s; Ctrl-C stops it (nothing is lost)"

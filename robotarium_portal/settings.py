@@ -89,16 +89,14 @@ STATIC_URL = "static/"
 # Mail: to a real SMTP server when ROBOTARIUM_SMTP_HOST is set, else one file per message in mail/.
 DEFAULT_FROM_EMAIL = os.environ.get("ROBOTARIUM_MAIL_FROM", "robotarium@localhost")
 if os.environ.get("ROBOTARIUM_SMTP_HOST"):
-    EMAIL_BACKEND = "django.core.mail.backends.smtp.EmailBackend"
-    EMAIL_HOST = os.environ["ROBOTARIUM_SMTP_HOST"]
-    EMAIL_PORT = int(os.environ.get("ROBOTARIUM_SMTP_PORT", "25"))
-    EMAIL_HOST_USER = os.environ.get("ROBOTARIUM_SMTP_USER", "")
-    EMAIL_HOST_PASSWORD = os.environ.get("ROBOTARIUM_SMTP_PASSWORD", "")
-    EMAIL_USE_TLS = os.environ.get("ROBOTARIUM_SMTP_TLS") == "1"
-    EMAIL_TIMEOUT = 30
+    MAILERS = {"default": {"BACKEND": "django.core.mail.backends.smtp.EmailBackend", "OPTIONS": {
+        "host": os.environ["ROBOTARIUM_SMTP_HOST"], "port": int(os.environ.get("ROBOTARIUM_SMTP_PORT", "25")),
+        "username": os.environ.get("ROBOTARIUM_SMTP_USER", ""),
+        "password": os.environ.get("ROBOTARIUM_SMTP_PASSWORD", ""),
+        "use_tls": os.environ.get("ROBOTARIUM_SMTP_TLS") == "1", "timeout": 30}}}
 else:
-    EMAIL_BACKEND = "django.core.mail.backends.filebased.EmailBackend"
-    EMAIL_FILE_PATH = MAIL_DIR
+    MAILERS = {"default": {"BACKEND": "django.core.mail.backends.filebased.EmailBackend",
+                           "OPTIONS": {"file_path": str(MAIL_DIR)}}}
 
 # Uploads: Django keeps small files in memory and larger ones in a temporary file; the request may be
 # a little over the files' own total (the form's fields).

@@ -9,6 +9,7 @@ import re
 import shutil
 import signal
 import subprocess
+import time
 
 from django.conf import settings
 from django.db.models import F
@@ -71,22 +72,50 @@ def job_env(domain_variable):
     return env
 
 
-def run_command(command, cwd, env, output_path, timeout):
+def jobs_dir():
+    path = settings.DATA_DIR / "jobs"
+    path.mkdir(exist_ok=True)
+    return path
+
+
+def stopping():
+    """The service is stopping (serve wrote the mark before it stopped the jobs): a job cut short now is
+    not the experiment's failure; reconcile() at the next start hands it out again."""
+    return (jobs_dir() / "stopping").exists()
+
+
+def run_command(command, cwd, env, output_path, timeout, job):
     """Run command in its own process group (so nothing of it is left behind), its output in a file.
-    The exit code, or None when it ran past timeout (then the whole group is killed)."""
+    The group's id is in jobs/<job>.pgid while it runs (serve stops it there). The exit code, or None
+    when it ran past timeout (then the whole group is killed)."""
+    pgid_file = jobs_dir() / ("%s.pgid" % job)
     with open(output_path, "wb") as output:
         process = subprocess.Popen(command, cwd=cwd, env=env, stdout=output, stderr=subprocess.STDOUT,
                                    stdin=subprocess.DEVNULL, process_group=0)
+        pgid_file.write_text(str(process.pid))
         try:
             return process.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
-            os.killpg(process.pid, signal.SIGTERM)
-            try:
-                process.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                os.killpg(process.pid, signal.SIGKILL)
-                process.wait()
+            stop_group(process.pid)
             return None
+        finally:
+            pgid_file.unlink(missing_ok=True)
+
+
+def stop_group(pgid, grace=30.0):
+    """SIGTERM to the group (./robotarium stops its testbed and writes its results), SIGKILL after grace."""
+    for sig, wait in ((signal.SIGTERM, grace), (signal.SIGKILL, 0.0)):
+        try:
+            os.killpg(pgid, sig)
+        except ProcessLookupError:
+            return
+        deadline = time.monotonic() + wait
+        while time.monotonic() < deadline:
+            try:
+                os.killpg(pgid, 0)
+            except ProcessLookupError:
+                return
+            time.sleep(0.2)
 
 
 def _tail(path, lines=15):
@@ -121,8 +150,11 @@ def verify_experiment(pk):
     command = [str(settings.REPOSITORY / "robotarium"), "verify", experiment.main_file,
                "--robots", str(experiment.number_of_robots), "--duration", str(experiment.estimated_duration),
                "--json", str(verdict_path)]
-    code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_VERIFY_DOMAIN"), output, VERIFY_TIMEOUT)
+    code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_VERIFY_DOMAIN"), output, VERIFY_TIMEOUT,
+                       VERIFY_CLUSTER)
     shutil.rmtree(work, ignore_errors=True)
+    if stopping():
+        return "the service stopped during the verification of experiment %d" % pk
     try:
         verdict = json.loads(verdict_path.read_text())
     except (OSError, ValueError):
@@ -206,7 +238,9 @@ def run_experiment(experiment):
                "--time-limit", "%g" % limit, "--bags-dir", str(results), "--results-dir", str(results),
                experiment.main_file]
     code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_RUN_DOMAIN"), root / "output.txt",
-                       limit + RESULTS_GRACE)
+                       limit + RESULTS_GRACE, RUN_CLUSTER)
+    if stopping():
+        return "the service stopped during the run of experiment %d" % experiment.pk
     folders = sorted((p for p in results.iterdir() if (p / "run.json").exists()), key=lambda p: p.stat().st_mtime)
     run = json.loads((folders[-1] / "run.json").read_text()) if folders else {}
     outcome = run.get("outcome", "")
