@@ -244,15 +244,19 @@ def run_experiment(experiment):
     folders = sorted((p for p in results.iterdir() if (p / "run.json").exists()), key=lambda p: p.stat().st_mtime)
     run = json.loads((folders[-1] / "run.json").read_text()) if folders else {}
     outcome = run.get("outcome", "")
+    # What the page said before the run (not verified; an earlier run cut short by a stop) stays said.
+    earlier = "\n\n" + experiment.detail if experiment.detail else ""
     experiment.results = str(folders[-1].relative_to(experiment.folder)) if folders else ""
     experiment.run_outcome = outcome
     if outcome in ("completed", "time_limit"):
         detail = run.get("detail") or "Run completed."
-        return _finish(experiment, Experiment.COMPLETED, detail, results=experiment.results, run_outcome=outcome)
+        return _finish(experiment, Experiment.COMPLETED, detail + earlier, results=experiment.results,
+                       run_outcome=outcome)
     if code is None:
         why = "the run did not end within %d s of its start" % (limit + RESULTS_GRACE)
     elif run.get("detail"):
         why = run["detail"]
     else:
         why = "./robotarium run ended with exit code %s and no results:\n%s" % (code, _tail(root / "output.txt"))
-    return _finish(experiment, Experiment.FAILED, "Failed: " + why, results=experiment.results, run_outcome=outcome)
+    return _finish(experiment, Experiment.FAILED, "Failed: " + why + earlier, results=experiment.results,
+                   run_outcome=outcome)

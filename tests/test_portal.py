@@ -276,3 +276,305 @@ def test_settings_json_has_the_guide_fields():
     assert response.json() == {"title": "Swap", "description": "", "estimated_duration": 30, "number_of_robots": 2,
                                "main_file": "main.py", "files": ["helper.py", "main.py"]}
     assert "attachment" in response["Content-Disposition"]
+
+
+# --- the whole flow in a real browser, against ./robotarium serve -------------------------------------------
+
+# The experiment of the walk: a main file, a helper module it imports and a data file it reads; it saves a
+# data file and prints. It turns its robots in place until the test drops `release` into its working
+# folder (at most 1800 steps, 60 s), so the test can stop the service while it surely runs.
+WALK_FILES = {
+    "main.py": """import os
+import numpy as np
+import rps.robotarium as robotarium
+from helper import turn_rates
+
+gains = np.loadtxt("gains.txt")
+print("read %d gains from gains.txt" % len(gains), flush=True)
+N = 2
+r = robotarium.Robotarium(number_of_robots=N, show_figure=False, sim_in_real_time=True,
+                          initial_conditions=np.array([[-0.4, 0.4], [0.0, 0.0], [0.0, 0.0]]))
+for k in range(1800):
+    r.get_poses()
+    r.set_velocities(np.arange(N), turn_rates(gains, N))
+    r.step()
+    if k >= 30 and os.path.exists("release"):
+        break
+np.savetxt("turned.txt", [k])
+print("helper module and data file used; the robots turned for", k + 1, "steps", flush=True)
+r.call_at_scripts_end()
+""",
+    "helper.py": """import numpy as np
+
+
+def turn_rates(gains, n):
+    return np.vstack([np.zeros(n), gains[:n]])
+""",
+    "gains.txt": "0.5\n-0.5\n0.2\n",
+}
+TIMEOUT = 240.0
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class Serve:
+    """./robotarium serve in a session of its own, its output collected."""
+
+    def __init__(self, args, env):
+        self.lines = []
+        self.process = subprocess.Popen([os.path.join(REPO, "robotarium"), "serve", *args], env=env, cwd=REPO,
+                                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                        start_new_session=True)
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self):
+        for line in self.process.stdout:
+            self.lines.append(line.rstrip("\n"))
+
+    def wait_for_address(self):
+        deadline = time.monotonic() + TIMEOUT
+        while time.monotonic() < deadline and self.process.poll() is None:
+            for line in self.lines:
+                found = re.search(r"portal is at (http://\S+)", line)
+                if found:
+                    return found.group(1)
+            time.sleep(0.2)
+        raise AssertionError("serve did not start:\n" + "\n".join(self.lines))
+
+    def stop(self):
+        """Ctrl-C, as an operator stops it; never left behind."""
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGINT)
+            try:
+                self.process.wait(timeout=120)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.process.pid, signal.SIGKILL)
+                self.process.wait()
+                raise AssertionError("serve did not stop within 120 s:\n" + "\n".join(self.lines))
+        return self.process.returncode
+
+
+class SmtpInbox:
+    """A real SMTP server (aiosmtpd) on localhost that keeps what it receives."""
+
+    def __init__(self):
+        from aiosmtpd.controller import Controller
+        self.messages = []
+        inbox = self
+
+        class Handler:
+            async def handle_DATA(self, server, session, envelope):
+                inbox.messages.append((envelope.rcpt_tos, envelope.content.decode("utf-8", "replace")))
+                return "250 OK"
+
+        self.controller = Controller(Handler(), hostname="127.0.0.1", port=free_port())
+        self.controller.start()
+        self.port = self.controller.port
+
+    def wait_for(self, to, subject_part):
+        deadline = time.monotonic() + TIMEOUT
+        while time.monotonic() < deadline:
+            for rcpt, text in self.messages:
+                if to in rcpt and subject_part in text:
+                    return text
+            time.sleep(0.2)
+        raise AssertionError("no mail to %s about %r; got %s" % (to, subject_part, self.messages))
+
+    def close(self):
+        self.controller.stop()
+
+
+def goto(page, url):
+    page.events.clear()
+    page.send("Page.navigate", {"url": url})
+    page.wait_for("Page.loadEventFired", 60)
+
+
+def fill_and_click(page, values, button):
+    """Type the values into the form's fields (by id) and click the button: a real form post."""
+    for field, value in values.items():
+        page.evaluate("document.getElementById(%r).value = %s" % (field, _js(value)))
+    page.events.clear()
+    page.evaluate("document.querySelector(%s).click()" % _js(button))
+    page.wait_for("Page.loadEventFired", 60)
+
+
+def _js(value):
+    import json
+    return json.dumps(value)
+
+
+def text_of(page, selector):
+    return page.evaluate("(document.querySelector(%s) || {textContent: null}).textContent" % _js(selector))
+
+
+def log_in(page, base, email):
+    goto(page, base + "login/")
+    fill_and_click(page, {"id_username": email, "id_password": PASSWORD}, "button[type=submit]")
+    assert "Dashboard" in page.evaluate("document.title"), page.evaluate("document.body.innerText")
+
+
+def log_out(page):
+    page.events.clear()
+    page.evaluate("document.querySelector('header form button').click()")
+    page.wait_for("Page.loadEventFired", 60)
+
+
+def sign_up(page, base, email, name):
+    goto(page, base + "signup/")
+    fill_and_click(page, {"id_email": email, "id_password": PASSWORD, "id_confirmation": PASSWORD, "id_name": name,
+                          "id_city": "Atlanta", "id_state": "GA", "id_institute": "Georgia Tech",
+                          "id_reason": "multi-robot class"}, "button[type=submit]")
+    assert "Thank you for signing up" in page.evaluate("document.body.innerText")
+
+
+def experiment_row(data, pk):
+    with sqlite3.connect(os.path.join(data, "portal.sqlite3"), timeout=30) as db:
+        return db.execute("SELECT state, attempts, detail FROM robotarium_portal_experiment WHERE id = ?",
+                          (pk,)).fetchone()
+
+
+def wait_for_state(data, pk, states, attempts=None):
+    deadline = time.monotonic() + TIMEOUT
+    while time.monotonic() < deadline:
+        row = experiment_row(data, pk)
+        if row[0] in states and (attempts is None or row[1] == attempts):
+            return row
+        if row[0] in ("rejected", "failed") and row[0] not in states:
+            raise AssertionError("experiment %d %s: %s" % (pk, row[0], row[2]))
+        time.sleep(0.3)
+    raise AssertionError("experiment %d still %s (wanted %s)" % (pk, row, states))
+
+
+def test_the_whole_flow_in_a_real_browser_with_a_restart_mid_run(tmp_path):
+    from devtools.browser import Browser, find_chromium
+    if find_chromium() is None:
+        pytest.skip("no chromium here and it could not be installed (./robotarium test installs Debian's "
+                    "package when it runs as root with apt-get)")
+    data = str(tmp_path / "service")
+    for name, text in WALK_FILES.items():
+        (tmp_path / name).write_text(text)
+    run_domain, verify_domain = unique_domain_id(), unique_domain_id()
+    inbox = SmtpInbox()
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("ROBOTARIUM_PORTAL", "DJANGO_"))}
+    env.update(ROBOTARIUM_SMTP_HOST="127.0.0.1", ROBOTARIUM_SMTP_PORT=str(inbox.port))
+    args = ["--data", data, "--port", str(free_port()), "--run-domain", str(run_domain),
+            "--verify-domain", str(verify_domain)]
+    admin = subprocess.run([os.path.join(REPO, "robotarium"), "serve", "--data", data, "--create-admin",
+                            "admin@example.org"], input=PASSWORD + "\n", text=True, env=env, cwd=REPO,
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=TIMEOUT)
+    assert admin.returncode == 0 and "is an administrator" in admin.stdout, admin.stdout
+    serve = Serve(args, env)
+    shots = os.environ.get("ROBOTARIUM_PORTAL_SCREENSHOTS")
+    try:
+        base = serve.wait_for_address()
+        with Browser() as browser:
+            page = browser.open(base + "signup/")
+            sign_up(page, base, "ada@example.org", "Ada Lovelace")
+            confirmation = inbox.wait_for("ada@example.org", "confirm your email")
+            link = re.search(r"(http://\S+/confirm/\S+/)", confirmation).group(1)
+            goto(page, link)
+            assert "Your email address is confirmed" in page.evaluate("document.body.innerText")
+
+            log_in(page, base, "admin@example.org")
+            goto(page, base + "staff/approvals/")
+            assert "ada@example.org" in page.evaluate("document.body.innerText")
+            page.events.clear()
+            page.evaluate("document.querySelector('button[value=\"ada@example.org\"]').click()")
+            page.wait_for("Page.loadEventFired", 60)
+            assert "Approved Ada Lovelace" in page.evaluate("document.body.innerText")
+            log_out(page)
+
+            log_in(page, base, "ada@example.org")
+            goto(page, base + "experiments/new/")
+            document = page.send("DOM.getDocument")["root"]["nodeId"]
+            upload = page.send("DOM.querySelector", {"nodeId": document, "selector": "#id_upload"})["nodeId"]
+            page.send("DOM.setFileInputFiles", {"nodeId": upload,
+                                                "files": [str(tmp_path / name) for name in WALK_FILES]})
+            fill_and_click(page, {"id_title": "Turn <in> place", "id_description": "two robots turn",
+                                  "id_estimated_duration": "90", "id_number_of_robots": "2",
+                                  "id_main_file": "main.py"}, "button[value=submit]")
+            assert "Submitted" in page.evaluate("document.body.innerText"), page.evaluate("document.body.innerText")
+            pk = int(re.search(r"/experiments/(\d+)/", page.evaluate("location.href")).group(1))
+            assert text_of(page, "h1").startswith("Turn <in> place")   # the title is text
+
+            # Verified, queued, running: the page names the step; then the service is stopped mid-run.
+            deadline = time.monotonic() + TIMEOUT
+            while text_of(page, "#step") is None:
+                assert time.monotonic() < deadline, page.evaluate("document.body.innerText")
+                time.sleep(0.5)
+                goto(page, base + "experiments/%d/" % pk)
+            assert text_of(page, "#state") == "running"
+            if shots:
+                goto(page, base)
+                screenshot(page, os.path.join(shots, "portal_dashboard.png"))
+            assert serve.stop() == 0, "\n".join(serve.lines)
+            assert experiment_row(data, pk)[:2] == ("running", 1)   # the truth: it was running, nothing else
+            assert processes_on_domain(run_domain) == {} and processes_on_domain(verify_domain) == {}
+
+            serve = Serve(args, env)
+            assert serve.wait_for_address() == base
+            wait_for_state(data, pk, ("running",), attempts=2)
+            work = os.path.join(data, "experiments", str(pk), "run-2", "work")
+            deadline = time.monotonic() + TIMEOUT
+            while not os.path.isdir(work):
+                assert time.monotonic() < deadline
+                time.sleep(0.2)
+            open(os.path.join(work, "release"), "w").close()
+            state, attempts, detail = wait_for_state(data, pk, ("completed",))
+            assert "Run completed." in detail
+            inbox.wait_for("ada@example.org", "has completed")
+
+            goto(page, base + "experiments/%d/" % pk)
+            body = page.evaluate("document.body.innerText")
+            for section in ("Experiment Settings", "Experiment Video", "Scripts", "Return Messages", "Data Files",
+                            "Log Files"):
+                assert section in body, section
+            assert "The service stopped during run 1" in body   # said truthfully on its page
+            log = text_of(page, "#log")
+            assert "read 3 gains from gains.txt" in log and "helper module and data file used" in log, log
+            assert "turned.txt" in text_of(page, "#data-files")
+            assert {"main.py", "helper.py", "gains.txt"} <= set(text_of(page, "#scripts").split())
+            assert ".mcap" in text_of(page, "#log-files") and "Run completed." in text_of(page, "#report")
+            played = page.evaluate("""new Promise(async (resolve) => {
+                const video = document.getElementById('video');
+                await video.play();
+                const start = video.currentTime;
+                setTimeout(() => resolve({start: start, now: video.currentTime, ready: video.readyState}), 500);
+            })""", await_promise=True)
+            assert played["now"] > played["start"] and played["ready"] >= 2, played
+            saved = page.evaluate("""fetch(document.querySelector('#data-files a').href).then(r => r.text())""",
+                                  await_promise=True)
+            assert int(float(saved)) >= 30
+            if shots:
+                page.evaluate("document.getElementById('video').pause()")
+                screenshot(page, os.path.join(shots, "portal_results.png"), full=True)
+            results_url = page.evaluate("location.href")
+            log_out(page)
+
+            # A second user: 404 on the first user's results, files and settings.
+            sign_up(page, base, "bob@example.org", "Bob")
+            log_in(page, base, "bob@example.org")
+            for url in (results_url, results_url + "settings.json", results_url + "files/main.py",
+                        results_url + "results/log.txt"):
+                assert page.evaluate("fetch(%s).then(r => r.status)" % _js(url), await_promise=True) == 404, url
+    finally:
+        serve.stop()
+        inbox.close()
+    assert processes_on_domain(run_domain) == {} and processes_on_domain(verify_domain) == {}
+
+
+def screenshot(page, path, full=False):
+    """A PNG of the page at a laptop's width (docs/)."""
+    import base64
+    height = page.evaluate("document.documentElement.scrollHeight") if full else 800
+    page.send("Emulation.setDeviceMetricsOverride", {"width": 1280, "height": height, "deviceScaleFactor": 1,
+                                                     "mobile": False})
+    shot = page.send("Page.captureScreenshot", {"format": "png", "captureBeyondViewport": full})
+    with open(path, "wb") as f:
+        f.write(base64.b64decode(shot["data"]))
+    page.send("Emulation.clearDeviceMetricsOverride")
