@@ -136,11 +136,29 @@ def rejection_text(verdict):
     return "\n".join(lines) or (verdict.get("report") or "rejected")
 
 
+def failing_truthfully(job):
+    """A job that breaks (a full disk, a bug) leaves its experiment failed with the error, not verifying or
+    running forever; the error goes on to django-q2's failed tasks too."""
+    def guarded(experiment):
+        try:
+            return job(experiment)
+        except Exception as error:
+            _finish(experiment, Experiment.FAILED, "Failed: the service's %s job broke (%s: %s); an administrator "
+                    "has its trace in the admin pages (failed tasks)." % (job.__name__, type(error).__name__, error))
+            raise
+    return guarded
+
+
 def verify_experiment(pk):
     """./robotarium verify on a copy of the experiment's files: accepted -> queued, else rejected or failed."""
     if not Experiment.objects.filter(pk=pk, state=Experiment.SUBMITTED).update(state=Experiment.VERIFYING):
         return "experiment %d is not waiting for verification" % pk
-    experiment = Experiment.objects.get(pk=pk)
+    return _verify(Experiment.objects.get(pk=pk))
+
+
+@failing_truthfully
+def _verify(experiment):
+    pk = experiment.pk
     work = experiment.folder / "verify"
     shutil.rmtree(work, ignore_errors=True)
     copy_files(experiment.files_dir, work)
@@ -226,6 +244,7 @@ def current_step(experiment):
     return int(steps[-1]) if steps else None
 
 
+@failing_truthfully
 def run_experiment(experiment):
     """./robotarium run in real time, hardware-like, in the experiment's own working folder; then the results."""
     root = run_folder(experiment)

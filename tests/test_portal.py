@@ -278,6 +278,54 @@ def test_settings_json_has_the_guide_fields():
     assert "attachment" in response["Content-Disposition"]
 
 
+def test_password_reset_through_the_mailed_link():
+    user = make_user()
+    mail.outbox.clear()
+    client = Client()
+    client.post("/password/reset/", {"email": user.email})
+    (message,) = mail.outbox
+    link = re.search(r"http://testserver(/password/reset/\S+/)", message.body).group(1)
+    form = client.get(link, follow=True)   # Django moves the token into the session and redirects
+    new = "another-Passphrase-9"
+    done = client.post(form.redirect_chain[-1][0], {"new_password1": new, "new_password2": new}, follow=True)
+    assert b"Your password is set" in done.content
+    assert Client().login(username=user.username, password=new)
+
+
+def robotarium_has_verify():
+    out = subprocess.run([os.path.join(REPO, "robotarium"), "verify", "--help"], cwd=REPO, capture_output=True,
+                         text=True, timeout=TIMEOUT)
+    return out.returncode == 0
+
+
+def test_a_submission_that_breaks_a_rule_is_rejected_with_the_rule_and_mailed():
+    """The verification job with the real ./robotarium verify: a script with 2 robots declared as 3."""
+    if not robotarium_has_verify():
+        pytest.skip("./robotarium verify is not in this checkout yet (the portal then queues unverified, saying so)")
+    from robotarium_portal import tasks
+    user = make_user()
+    script = ("import numpy as np\nimport rps.robotarium as robotarium\n"
+              "r = robotarium.Robotarium(number_of_robots=2, show_figure=False, sim_in_real_time=False)\n"
+              "for k in range(20):\n    r.get_poses()\n    r.set_velocities(np.arange(2), np.zeros((2, 2)))\n"
+              "    r.step()\nr.call_at_scripts_end()\n")
+    experiment = experiment_of(user, files_={"main.py": script})
+    Experiment.objects.filter(pk=experiment.pk).update(state=Experiment.SUBMITTED, number_of_robots=3)
+    os.environ["ROBOTARIUM_PORTAL_VERIFY_DOMAIN"] = str(unique_domain_id())
+    mail.outbox.clear()
+    try:
+        tasks.verify_experiment(experiment.pk)
+    finally:
+        del os.environ["ROBOTARIUM_PORTAL_VERIFY_DOMAIN"]
+    experiment.refresh_from_db()
+    assert experiment.state == Experiment.REJECTED, experiment.detail
+    rule = experiment.verification["rules"][0]
+    assert rule["rule"] in experiment.detail and experiment.verification["verdict"] == "rejected"
+    (message,) = mail.outbox
+    assert "issues found" in message.subject and rule["rule"] in message.body
+    page = client_for(user).get("/experiments/%d/" % experiment.pk).content.decode()
+    assert "Rejected by the verification" in page and rule["rule"] in page
+
+
 # --- the whole flow in a real browser, against ./robotarium serve -------------------------------------------
 
 # The experiment of the walk: a main file, a helper module it imports and a data file it reads; it saves a
