@@ -45,6 +45,7 @@ class Experiment(models.Model):
     run_outcome = models.CharField(max_length=40, blank=True)   # run.json's outcome
     results = models.CharField(max_length=500, blank=True)   # the run folder, relative to the experiment's
     attempts = models.PositiveIntegerField(default=0)         # runs started (a service restart runs it again)
+    timings = models.JSONField(default=dict, blank=True)      # s the verify and run commands took
     created = models.DateTimeField(default=timezone.now)
     submitted_at = models.DateTimeField(null=True, blank=True)
     queued_at = models.DateTimeField(null=True, blank=True)

@@ -3,6 +3,7 @@
 Each job claims its experiment with a conditional UPDATE (state X -> Y where the state is still X), so a
 job handed out twice, or two workers, never verify or run one experiment twice. The experiment table is
 the truth; the broker's queue only says that there is work (reconcile() rebuilds it from the table)."""
+import functools
 import json
 import os
 import re
@@ -31,8 +32,9 @@ STEP_LINE = re.compile(rb"\[robotarium\] step (\d+)")
 SECRET_VARIABLES = ("ROBOTARIUM_SMTP_PASSWORD", "ROBOTARIUM_SMTP_USER", "DJANGO_SETTINGS_MODULE")
 
 
+@functools.cache
 def time_limit():
-    """The testbed configuration's time limit (900 s: the Robotarium's 15-minute slot)."""
+    """The testbed configuration's time limit (900 s: the Robotarium's 15-minute slot); read once."""
     from robotarium_core.config import TestbedConfig
     return TestbedConfig.load().time_limit
 
@@ -168,8 +170,10 @@ def _verify(experiment):
     command = [str(settings.REPOSITORY / "robotarium"), "verify", experiment.main_file,
                "--robots", str(experiment.number_of_robots), "--duration", str(experiment.estimated_duration),
                "--json", str(verdict_path)]
+    began = time.monotonic()
     code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_VERIFY_DOMAIN"), output, VERIFY_TIMEOUT,
                        VERIFY_CLUSTER)
+    experiment.timings = {"verify_command": round(time.monotonic() - began, 3)}
     shutil.rmtree(work, ignore_errors=True)
     if stopping():
         return "the service stopped during the verification of experiment %d" % pk
@@ -184,7 +188,7 @@ def _verify(experiment):
         return _queue(experiment, verdict, "")
     if code == VERIFY_REJECTED and verdict:
         return _finish(experiment, Experiment.REJECTED, "Rejected by the verification:\n" + rejection_text(verdict),
-                       verification=verdict)
+                       verification=verdict, timings=experiment.timings)
     if code is None:
         why = "the verification did not end within %d s" % VERIFY_TIMEOUT
     elif code == VERIFY_TESTBED:
@@ -192,12 +196,13 @@ def _verify(experiment):
     else:
         why = "the verification could not run (exit code %s)" % code
     return _finish(experiment, Experiment.FAILED, "Failed: %s; a person may submit it again.\n%s"
-                   % (why, _tail(output)), verification=verdict)
+                   % (why, _tail(output)), verification=verdict, timings=experiment.timings)
 
 
 def _queue(experiment, verdict, detail):
     Experiment.objects.filter(pk=experiment.pk, state=Experiment.VERIFYING).update(
-        state=Experiment.QUEUED, queued_at=timezone.now(), verification=verdict, detail=detail)
+        state=Experiment.QUEUED, queued_at=timezone.now(), verification=verdict, detail=detail,
+        timings=experiment.timings)
     enqueue_run()
     return "experiment %d queued" % experiment.pk
 
@@ -256,8 +261,10 @@ def run_experiment(experiment):
     command = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--hardware",
                "--time-limit", "%g" % limit, "--bags-dir", str(results), "--results-dir", str(results),
                experiment.main_file]
+    began = time.monotonic()
     code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_RUN_DOMAIN"), root / "output.txt",
                        limit + RESULTS_GRACE, RUN_CLUSTER)
+    experiment.timings = dict(experiment.timings or {}, run_command=round(time.monotonic() - began, 3))
     if stopping():
         return "the service stopped during the run of experiment %d" % experiment.pk
     folders = sorted((p for p in results.iterdir() if (p / "run.json").exists()), key=lambda p: p.stat().st_mtime)
@@ -270,7 +277,7 @@ def run_experiment(experiment):
     if outcome in ("completed", "time_limit"):
         detail = run.get("detail") or "Run completed."
         return _finish(experiment, Experiment.COMPLETED, detail + earlier, results=experiment.results,
-                       run_outcome=outcome)
+                       run_outcome=outcome, timings=experiment.timings)
     if code is None:
         why = "the run did not end within %d s of its start" % (limit + RESULTS_GRACE)
     elif run.get("detail"):
@@ -278,4 +285,4 @@ def run_experiment(experiment):
     else:
         why = "./robotarium run ended with exit code %s and no results:\n%s" % (code, _tail(root / "output.txt"))
     return _finish(experiment, Experiment.FAILED, "Failed: " + why + earlier, results=experiment.results,
-                   run_outcome=outcome)
+                   run_outcome=outcome, timings=experiment.timings)
