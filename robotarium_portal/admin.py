@@ -1,6 +1,7 @@
 from django.contrib import admin
 from django.utils import timezone
 
+from robotarium_portal import mail
 from robotarium_portal.models import Experiment, ExperimentFile, Profile, ReturnMessage
 
 
@@ -12,7 +13,10 @@ class ProfileAdmin(admin.ModelAdmin):
 
     @admin.action(description="Approve the selected accounts")
     def approve(self, request, queryset):
-        queryset.update(approved=True, approved_at=timezone.now(), approved_by=request.user)
+        for profile in queryset.filter(approved=False).select_related("user"):
+            profile.approved, profile.approved_at, profile.approved_by = True, timezone.now(), request.user
+            profile.save(update_fields=["approved", "approved_at", "approved_by"])
+            mail.send_approved(profile.user)
 
 
 class FileInline(admin.TabularInline):

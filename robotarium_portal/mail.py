@@ -45,3 +45,23 @@ def send_completed(experiment):
               "Your experiment #%d \"%s\" has completed.\n\n%s\n\nThe results (video, scripts, data files, "
               "log files): %s\n" % (experiment.pk, experiment.title, experiment.detail, _experiment_link(experiment)),
               settings.DEFAULT_FROM_EMAIL, [experiment.owner.email])
+
+
+def send_approved(user):
+    send_mail("Robotarium: your account is approved",
+              "Hello %s,\n\nan administrator approved your Robotarium account: you can submit experiments now.\n\n%s\n"
+              % (user.profile.name, settings.PORTAL_URL + reverse("dashboard")),
+              settings.DEFAULT_FROM_EMAIL, [user.email])
+
+
+def tell_administrators(user):
+    """A confirmed account waits for approval: the administrators hear of it."""
+    from django.contrib.auth import get_user_model
+    staff = list(get_user_model().objects.filter(is_staff=True, is_active=True).exclude(email="")
+                 .values_list("email", flat=True))
+    if staff:
+        send_mail("Robotarium: %s waits for approval" % user.email,
+                  "%s (%s, %s) confirmed their address and waits for approval:\n\n%s\n"
+                  % (user.profile.name, user.profile.institute, user.email,
+                     settings.PORTAL_URL + reverse("approvals")),
+                  settings.DEFAULT_FROM_EMAIL, staff)

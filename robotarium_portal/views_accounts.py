@@ -40,6 +40,8 @@ def confirm(request, uidb64, token):
     if valid:
         user.profile.email_confirmed = True
         user.profile.save(update_fields=["email_confirmed"])
+        if not user.profile.approved:
+            mail.tell_administrators(user)
     return render(request, "portal/confirmed.html", {"valid": valid, "confirmed_user": user if valid else None},
                   status=200 if valid else 400)
 
@@ -72,5 +74,6 @@ def approve(request, pk):
     profile = get_object_or_404(Profile, pk=pk)
     profile.approved, profile.approved_at, profile.approved_by = True, timezone.now(), request.user
     profile.save(update_fields=["approved", "approved_at", "approved_by"])
+    mail.send_approved(profile.user)
     messages.success(request, "Approved %s (%s)." % (profile.name, profile.user.email))
     return redirect("approvals")

@@ -140,7 +140,9 @@ def test_only_administrators_approve_accounts_and_write_return_messages():
     admin_client = client_for(admin)
     listing = admin_client.get("/staff/approvals/").content.decode()
     assert waiting.email in listing and owner.email not in listing   # only those waiting
+    mail.outbox.clear()
     admin_client.post("/staff/approvals/%d/" % waiting.profile.pk)
+    assert [m.to for m in mail.outbox] == [[waiting.email]] and "approved" in mail.outbox[0].subject
     admin_client.post("/experiments/%d/message/" % experiment.pk, {"text": "Nice swap; slow down near the wall."})
     waiting.profile.refresh_from_db()
     assert waiting.profile.approved and waiting.profile.approved_by == admin
@@ -150,6 +152,7 @@ def test_only_administrators_approve_accounts_and_write_return_messages():
 # --- an unconfirmed or unapproved account cannot submit -------------------------------------------------------
 
 def test_sign_up_confirm_approve_then_submit():
+    make_user(staff=True)   # an administrator to tell
     mail.outbox.clear()
     client = Client()
     response = client.post("/signup/", {"email": "Ada@Example.org", "password": PASSWORD, "confirmation": PASSWORD,
@@ -166,8 +169,10 @@ def test_sign_up_confirm_approve_then_submit():
     experiment = Experiment.objects.get(owner__username="ada@example.org")
     assert experiment.state == Experiment.SAVED and b"Confirm your email address first" in response.content
 
+    mail.outbox.clear()
     assert client.get(link).status_code == 200
     assert Profile.objects.get(user__username="ada@example.org").email_confirmed
+    assert "ada@example.org waits for approval" in mail.outbox[0].subject   # the administrators hear of it
     assert client.get(link).status_code == 400   # a used link is void
     response = post_form(client, "/experiments/%d/" % experiment.pk, action="submit")
     experiment.refresh_from_db()
