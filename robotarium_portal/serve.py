@@ -152,7 +152,11 @@ def main(argv=None):
     tasks.reconcile()   # before any worker: the jobs again from the experiments' states
     hosts = ["localhost", "127.0.0.1", "[::1]"] + args.allowed_host + (
         [args.host] if args.host not in ("0.0.0.0", "::") else [])
-    server = waitress.create_server(application, host=args.host, port=args.port, threads=8)
+    try:
+        server = waitress.create_server(application, host=args.host, port=args.port, threads=8)
+    except OSError as error:
+        sys.exit("[robotarium] error: cannot listen on %s:%d (%s); choose another with --port (0: any free one)"
+                 % (args.host, args.port, error.strerror or error))
     shown_host = args.allowed_host[0] if args.allowed_host else ("127.0.0.1" if args.host in ("0.0.0.0", "::")
                                                                  else args.host)
     url = "http://%s:%d/" % (shown_host, int(server.effective_port))

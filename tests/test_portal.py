@@ -491,6 +491,17 @@ def experiment_row(data, pk):
                           (pk,)).fetchone()
 
 
+def service_logs(data):
+    """The workers' logs and the jobs' output, for a failure's message."""
+    texts = []
+    for folder, _, names in os.walk(data):
+        for name in names:
+            if name.startswith("worker-") or name in ("output.txt", "verification-output.txt"):
+                with open(os.path.join(folder, name), errors="replace") as f:
+                    texts.append("--- %s\n%s" % (os.path.join(folder, name), f.read()[-3000:]))
+    return "\n".join(texts)
+
+
 def wait_for_state(data, pk, states, attempts=None):
     deadline = time.monotonic() + TIMEOUT
     while time.monotonic() < deadline:
@@ -498,9 +509,9 @@ def wait_for_state(data, pk, states, attempts=None):
         if row[0] in states and (attempts is None or row[1] == attempts):
             return row
         if row[0] in ("rejected", "failed") and row[0] not in states:
-            raise AssertionError("experiment %d %s: %s" % (pk, row[0], row[2]))
+            raise AssertionError("experiment %d %s: %s\n%s" % (pk, row[0], row[2], service_logs(data)))
         time.sleep(0.3)
-    raise AssertionError("experiment %d still %s (wanted %s)" % (pk, row, states))
+    raise AssertionError("experiment %d still %s (wanted %s)\n%s" % (pk, row, states, service_logs(data)))
 
 
 def test_the_whole_flow_in_a_real_browser_with_a_restart_mid_run(tmp_path):
@@ -558,7 +569,7 @@ def test_the_whole_flow_in_a_real_browser_with_a_restart_mid_run(tmp_path):
             # Verified, queued, running: the page names the step; then the service is stopped mid-run.
             deadline = time.monotonic() + TIMEOUT
             while text_of(page, "#step") is None:
-                assert time.monotonic() < deadline, page.evaluate("document.body.innerText")
+                assert time.monotonic() < deadline, page.evaluate("document.body.innerText") + service_logs(data)
                 time.sleep(0.5)
                 goto(page, base + "experiments/%d/" % pk)
             assert text_of(page, "#state") == "running"
