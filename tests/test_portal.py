@@ -199,7 +199,7 @@ def test_file_names_that_could_leave_the_folder_are_refused(name):
 def test_odd_upload_names_are_refused_and_nothing_is_written_outside():
     user = make_user()
     client = client_for(user)
-    before = set(os.listdir(DATA))
+    before = set(os.listdir(DATA)) | {"experiments"}
     for name in ("a b.py", "semi;colon.py", ".bashrc", "ünï.py"):
         response = post_form(client, "/experiments/new/", uploads=[SimpleUploadedFile(name, b"print(1)\n")])
         assert b"is not allowed" in response.content, name
@@ -212,7 +212,9 @@ def test_odd_upload_names_are_refused_and_nothing_is_written_outside():
     # nor can a download name leave the folder (the secret key is two levels up)
     assert client.get("/experiments/%d/files/../../../secret_key" % experiment.pk).status_code == 404
     completed = experiment_of(user, results={"log.txt": "x"})
-    for name in ("../../../../secret_key", "data/../../../../../secret_key", "%2e%2e/%2e%2e/secret_key"):
+    # the run folder is DATA/experiments/<id>/run-1/results/run: five levels below DATA
+    for name in ("../../../../../secret_key", "data/../../../../../../secret_key",
+                 "%2e%2e/%2e%2e/%2e%2e/%2e%2e/%2e%2e/secret_key"):
         assert client.get("/experiments/%d/results/%s" % (completed.pk, name)).status_code == 404, name
 
 
