@@ -12,6 +12,8 @@ import threading
 import time
 from pathlib import Path
 
+from robotarium_core import lifeline
+
 REPOSITORY = Path(__file__).resolve().parent.parent
 STOP_GRACE = 60.0   # s a worker has to stop its job (a run ends its experiment and writes its results)
 
@@ -83,7 +85,8 @@ def free_domain():
 class Workers:
     """The two django-q2 clusters, each in a process group of its own (its jobs' processes included)."""
 
-    def __init__(self, data, env):
+    def __init__(self, data, env, lock):
+        self.lock = lock   # held by the workers too: no second serve on this folder while one of them lives
         self.processes = {}
         self.logs = Path(data) / "logs"
         self.logs.mkdir(exist_ok=True)
@@ -92,8 +95,9 @@ class Workers:
     def start(self):
         for name in ("verify", "runs"):
             log = open(self.logs / ("worker-%s.txt" % name), "ab")
+            env, pass_fds = lifeline.for_child(self.env)
             self.processes[name] = subprocess.Popen(
-                [sys.executable, "-m", "django", "qcluster"], env=dict(self.env, Q_CLUSTER_NAME=name),
+                [sys.executable, "-m", "robotarium_portal.worker", name], env=env, pass_fds=pass_fds + (self.lock.fileno(),),
                 stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, process_group=0, cwd=REPOSITORY)
 
     def dead(self):
@@ -104,12 +108,7 @@ class Workers:
         clusters (SIGTERM to each cluster's main process: it lets its worker finish and exits), and SIGKILL
         what is left of a cluster after STOP_GRACE."""
         from robotarium_portal import tasks
-        (tasks.jobs_dir() / "stopping").touch()
-        for pgid_file in tasks.jobs_dir().glob("*.pgid"):
-            try:
-                tasks.stop_group(int(pgid_file.read_text()))
-            except ValueError:
-                pass
+        tasks.stop_jobs()
         for process in self.processes.values():
             if process.poll() is None:
                 process.send_signal(signal.SIGTERM)
@@ -135,8 +134,8 @@ def main(argv=None):
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            sys.exit("[robotarium] error: another ./robotarium serve uses %s; stop it first, or give this one "
-                     "its own --data folder" % data)
+            sys.exit("[robotarium] error: another ./robotarium serve uses %s (or the workers of one that was "
+                     "stopped are still ending their jobs); stop it first, or give this one its own --data folder" % data)
     setup_django(data)
     from django.core.management import call_command
     call_command("migrate", interactive=False, verbosity=0)
@@ -168,7 +167,7 @@ def main(argv=None):
     os.environ.update({k: env[k] for k in ("ROBOTARIUM_PORTAL_URL", "ROBOTARIUM_PORTAL_HOSTS")})
     from django.conf import settings
     settings.ALLOWED_HOSTS = hosts
-    workers = Workers(data, env)
+    workers = Workers(data, env, lock)
     workers.start()
     mailer = settings.MAILERS["default"]
     mail = ("the SMTP server %s:%s" % (mailer["OPTIONS"]["host"], mailer["OPTIONS"]["port"])

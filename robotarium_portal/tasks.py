@@ -104,6 +104,17 @@ def run_command(command, cwd, env, output_path, timeout, job):
             pgid_file.unlink(missing_ok=True)
 
 
+def stop_jobs():
+    """The service stops: mark it (a job cut short now is not its experiment's failure) and stop every
+    running job's ./robotarium."""
+    (jobs_dir() / "stopping").touch()
+    for pgid_file in jobs_dir().glob("*.pgid"):
+        try:
+            stop_group(int(pgid_file.read_text()))
+        except (ValueError, OSError):
+            pass
+
+
 def stop_group(pgid, grace=30.0):
     """SIGTERM to the group (./robotarium stops its testbed and writes its results), SIGKILL after grace."""
     for sig, wait in ((signal.SIGTERM, grace), (signal.SIGKILL, 0.0)):

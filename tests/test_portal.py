@@ -19,7 +19,7 @@ import time
 
 import pytest
 
-from devtools.rosutil import REPO, processes_on_domain, unique_domain_id
+from devtools.rosutil import REPO, processes_on_domain, processes_with_env, unique_domain_id
 
 DATA = tempfile.mkdtemp(prefix="robotarium-portal-test-")
 os.environ["ROBOTARIUM_PORTAL_DATA"] = DATA
@@ -628,6 +628,14 @@ def test_the_whole_flow_in_a_real_browser_with_a_restart_mid_run(tmp_path):
             for url in (results_url, results_url + "settings.json", results_url + "files/main.py",
                         results_url + "results/log.txt"):
                 assert page.evaluate("fetch(%s).then(r => r.status)" % _js(url), await_promise=True) == 404, url
+
+        # serve killed outright: its workers notice (their lifeline) and stop; nothing of the service is left.
+        serve.process.kill()
+        serve.process.wait()
+        deadline = time.monotonic() + 60
+        while processes_with_env("ROBOTARIUM_PORTAL_DATA", os.path.realpath(data)):
+            assert time.monotonic() < deadline, processes_with_env("ROBOTARIUM_PORTAL_DATA", os.path.realpath(data))
+            time.sleep(0.2)
     finally:
         serve.stop()
         inbox.close()
