@@ -25,6 +25,18 @@ the arena, step by step (that module's docstring gives the guarantee, its assump
 If it has no recent poses, or the input is malformed, or the solver fails, it sends a stop for the
 robots concerned: never the raw command. Without this node nothing reaches the simulator.
 
+What the script alone would have done: for every array it also takes the one-step look-ahead of
+the script's own commands (robotarium_core.model.lookahead_violations: from the poses filtered
+with, the requested commands scaled to the limits, one time step) and reports the collisions and
+robots outside the arena that step would make (SafetyReport.lookahead_*): the simulator sums them
+into what the safety layer prevented, so a run kept safe only by this node is never told
+"Acceptance of your experiment is likely!".
+
+Audit mode (ArmSafety.audit, set for ./robotarium verify only, never for a plain run): the
+certificate is computed and reported as always, but the script's own commands go out, scaled to
+the actuator limits along their arc, so collisions and boundary violations really happen and the
+simulator counts them as the Robotarium's verification does.
+
 cmd_requested takes any reliable publisher (`ros2 topic pub` too: robotarium_core.topics). The
 simulator's cmd_safe reader is volatile, so a command is held here until our cmd_safe writer has
 matched it (at most `lockstep_wait`): the first commands of a run are never lost to discovery.
@@ -125,7 +137,9 @@ class SafetyNode(Node):
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
         self._dropped_reported = dict(self.dropped)
         response.success = True
-        response.message = ("guarding %s (%d robots)" % (request.run_id, n)) if request.run_id else "disarmed"
+        response.message = ("%s %s (%d robots)" % ("auditing (verification: the script's own commands go through)"
+                                                   if request.audit else "guarding", request.run_id, n)
+                            if request.run_id else "disarmed")
         self.get_logger().info(response.message)
         return response
 
@@ -310,6 +324,7 @@ class SafetyNode(Node):
             over_limits = model.exceeds_actuator_limits(self.commands, **self.config.limits)
         # What the robots would drive: beyond the limits, scaled to them along the commanded arc.
         requested = model.threshold_keeping_arc(self.commands, **self.config.limits)
+        report.lookahead_collisions, report.lookahead_boundary_violations = self.lookahead()
         safe = self.certificate(requested, self.poses)
         info = self.certificate.info
         if info["fallback"]:
@@ -331,7 +346,24 @@ class SafetyNode(Node):
         report.solver_status = info["status"]
         report.max_change = float(change.max()) if n else 0.0
         report.robots_changed = int(np.count_nonzero(change.max(axis=0) > self.config.intervention_tolerance))
+        if self.armed.audit:   # verification: what the certificate would do is reported, the script's commands go
+            report.audit = True
+            safe = requested
         self.publish(request, np.arange(n), safe[0], safe[1], report, started, over_limits)
+
+    def lookahead(self):
+        """(collisions, robots outside) one step of the script's own commands would make from the
+        current poses, counted by the experiment's rules (the guide's, or 2.x's colliders, nothing
+        during the drive-on phase)."""
+        c = self.config
+        if self.api != rps2.API:
+            return model.lookahead_violations(self.poses, self.commands, c.time_step, c.robot_diameter, c.arena,
+                                              **c.limits)
+        if self.drive_on_goals is not None:
+            return 0, 0
+        ahead = model.lookahead_poses(self.poses, self.commands, c.time_step, **c.limits)
+        return (rps2.count_too_close(ahead, c.collision_diameter, c.collision_offset),
+                int(np.any(model.outside_arena(ahead, c.arena))))
 
     def note_stale_stop(self, now, age):
         """Count a stop for want of recent poses; log the first of a spell, then once a second."""
