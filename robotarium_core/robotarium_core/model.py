@@ -131,14 +131,58 @@ def lookahead_poses(poses, commands, time_step=TIME_STEP, **limits):
     return unicycle_step(poses, threshold_keeping_arc(commands, **limits), time_step)
 
 
+def violations(poses, robot_diameter=ROBOT_DIAMETER, arena=ARENA):
+    """(collisions, boundary violations) the debug report counts on these poses: robot pairs within
+    a robot diameter, robots outside the arena."""
+    return count_collisions(poses, robot_diameter), int(np.count_nonzero(outside_arena(poses, arena)))
+
+
 def lookahead_violations(poses, commands, time_step=TIME_STEP, robot_diameter=ROBOT_DIAMETER, arena=ARENA,
                          **limits):
     """(collisions, boundary violations) the debug report would count on the poses one step on,
-    had `commands` been applied unfiltered from `poses` (lookahead_poses): robot pairs within a
-    robot diameter, robots outside the arena. The safety node sums these over a run as its estimate
-    of what it prevented: where it holds robots apart, the script's own commands would close the gap."""
-    ahead = lookahead_poses(poses, commands, time_step, **limits)
-    return count_collisions(ahead, robot_diameter), int(np.count_nonzero(outside_arena(ahead, arena)))
+    had `commands` been applied unfiltered from `poses` (lookahead_poses).
+
+    Measured on the crash cases of tests/test_verify.py it is no estimate of what a safety layer
+    prevented: the barrier certificate acts early (it keeps the points ahead of two robots 0.17 m
+    apart and centres 0.055 m inside the arena), so one step of the script's commands from the
+    filtered poses never reaches a collision or the edge (0 for 168 audited collision iterations).
+    UnfilteredReplay, which carries the script's commands on from where they would have led, is."""
+    return violations(lookahead_poses(poses, commands, time_step, **limits), robot_diameter, arena)
+
+
+class UnfilteredReplay:
+    """The run as the script's own commands alone would have made it: from the initial poses, each
+    step applies the commands the script asked for (thresholded as the simulator would), never
+    those the safety layer made of them, and counts the debug report's collisions and boundary
+    violations on the poses before the move, as Testbed.step does. The safety node keeps one per
+    run; its counts are the report's estimate of what the safety layer prevented.
+
+    Open loop: the script computed its commands from the filtered poses, so a feedback script's
+    replay is an estimate. It is exact where the commands do not depend on the poses, and on the
+    four-robot head-on script of tests/data it gives the audited run's 168 collision iterations.
+    `count`: poses -> (collisions, boundary violations), the experiment's rules (violations by default)."""
+
+    def __init__(self, poses, step=0, time_step=TIME_STEP, limits=None, count=violations):
+        self.poses = np.array(poses, dtype=float)
+        self.step = step
+        self.time_step = time_step
+        self.limits = limits or {}
+        self.count = count
+
+    def violations(self):
+        """What the next step would count (on the poses before its move)."""
+        return self.count(self.poses)
+
+    def advance(self, commands, to_step):
+        """Move on to `to_step` with `commands` (2 x N) in force; returns the counts of the steps
+        passed (each counted on its poses before the move)."""
+        collisions = outside = 0
+        while self.step < to_step:
+            c, b = self.count(self.poses)
+            collisions, outside = collisions + c, outside + b
+            self.poses = lookahead_poses(self.poses, commands, self.time_step, **self.limits)
+            self.step += 1
+        return collisions, outside
 
 
 @functools.lru_cache(maxsize=64)
@@ -253,18 +297,20 @@ ACCEPTANCE_LIKELY = "No errors in your simulation! Acceptance of your experiment
 def safety_lines(interventions=0, arrays=0, largest_change=0.0, mean_change=0.0, prevented_collisions=0,
                  prevented_boundary=0):
     """What the always-on safety layer did, for the end of a debug report: how often and how much
-    it changed the script's commands, and what its one-step look-ahead says the script's own
-    commands would have made the Robotarium count (collisions, robots outside). Empty when it
-    never stepped in."""
+    it changed the script's commands, and what the script's own commands would have made the
+    Robotarium count (collisions, robots outside: the safety node's UnfilteredReplay). Empty when
+    it never stepped in."""
     lines = []
     if interventions:
         lines.append("The safety layer changed {0} of {1} command arrays (largest change {2:.3g}, mean {3:.3g} m/s or "
                      "rad/s).\n".format(interventions, max(arrays, interventions), largest_change, mean_change))
     if prevented_collisions or prevented_boundary:
-        lines.append("Without it your script's own commands would have made about {0} iteration(s) where robots would "
-                     "have collided and {1} where robots would have left the arena (a one-step look-ahead): the "
-                     "Robotarium counts those and rejects an experiment with too many. Run ./robotarium verify "
-                     "SCRIPT to get the Robotarium's verdict.\n".format(prevented_collisions, prevented_boundary))
+        what = [text.format(count) for count, text in (
+            (prevented_collisions, "{0} iteration(s) where robots would have collided"),
+            (prevented_boundary, "{0} iteration(s) where robots would have been outside the arena")) if count]
+        lines.append("Without it your script's own commands would have made about {0} (replayed without the safety "
+                     "layer): the Robotarium counts those and rejects an experiment with too many. Run ./robotarium "
+                     "verify SCRIPT to get the Robotarium's verdict.\n".format(" and ".join(what)))
     return lines
 
 
@@ -278,8 +324,8 @@ def debug_report(iterations, boundary_violations, collisions, actuator_limit_ite
     robots than the real Robotarium deploys, and that it ran hardware-like (hardware_seed: the seed
     of robotarium_sim.hardware's model; None for the ideal testbed).
 
-    safety: safety_lines' keyword arguments (what the safety layer did). When its look-ahead says
-    the script's own commands would have collided or left the arena, the acceptance estimate is
+    safety: safety_lines' keyword arguments (what the safety layer did). When its replay says the
+    script's own commands would have collided or left the arena, the acceptance estimate is
     never given: the verdict follows what the script alone would have done, not what the safety
     layer made of it; the report says so and points to ./robotarium verify."""
     extra = safety_lines(**(safety or {}))
@@ -395,8 +441,8 @@ class Testbed:
 class RunTally:
     """What a run's report needs beside the testbed's counters: the step at which each error
     counter first became non-zero (a verification's verdict names it), and what the safety layer
-    did: its interventions (how often, how much) and what its one-step look-ahead says the script's
-    own commands would have made the Robotarium count (SafetyReport.lookahead_*, summed)."""
+    did: its interventions (how often, how much) and what the script's own commands would have made
+    the Robotarium count (SafetyReport.unfiltered_*, summed)."""
 
     def __init__(self):
         self.first_collision_step = 0    # the step (1: the first step() call) whose count made collisions > 0
@@ -414,13 +460,13 @@ class RunTally:
         if testbed.boundary_violations and not self.first_boundary_step:
             self.first_boundary_step = testbed.steps
 
-    def add_safety_report(self, intervention, max_change, lookahead_collisions=0, lookahead_boundary=0):
+    def add_safety_report(self, intervention, max_change, unfiltered_collisions=0, unfiltered_boundary=0):
         if intervention:
             self.interventions += 1
             self.largest_change = max(self.largest_change, float(max_change))
             self.change_sum += float(max_change)
-        self.prevented_collisions += int(lookahead_collisions)
-        self.prevented_boundary += int(lookahead_boundary)
+        self.prevented_collisions += int(unfiltered_collisions)
+        self.prevented_boundary += int(unfiltered_boundary)
 
     def safety(self, arrays):
         """safety_lines' keyword arguments, `arrays` command arrays in all."""

@@ -70,8 +70,8 @@ def safety_summary(bag, tolerance):
     and audit (a verification run: it let the script's commands through). An intervention is an
     array whose safe command differs from the requested one by more than `tolerance` for some
     robot, or a stop (SafetyReport.msg); the changes are those of the interventions (stops
-    included, as the largest finite speed they cancelled); prevented_*: its one-step look-ahead
-    of the script's own commands, summed (0 in bags recorded before it existed)."""
+    included, as the largest finite speed they cancelled); prevented_*: its unfiltered replay of
+    the script's own commands, summed (0 in bags recorded before it existed)."""
     tally, arrays, audit = model.RunTally(), 0, False
     name = bag.topic("safety_report", required=False)
     for _, report in (bag.decoded([name]) if name in bag.topics else ()):
@@ -82,8 +82,8 @@ def safety_summary(bag, tolerance):
         audit = audit or bool(getattr(report, "audit", False))
         stop = status in STOP_STATUSES if isinstance(status, int) else str(status).startswith("stop")
         tally.add_safety_report(stop or report.max_change > tolerance, report.max_change,
-                                getattr(report, "lookahead_collisions", 0),
-                                getattr(report, "lookahead_boundary_violations", 0))
+                                getattr(report, "unfiltered_collisions", 0),
+                                getattr(report, "unfiltered_boundary_violations", 0))
     return dict(tally.safety(arrays), audit=audit)
 
 
@@ -332,7 +332,7 @@ def report_text(bag, numbers):
     if safety["audit"]:
         lines.append("verification: the safety node audited this run (./robotarium verify): it let the script's own "
                      "commands through, so the counts above are the Robotarium's")
-    lines.append("look-ahead:   the script's own commands, one step ahead of each step's poses, would have made %d "
+    lines.append("unfiltered:   the script's own commands, replayed without the safety layer, would have made %d "
                  "collision iteration(s) and %d of robots outside the arena" % (
                      safety["prevented_collisions"], safety["prevented_boundary"]))
     lines += ["note:         " + note for note in numbers["notes"]]

@@ -475,8 +475,8 @@ class SimulatorNode(Node):
         intervention = is_intervention(msg, self.config.intervention_tolerance)
         if intervention:
             self.safety_interventions += 1
-        self.tally.add_safety_report(intervention, msg.max_change, msg.lookahead_collisions,
-                                     msg.lookahead_boundary_violations)
+        self.tally.add_safety_report(intervention, msg.max_change, msg.unfiltered_collisions,
+                                     msg.unfiltered_boundary_violations)
         if msg.status == SafetyReport.STATUS_STOP_NO_POSES:
             self.stale_pose_stops += 1
         self.dropped_requested = msg.dropped
