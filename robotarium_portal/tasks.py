@@ -178,9 +178,10 @@ def _verify(experiment):
     verdict_path = experiment.folder / "verification.json"
     verdict_path.unlink(missing_ok=True)
     output = experiment.folder / "verification-output.txt"
+    # Not recorded (the verdict and its report are what the experiment keeps); its run folder beside the verdict.
     command = [str(settings.REPOSITORY / "robotarium"), "verify", experiment.main_file,
                "--robots", str(experiment.number_of_robots), "--duration", str(experiment.estimated_duration),
-               "--json", str(verdict_path)]
+               "--json", str(verdict_path), "--no-record", "--results-dir", str(experiment.folder / "verification")]
     began = time.monotonic()
     code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_VERIFY_DOMAIN"), output, VERIFY_TIMEOUT,
                        VERIFY_CLUSTER)

@@ -299,45 +299,12 @@ def test_password_reset_through_the_mailed_link():
     assert Client().login(username=user.username, password=new)
 
 
-def robotarium_has_verify():
-    out = subprocess.run([os.path.join(REPO, "robotarium"), "verify", "--help"], cwd=REPO, capture_output=True,
-                         text=True, timeout=TIMEOUT)
-    return out.returncode == 0
-
-
-def test_a_submission_that_breaks_a_rule_is_rejected_with_the_rule_and_mailed():
-    """The verification job with the real ./robotarium verify: a script with 2 robots declared as 3."""
-    if not robotarium_has_verify():
-        pytest.skip("./robotarium verify is not in this checkout yet (the portal then queues unverified, saying so)")
-    from robotarium_portal import tasks
-    user = make_user()
-    script = ("import numpy as np\nimport rps.robotarium as robotarium\n"
-              "r = robotarium.Robotarium(number_of_robots=2, show_figure=False, sim_in_real_time=False)\n"
-              "for k in range(20):\n    r.get_poses()\n    r.set_velocities(np.arange(2), np.zeros((2, 2)))\n"
-              "    r.step()\nr.call_at_scripts_end()\n")
-    experiment = experiment_of(user, files_={"main.py": script})
-    Experiment.objects.filter(pk=experiment.pk).update(state=Experiment.SUBMITTED, number_of_robots=3)
-    os.environ["ROBOTARIUM_PORTAL_VERIFY_DOMAIN"] = str(unique_domain_id())
-    mail.outbox.clear()
-    try:
-        tasks.verify_experiment(experiment.pk)
-    finally:
-        del os.environ["ROBOTARIUM_PORTAL_VERIFY_DOMAIN"]
-    experiment.refresh_from_db()
-    assert experiment.state == Experiment.REJECTED, experiment.detail
-    rule = experiment.verification["rules"][0]
-    assert rule["rule"] in experiment.detail and experiment.verification["verdict"] == "rejected"
-    (message,) = mail.outbox
-    assert "issues found" in message.subject and rule["rule"] in message.body
-    page = client_for(user).get("/experiments/%d/" % experiment.pk).content.decode()
-    assert "Rejected by the verification" in page and rule["rule"] in page
-
-
 # --- the whole flow in a real browser, against ./robotarium serve -------------------------------------------
 
 # The experiment of the walk: a main file, a helper module it imports and a data file it reads; it saves a
 # data file and prints. It turns its robots in place until the test drops `release` into its working
-# folder (at most 1800 steps, 60 s), so the test can stop the service while it surely runs.
+# folder (at most 900 steps, 30 s; its verification runs them all), so the test can stop the service while
+# it surely runs. The second experiment drives four robots head-on into each other: rejected.
 WALK_FILES = {
     "main.py": """import os
 import numpy as np
@@ -349,7 +316,7 @@ print("read %d gains from gains.txt" % len(gains), flush=True)
 N = 2
 r = robotarium.Robotarium(number_of_robots=N, show_figure=False, sim_in_real_time=True,
                           initial_conditions=np.array([[-0.4, 0.4], [0.0, 0.0], [0.0, 0.0]]))
-for k in range(1800):
+for k in range(900):
     r.get_poses()
     r.set_velocities(np.arange(N), turn_rates(gains, N))
     r.step()
@@ -368,6 +335,7 @@ def turn_rates(gains, n):
     "gains.txt": "0.5\n-0.5\n0.2\n",
 }
 TIMEOUT = 240.0
+HEAD_ON = os.path.join(REPO, "tests", "data", "head_on_no_barrier.py")   # 168 collision iterations
 
 
 def free_port():
@@ -567,6 +535,14 @@ def test_the_whole_flow_in_a_real_browser_with_a_restart_mid_run(tmp_path):
             assert "Submitted" in page.evaluate("document.body.innerText"), page.evaluate("document.body.innerText")
             pk = int(re.search(r"/experiments/(\d+)/", page.evaluate("location.href")).group(1))
             assert text_of(page, "h1").startswith("Turn <in> place")   # the title is text
+            goto(page, base + "experiments/new/")
+            document = page.send("DOM.getDocument")["root"]["nodeId"]
+            upload = page.send("DOM.querySelector", {"nodeId": document, "selector": "#id_upload"})["nodeId"]
+            page.send("DOM.setFileInputFiles", {"nodeId": upload, "files": [HEAD_ON]})
+            fill_and_click(page, {"id_title": "Head-on", "id_estimated_duration": "10", "id_number_of_robots": "4"},
+                           "button[value=submit]")
+            head_on = int(re.search(r"/experiments/(\d+)/", page.evaluate("location.href")).group(1))
+            goto(page, base + "experiments/%d/" % pk)
 
             # Verified, queued, running: the page names the step; then the service is stopped mid-run.
             deadline = time.monotonic() + TIMEOUT
@@ -594,6 +570,15 @@ def test_the_whole_flow_in_a_real_browser_with_a_restart_mid_run(tmp_path):
             state, attempts, detail = wait_for_state(data, pk, ("completed",))
             assert "Run completed." in detail
             inbox.wait_for("ada@example.org", "has completed")
+
+            # The head-on script: rejected by the verification, the rule with its count and first step shown
+            # on its page and in the mail.
+            wait_for_state(data, head_on, ("rejected",))
+            goto(page, base + "experiments/%d/" % head_on)
+            rejection = text_of(page, "#detail")
+            assert text_of(page, "#state") == "rejected" and "collisions:" in rejection, rejection
+            assert re.search(r"collisions: \d+ times, limit 100 \(first at step \d+\)", rejection), rejection
+            assert "collisions:" in inbox.wait_for("ada@example.org", "issues found")
 
             goto(page, base + "experiments/%d/" % pk)
             body = page.evaluate("document.body.innerText")
