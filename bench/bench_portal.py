@@ -152,9 +152,10 @@ def main():
         after = (experiment.finished_at - experiment.started_at).total_seconds() - command
         print("Turnaround of a %d-step, 5-robot experiment on an empty queue: %s, %.1f s from Submit to the "
               "completed results (the Robotarium: 10 minutes at best)" % (args.steps, experiment.state, total))
-        print("  verification    %6.1f s   (submitted -> queued; ./robotarium verify %.1f s) %s"
-              % (verification, experiment.timings.get("verify_command", 0.0),
-                 (experiment.detail.splitlines() or [""])[-1][:70]))
+        verdict = experiment.verification or {}
+        print("  verification    %6.1f s   (submitted -> queued; ./robotarium verify %.1f s: %s, %s iterations)"
+              % (verification, experiment.timings.get("verify_command", 0.0), verdict.get("verdict", "not verified"),
+                 verdict.get("iterations", "-")))
         print("  waiting         %6.1f s   (queued -> claimed by the worker)" % waiting)
         print("  run             %6.1f s   (the script: %d steps in real time = %.1f s of testbed time)"
               % (script, args.steps, args.steps * 0.033))
