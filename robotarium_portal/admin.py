@@ -16,7 +16,7 @@ class ProfileAdmin(admin.ModelAdmin):
         for profile in queryset.filter(approved=False).select_related("user"):
             profile.approved, profile.approved_at, profile.approved_by = True, timezone.now(), request.user
             profile.save(update_fields=["approved", "approved_at", "approved_by"])
-            mail.send_approved(profile.user)
+            mail.try_sending(mail.send_approved, profile.user)
 
 
 class FileInline(admin.TabularInline):

@@ -1,11 +1,26 @@
 """The service's mail: the confirmation link, "issues found" and "completed" (Django's mail: SMTP when
 configured, else files in the data folder's mail/)."""
+import logging
+
 from django.conf import settings
 from django.contrib.auth.tokens import PasswordResetTokenGenerator
 from django.core.mail import send_mail
 from django.urls import reverse
 from django.utils.encoding import force_bytes
 from django.utils.http import urlsafe_base64_encode
+
+
+logger = logging.getLogger("robotarium_portal")
+
+
+def try_sending(send, *args):
+    """send(*args); a mail server that fails is logged, never a broken page or job. Whether it went."""
+    try:
+        send(*args)
+        return True
+    except Exception as error:   # noqa: BLE001 - SMTP and socket errors alike
+        logger.error("could not send mail (%s): %s", send.__name__, error)
+        return False
 
 
 class ConfirmationTokens(PasswordResetTokenGenerator):

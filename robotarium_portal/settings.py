@@ -130,5 +130,6 @@ LOGGING = {
     "version": 1,
     "disable_existing_loggers": False,
     "handlers": {"console": {"class": "logging.StreamHandler"}},
-    "loggers": {"django_q": {"handlers": ["console"], "level": os.environ.get("ROBOTARIUM_PORTAL_LOG", "WARNING")}},
+    "loggers": {name: {"handlers": ["console"], "level": os.environ.get("ROBOTARIUM_PORTAL_LOG", "WARNING")}
+                for name in ("django_q", "robotarium_portal")},
 }

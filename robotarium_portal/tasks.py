@@ -5,6 +5,7 @@ job handed out twice, or two workers, never verify or run one experiment twice. 
 the truth; the broker's queue only says that there is work (reconcile() rebuilds it from the table)."""
 import functools
 import json
+import logging
 import os
 import re
 import shutil
@@ -22,6 +23,7 @@ from robotarium_portal import mail
 from robotarium_portal.files import copy_files
 from robotarium_portal.models import Experiment
 
+logger = logging.getLogger("robotarium_portal")
 VERIFY_CLUSTER, RUN_CLUSTER = "verify", "runs"
 # ./robotarium verify's exit codes (its fixed interface)
 VERIFY_ACCEPTED, VERIFY_USAGE, VERIFY_TESTBED, VERIFY_REJECTED = 0, 2, 4, 6
@@ -225,10 +227,13 @@ def _finish(experiment, state, detail, **fields):
     for name, value in fields.items():
         setattr(experiment, name, value)
     experiment.save()
-    if state == Experiment.COMPLETED:
-        mail.send_completed(experiment)
-    else:
-        mail.send_issues_found(experiment)
+    try:
+        if state == Experiment.COMPLETED:
+            mail.send_completed(experiment)
+        else:
+            mail.send_issues_found(experiment)
+    except Exception as error:   # noqa: BLE001 - the mail server's trouble; the page tells the truth anyway
+        logger.error("could not mail %s about experiment %d: %s", experiment.owner.email, experiment.pk, error)
     return "experiment %d %s" % (experiment.pk, state)
 
 

@@ -26,8 +26,8 @@ def signup(request):
     form = SignUpForm(request.POST or None)
     if request.method == "POST" and form.is_valid():
         user = form.save()
-        mail.send_confirmation(request, user)
-        return render(request, "portal/signup_done.html", {"email": user.email})
+        sent = mail.try_sending(mail.send_confirmation, request, user)
+        return render(request, "portal/signup_done.html", {"email": user.email, "sent": sent})
     return render(request, "portal/signup.html", {"form": form})
 
 
@@ -41,7 +41,7 @@ def confirm(request, uidb64, token):
         user.profile.email_confirmed = True
         user.profile.save(update_fields=["email_confirmed"])
         if not user.profile.approved:
-            mail.tell_administrators(user)
+            mail.try_sending(mail.tell_administrators, user)
     return render(request, "portal/confirmed.html", {"valid": valid, "confirmed_user": user if valid else None},
                   status=200 if valid else 400)
 
@@ -55,7 +55,7 @@ def resend(request):
     if request.method == "POST" and form.is_valid():
         user = get_user_model().objects.filter(username=form.cleaned_data["email"].strip().lower()).first()
         if user is not None and hasattr(user, "profile") and not user.profile.email_confirmed:
-            mail.send_confirmation(request, user)
+            mail.try_sending(mail.send_confirmation, request, user)
         # The same answer either way: the page does not tell who has an account.
         messages.info(request, "If an unconfirmed account has this address, a new link is on its way.")
         return redirect("login")
@@ -74,6 +74,6 @@ def approve(request, pk):
     profile = get_object_or_404(Profile, pk=pk)
     profile.approved, profile.approved_at, profile.approved_by = True, timezone.now(), request.user
     profile.save(update_fields=["approved", "approved_at", "approved_by"])
-    mail.send_approved(profile.user)
+    mail.try_sending(mail.send_approved, profile.user)
     messages.success(request, "Approved %s (%s)." % (profile.name, profile.user.email))
     return redirect("approvals")

@@ -186,6 +186,20 @@ def test_sign_up_confirm_approve_then_submit():
     assert OrmQ.objects.filter(key="verify").count() == before + 1   # its verification job is queued
 
 
+def test_a_mail_server_that_is_down_costs_no_account_and_no_page():
+    with socket.socket() as s:   # a port nobody listens on: the connection is refused
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    down = {"default": {"BACKEND": "django.core.mail.backends.smtp.EmailBackend",
+                        "OPTIONS": {"host": "127.0.0.1", "port": port, "timeout": 5}}}
+    with override_settings(MAILERS=down):
+        response = Client().post("/signup/", {"email": "eve@example.org", "password": PASSWORD,
+                                              "confirmation": PASSWORD, "name": "Eve", "city": "Atlanta",
+                                              "state": "GA", "institute": "GT", "reason": "class"})
+    assert response.status_code == 200 and b"could not be sent just now" in response.content
+    assert Profile.objects.filter(user__username="eve@example.org").exists()
+
+
 # --- uploaded files stay in the experiment's folder, within limits ----------------------------------------------
 
 @pytest.mark.parametrize("name", ["../escape.py", "/etc/passwd", "..", ".bashrc", "a b.py", "semi;colon.py",
