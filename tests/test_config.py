@@ -72,6 +72,7 @@ def test_the_configuration_travels_as_yaml():
 
 # -- the nodes ---------------------------------------------------------------------------------------
 
+@pytest.mark.node
 def test_parameters_explain_themselves_and_refuse_changes_they_would_ignore(tmp_path):
     stack = Stack(tmp_path, recorder=False)
     try:
@@ -92,6 +93,7 @@ def test_parameters_explain_themselves_and_refuse_changes_they_would_ignore(tmp_
         stack.close()
 
 
+@pytest.mark.node
 def test_a_run_is_reported_with_the_configuration_it_was_made_with(tmp_path):
     """A testbed with a wider arena and a 0.2 s command timeout: the recorded run carries both, and
     the report recomputed from the bag uses them (the packaged defaults would count a robot at
