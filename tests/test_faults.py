@@ -33,6 +33,8 @@ from robotarium_core.topics import TESTBED_QOS
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
 from robotarium_msgs.srv import EndExperiment
 
+pytestmark = pytest.mark.node   # real testbed nodes in subprocesses
+
 NS = "/robotarium"
 STEPS_FOREVER = os.path.join(REPO, "tests", "data", "steps_forever.py")
 NODES = {"simulator": "robotarium_sim.simulator_node", "safety": "robotarium_safety.safety_node",
