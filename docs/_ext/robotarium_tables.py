@@ -188,13 +188,16 @@ def parameters_table(modules):
 
 
 def _write(path, text):
-    """Write only what changed, so an unchanged table does not rebuild its pages."""
+    """Write only what changed, so an unchanged table does not rebuild its pages; through a
+    temporary file, so a build running beside this one never reads half a table."""
     if os.path.exists(path):
         with open(path) as f:
             if f.read() == text:
                 return
-    with open(path, "w") as f:
+    temporary = "%s.%d.tmp" % (path, os.getpid())
+    with open(temporary, "w") as f:
         f.write(text)
+    os.replace(temporary, path)
 
 
 def write_tables(app):
