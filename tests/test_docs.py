@@ -46,4 +46,5 @@ def test_valid_range_says_what_config_accepts():
     assert robotarium_tables.valid_range("time_step", FIELDS["time_step"]) == "(0, 1]"
     assert robotarium_tables.valid_range("max_robots", FIELDS["max_robots"]) == "whole number in [1, 1000]"
     assert robotarium_tables.valid_range("hardware", FIELDS["hardware"]) == "true or false"
+    assert robotarium_tables.valid_range("verify_allowed_modules", FIELDS["verify_allowed_modules"]) == "a list of names"
     assert robotarium_tables.valid_range("imu_position", FIELDS["imu_position"]) == "2 numbers, each in (-0.5, 0.5]"

@@ -164,6 +164,8 @@ def valid_range(name, field):
         return "x_min < x_max, y_min < y_max"
     if getattr(field, "boolean", False):
         return "true or false"
+    if getattr(field, "names", False):
+        return "a list of names"
     low, high = getattr(field, "low", -math.inf), getattr(field, "high", math.inf)
     low_open = getattr(field, "low_open", True)
     interval = "%s%s, %s%s" % ("(" if low_open or low == -math.inf else "[", _bound(low), _bound(high),
