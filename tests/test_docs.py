@@ -1,5 +1,7 @@
 """The docs build (Sphinx + MyST, docs/) without a warning, and their tables come from the code."""
+import glob
 import os
+import re
 import subprocess
 import sys
 import types
@@ -48,3 +50,33 @@ def test_valid_range_says_what_config_accepts():
     assert robotarium_tables.valid_range("hardware", FIELDS["hardware"]) == "true or false"
     assert robotarium_tables.valid_range("verify_allowed_modules", FIELDS["verify_allowed_modules"]) == "a list of names"
     assert robotarium_tables.valid_range("imu_position", FIELDS["imu_position"]) == "2 numbers, each in (-0.5, 0.5]"
+
+
+def _slug(heading):
+    """The anchor a code host (and MyST's heading anchors) gives a Markdown heading."""
+    text = re.sub(r"[^\w\- ]", "", heading.strip().lower())
+    return text.replace(" ", "-")
+
+
+def test_readme_links_lead_somewhere():
+    """The README and the package READMEs link to docs pages and headings that exist, so they work on
+    a code host without building the docs."""
+    broken = []
+    readmes = [os.path.join(REPO, "README.md")] + glob.glob(os.path.join(REPO, "robotarium_*", "README.md"))
+    for readme in readmes:
+        with open(readme) as f:
+            links = re.findall(r"\]\(([^)\s]+)\)", f.read())
+        for link in links:
+            if link.startswith(("http://", "https://", "mailto:")):
+                continue
+            path, _, anchor = link.partition("#")
+            target = os.path.normpath(os.path.join(os.path.dirname(readme), path))
+            if not os.path.exists(target):
+                broken.append("%s: %s (no such file)" % (os.path.relpath(readme, REPO), link))
+            elif anchor:
+                with open(target) as f:
+                    headings = [_slug(line.lstrip("#")) for line in f if line.startswith("#")]
+                if anchor not in headings:
+                    broken.append("%s: %s (no such heading)" % (os.path.relpath(readme, REPO), link))
+    assert not broken, "\n".join(broken)
+    assert len(readmes) >= 7
