@@ -26,7 +26,7 @@ from robotarium_portal.models import Experiment
 logger = logging.getLogger("robotarium_portal")
 VERIFY_CLUSTER, RUN_CLUSTER = "verify", "runs"
 # ./robotarium verify's exit codes (its fixed interface)
-VERIFY_ACCEPTED, VERIFY_USAGE, VERIFY_TESTBED, VERIFY_REJECTED = 0, 2, 4, 6
+VERIFY_ACCEPTED, VERIFY_TESTBED, VERIFY_REJECTED = 0, 4, 6
 VERIFY_TIMEOUT = 540      # s; under the verify cluster's job timeout (settings.Q_CLUSTER)
 RESULTS_GRACE = 600       # s after the time limit for the start, the end and the results' video
 STEP_LINE = re.compile(rb"\[robotarium\] step (\d+)")
@@ -195,9 +195,6 @@ def _verify(experiment):
         verdict = json.loads(verdict_path.read_text())
     except (OSError, ValueError):
         verdict = None
-    if code == VERIFY_USAGE and b"unknown command verify" in output.read_bytes():
-        # This checkout's ./robotarium has no verify yet: say so on the page, and run it.
-        return _queue(experiment, None, "Not verified: this Robotarium has no ./robotarium verify yet.")
     if code == VERIFY_ACCEPTED and verdict and verdict.get("verdict") == "accepted":
         return _queue(experiment, verdict, "")
     if code == VERIFY_REJECTED and verdict:
