@@ -1,4 +1,4 @@
-"""The Python side of ./robotarium: up, run, demo, status, stop, end, replay, report.
+"""The Python side of ./robotarium: up, run, verify, demo, status, stop, end, replay, report.
 
 ./robotarium (bash) makes the environment and then calls `python -m robotarium_client.cli CMD`.
 
@@ -344,13 +344,17 @@ def print_summary(run_dir, run, cwd):
 
 def run_script(script, script_args=(), real_time=None, record=True, bags_dir=None, results=True, video=True,
                local_testbed=True, config_file=None, time_limit=None, results_dir=None, hardware=False, seed=0,
-               rps_api=None):
+               rps_api=None, audit=False, own_testbed=False):
     """Run an experiment script against the testbed (starting one here if none answers and
     `local_testbed` allows it). Whatever happens, the run folder gets the log, the report, the
     results page and run.json (with the plot and the video when the run was recorded here); a
     script that cannot be compiled or imported fails before a testbed is started. SIGINT, SIGTERM
     and SIGHUP stop the script and this testbed (Interruption); the results are then made as for
     any run that did not complete.
+
+    audit: a verification run (./robotarium verify only): the safety node lets the script's own
+    commands through. own_testbed: start a testbed here without looking for one (verify runs in a
+    namespace of its own, where none can answer).
 
     Returns (exit code, run.json dict or None, run folder or None).
     """
@@ -384,19 +388,24 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
     interruption = Interruption()
     try:
         return _run_script(script, script_args, real_time, record, bags_dir, results, video, local_testbed,
-                           config_file, time_limit, hardware, seed, interruption, results_dir, started_at, rps_api)
+                           config_file, time_limit, hardware, seed, interruption, results_dir, started_at, rps_api,
+                           audit, own_testbed)
     finally:
         interruption.restore()
 
 
 def _run_script(script, script_args, real_time, record, bags_dir, results, video, local_testbed, config_file,
-                time_limit, hardware, seed, interruption, results_dir, started_at, rps_api=None):
+                time_limit, hardware, seed, interruption, results_dir, started_at, rps_api=None, audit=False,
+                own_testbed=False):
     from robotarium_core import outcomes
     ns = namespace()
     testbed = None
     name = session.experiment_name_of(script)
     # Without local_testbed a testbed is known to be up (or coming up): wait for it, never start one.
-    if testbed_answers(ns, timeout=3.0 if local_testbed else 60.0):
+    if own_testbed:
+        if interruption.signum is None:
+            testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file).start()
+    elif testbed_answers(ns, timeout=3.0 if local_testbed else 60.0):
         say("using the testbed that answers in %s" % ns)
     elif not local_testbed:
         say("no testbed answers in %s on ROS_DOMAIN_ID %s (--no-local-testbed forbids starting one); "
@@ -413,7 +422,7 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
     options = session.RunOptions(real_time=real_time, local_testbed=False, namespace=ns, experiment_name=name,
                                  progress_interval=session.progress_from_environment(10.0), time_limit=time_limit,
                                  config_file=os.path.abspath(config_file) if config_file else None,
-                                 hardware=hardware, seed=seed,
+                                 hardware=hardware, seed=seed, audit=audit,
                                  rps_api=rps_api or session.rps_api_from_environment())
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
@@ -515,6 +524,53 @@ def cmd_run(args):
                             time_limit=args.time_limit, results_dir=args.results_dir, hardware=args.hardware,
                             seed=args.seed, rps_api=args.rps)
     return code
+
+
+def cmd_verify(args):
+    """./robotarium verify: see robotarium_client.verify."""
+    from robotarium_client import verify
+    from robotarium_core import outcomes
+    from robotarium_core.config import ConfigError, DEFAULT, TestbedConfig
+    try:
+        config = TestbedConfig.load(args.config) if args.config else DEFAULT
+    except (OSError, ConfigError) as error:
+        say("cannot read the testbed configuration: %s" % error)
+        return outcomes.USAGE_ERROR
+    script = os.path.abspath(args.script)
+    if not os.path.isfile(script):
+        say("no such script: %s" % script)
+        return outcomes.USAGE_ERROR
+    rules = verify.static_rules(script, config)
+    run, report, run_dir = {}, "", None
+    if not rules:
+        # A testbed of its own, in a namespace no other testbed or verification uses.
+        os.environ["ROBOTARIUM_NAMESPACE"] = "/robotarium_verify_%d" % os.getpid()
+        say("verifying %s as the Robotarium does: lockstep, safety node auditing (the script's own commands go "
+            "through and every collision counts)" % _shown(script))
+        code, run, run_dir = run_script(script, args.script_args, real_time=False, record=not args.no_record,
+                                        video=False, config_file=args.config, results_dir=args.results_dir,
+                                        rps_api={"1": "guide"}.get(args.rps, args.rps), audit=True, own_testbed=True)
+        if run is None:
+            say("no verdict: the run did not start (exit code %d)" % code)
+            return code if code != outcomes.USAGE_ERROR else outcomes.TESTBED_PROBLEM
+        if run["outcome"] in ("interrupted",):
+            say("no verdict: the verification was interrupted")
+            return code or 130
+        if run["outcome"] in ("testbed_lost", "client_lost", "unfinished"):
+            say("no verdict: the testbed failed (%s); see the testbed's logs in log/testbed/ and run verify again"
+                % run.get("detail", run["outcome"]))
+            return outcomes.TESTBED_PROBLEM
+        report = (run.get("runs") or [{}])[-1].get("report", "")
+        rules = verify.judge(run, config, args.robots, args.duration)
+    document = verify.verdict(rules, run, report, run_dir)
+    if args.json:
+        verify.write_json(args.json, document)
+    print("\n##### VERIFICATION (the Robotarium's rules) #####")
+    if report:
+        print(report, end="" if report.endswith("\n") else "\n")
+    for line in verify.verdict_lines(rules, run, config, args.robots, args.duration):
+        print(line)
+    return outcomes.VERIFY_REJECTED if rules else outcomes.VERIFY_ACCEPTED
 
 
 def cmd_demo(args):
@@ -685,6 +741,28 @@ ended without call_at_scripts_end(); 4 no testbed, or it was lost or ended the e
 128 + N interrupted by signal N (130: Ctrl-C, 143: SIGTERM, 129: SIGHUP)."""
 
 
+VERIFY_EPILOG = """\
+before anything runs the script must compile and import only modules the Robotarium provides
+(verify_allowed_modules in testbed.yaml, and modules beside the script). It then runs in lockstep on a
+testbed of its own with the safety node auditing: it lets the script's own commands through, so
+collisions and robots leaving the arena happen and are counted as on the Robotarium. Rejected when
+it has more than verify_max_collision_iterations (100) collision iterations or verify_max_boundary_iterations
+(100) iterations with robots outside the arena, uses another robot count than --robots, runs longer than
+verify_duration_factor (1.5) x --duration, raises, or never calls call_at_scripts_end().
+Exit codes: 0 accepted; 6 rejected (each broken rule is printed, and listed in --json); 2 a bad command
+line; 4 the testbed failed (no verdict); 128 + N interrupted by signal N."""
+
+
+def _positive_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError("expected a whole number >= 1, got %r" % text)
+    return value
+
+
 def _seconds(text):
     """A command-line number of seconds: finite and not negative."""
     try:
@@ -748,6 +826,25 @@ def main(argv=None):
                           "(default, or ROBOTARIUM_RPS: 2 when the script uses something only 2.x has)")
     run.set_defaults(func=cmd_run)
 
+    verify = sub.add_parser("verify", help="judge a script as the Robotarium's verification does: accept or reject",
+                            description="Run SCRIPT in lockstep on a testbed of its own with the safety node "
+                                        "auditing, and accept or reject it by the Robotarium's rules (their limits: "
+                                        "testbed.yaml, verify_*).",
+                            epilog=VERIFY_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    verify.add_argument("script")
+    verify.add_argument("script_args", nargs=argparse.REMAINDER, help="arguments passed to the script")
+    verify.add_argument("--robots", type=_positive_int, metavar="N",
+                        help="the number of robots declared for the experiment (omitted: not checked)")
+    verify.add_argument("--duration", type=_seconds, metavar="S",
+                        help="the experiment's declared duration in seconds (omitted: not checked)")
+    verify.add_argument("--json", metavar="FILE", help="also write the verdict as JSON to FILE (exit codes 0 and 6)")
+    verify.add_argument("--rps", choices=session.RPS_APIS + ("1",), default=None,
+                        help="the Robotarium API the script is written against, as for run (1: the guide's)")
+    verify.add_argument("--config", help="the testbed configuration file (default: robotarium_core's testbed.yaml)")
+    verify.add_argument("--no-record", action="store_true", help="do not record the run")
+    verify.add_argument("--results-dir", help="where a run not recorded keeps its results (default: results/)")
+    verify.set_defaults(func=cmd_verify)
+
     status = sub.add_parser("status", help="the testbeds on this machine, and the experiment running on this domain",
                             description="List the testbeds running on this machine (namespace, ROS_DOMAIN_ID, who "
                                         "started them and when, process ids, logs) and, where a testbed answers, "
@@ -786,6 +883,25 @@ def main(argv=None):
         sub.add_parser(name, help=text + " (see ./robotarium %s --help)" % name)
 
     args = parser.parse_args(argv)
+    if args.command == "verify":
+        # our own options may follow the script too
+        rest, given = [], iter(args.script_args)
+        for arg in given:
+            name, _, value = arg.partition("=")
+            if name in ("--robots", "--duration", "--json", "--rps", "--config", "--results-dir"):
+                value = value or next(given, "")
+                try:
+                    value = {"--robots": _positive_int, "--duration": _seconds}.get(name, str)(value)
+                except argparse.ArgumentTypeError as error:
+                    verify.error("argument %s: %s" % (name, error))
+                if name == "--rps" and value not in session.RPS_APIS + ("1",):
+                    verify.error("argument --rps: invalid choice %r" % value)
+                setattr(args, name[2:].replace("-", "_"), value)
+            elif arg == "--no-record":
+                args.no_record = True
+            else:
+                rest.append(arg)
+        args.script_args = rest
     if args.command == "run":
         # `./robotarium run script.py --lockstep` works too: our own flags may follow the script.
         own = {"--lockstep": ("mode", "lockstep"), "--real-time": ("mode", "real-time"),

@@ -152,7 +152,12 @@ class Robotarium(RobotariumABC):
                          "end_reason": response.end_reason, "dropped": dropped,
                          "recording_stopped_at_step": self._recorder_lost_at,
                          "stale_pose_stops": response.stale_pose_stops, "hardware": response.hardware,
-                         "hardware_seed": response.hardware_seed}
+                         "hardware_seed": response.hardware_seed, "audit": response.audit,
+                         "first_collision_step": response.first_collision_step or None,
+                         "first_boundary_step": response.first_boundary_step or None,
+                         "safety_interventions": response.safety_interventions,
+                         "prevented_collisions": response.prevented_collisions,
+                         "prevented_boundary_violations": response.prevented_boundary_violations}
         self._errors = {k: v for k, v in (("boundary", response.boundary_violations), ("collision", response.collisions),
                                           ("actuator", response.actuator_limit_iterations)) if v}
         return response.report
@@ -279,7 +284,7 @@ class Robotarium(RobotariumABC):
         self._watch_testbed()
         request = StartExperiment.Request(name=self._options.experiment_name, number_of_robots=self.number_of_robots,
                                           real_time=self.sim_in_real_time, hardware=bool(self._options.hardware),
-                                          seed=int(self._options.seed))
+                                          seed=int(self._options.seed), audit=bool(self._options.audit))
         request.x, request.y, request.theta = (row.tolist() for row in self.initial_conditions)
         self._complete_start_request(request)
         response = self._call(self._start_client, request)

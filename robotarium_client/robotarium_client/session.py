@@ -70,6 +70,9 @@ class RunOptions:
     seed: int = 0
     # Which Robotarium API the script is written against: "guide", "2" or "auto" (api_level.decide).
     rps_api: str = dataclasses.field(default_factory=rps_api_from_environment)
+    # A verification run (./robotarium verify only): the safety node audits and lets the script's own
+    # commands through, so the debug report counts what the Robotarium's verification counts.
+    audit: bool = False
 
     def to_json(self):
         return json.dumps(dataclasses.asdict(self))

@@ -29,6 +29,7 @@ class Field:
     integer: bool = False
     length: int = 0           # > 0: a list of this many numbers, each in [low, high]
     boolean: bool = False     # true or false
+    names: bool = False       # a list of names (Python module names)
 
 
 # name -> Field; the order is the YAML file's.
@@ -159,10 +160,21 @@ FIELDS = {
     "drive_on_wave_margin": Field("m; a robot waits on its charger until those going deeper are this much past its goal",
                                   0.0, used_by=(CLIENT,)),
     "drive_on_position_error": Field("m; the drive-on phase ends when every robot is this close to its pose", 0.0,
-                                     used_by=(SIMULATOR,)),
-    "drive_on_rotation_error": Field("rad; ... and its heading this close", 0.0, used_by=(SIMULATOR,)),
+                                     used_by=(SIMULATOR, SAFETY, CLIENT)),
+    "drive_on_rotation_error": Field("rad; ... and its heading this close", 0.0, used_by=(SIMULATOR, SAFETY, CLIENT)),
     "drive_on_max_steps": Field("steps before the drive-on phase gives up with an error", 1, 10**7,
                                 low_open=False, used_by=(CLIENT,), integer=True),
+    # -- ./robotarium verify --
+    "verify_max_collision_iterations": Field("verify rejects a script with more collision iterations than this",
+                                             0, 10**9, low_open=False, used_by=(CLIENT,), integer=True),
+    "verify_max_boundary_iterations": Field("verify rejects a script with more iterations of robots outside the "
+                                            "arena than this", 0, 10**9, low_open=False, used_by=(CLIENT,),
+                                            integer=True),
+    "verify_duration_factor": Field("verify rejects a script that runs longer than this times its declared "
+                                    "duration", 0.0, 1000.0, used_by=(CLIENT,)),
+    "verify_allowed_modules": Field("top-level modules a script may import under verify (stdlib: Python's "
+                                    "standard library); its own modules beside it are allowed too",
+                                    used_by=(CLIENT,), names=True),
 }
 
 
@@ -178,6 +190,11 @@ def _check(name, value):
                 or not (value[0] < value[1] and value[2] < value[3])):
             raise ConfigError("%s must be [x_min, x_max, y_min, y_max] with min < max; received %r." % (name, value))
         return tuple(float(v) for v in value)
+    if field.names:
+        if (not isinstance(value, (list, tuple))
+                or not all(isinstance(v, str) and v.replace("_", "a").isalnum() for v in value)):
+            raise ConfigError("%s must be a list of module names (%s); received %r." % (name, field.description, value))
+        return tuple(value)
     if field.boolean:
         if not isinstance(value, bool):
             raise ConfigError("%s must be true or false (%s); received %r." % (name, field.description, value))
@@ -287,6 +304,11 @@ class TestbedConfig:
     drive_on_position_error: float
     drive_on_rotation_error: float
     drive_on_max_steps: int
+    # ./robotarium verify
+    verify_max_collision_iterations: int
+    verify_max_boundary_iterations: int
+    verify_duration_factor: float
+    verify_allowed_modules: tuple
 
     def __post_init__(self):
         for name in FIELDS:

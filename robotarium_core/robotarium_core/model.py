@@ -114,6 +114,77 @@ def threshold_keeping_arc(dxu, max_linear=MAX_LINEAR_VELOCITY, max_angular=MAX_A
     return scaled
 
 
+def unicycle_step(poses, dxu, time_step=TIME_STEP):
+    """The poses after one forward-Euler step of the unicycle with commands dxu (2 x N, applied as
+    they are), heading wrapped: rps.Robotarium.step()'s integration, in its expression order."""
+    v, w = dxu[0], dxu[1]
+    moved = np.empty_like(poses)
+    moved[0] = poses[0] + time_step * np.cos(poses[2]) * v
+    moved[1] = poses[1] + time_step * np.sin(poses[2]) * v
+    moved[2] = wrap_angle(poses[2] + time_step * w)
+    return moved
+
+
+def lookahead_poses(poses, commands, time_step=TIME_STEP, **limits):
+    """Where the robots would be one step on if `commands` (2 x N, the script's own) were applied:
+    thresholded to the actuator limits along their arc, as the simulator would, then integrated."""
+    return unicycle_step(poses, threshold_keeping_arc(commands, **limits), time_step)
+
+
+def violations(poses, robot_diameter=ROBOT_DIAMETER, arena=ARENA):
+    """(collisions, boundary violations) the debug report counts on these poses: robot pairs within
+    a robot diameter, robots outside the arena."""
+    return count_collisions(poses, robot_diameter), int(np.count_nonzero(outside_arena(poses, arena)))
+
+
+def lookahead_violations(poses, commands, time_step=TIME_STEP, robot_diameter=ROBOT_DIAMETER, arena=ARENA,
+                         **limits):
+    """(collisions, boundary violations) the debug report would count on the poses one step on,
+    had `commands` been applied unfiltered from `poses` (lookahead_poses).
+
+    Measured on the crash cases of tests/test_verify.py it is no estimate of what a safety layer
+    prevented: the barrier certificate acts early (it keeps the points ahead of two robots 0.17 m
+    apart and centres 0.055 m inside the arena), so one step of the script's commands from the
+    filtered poses never reaches a collision or the edge (0 for 168 audited collision iterations).
+    UnfilteredReplay, which carries the script's commands on from where they would have led, is."""
+    return violations(lookahead_poses(poses, commands, time_step, **limits), robot_diameter, arena)
+
+
+class UnfilteredReplay:
+    """The run as the script's own commands alone would have made it: from the initial poses, each
+    step applies the commands the script asked for (thresholded as the simulator would), never
+    those the safety layer made of them, and counts the debug report's collisions and boundary
+    violations on the poses before the move, as Testbed.step does. The safety node keeps one per
+    run; its counts are the report's estimate of what the safety layer prevented.
+
+    Open loop: the script computed its commands from the filtered poses, so a feedback script's
+    replay is an estimate. It is exact where the commands do not depend on the poses, and on the
+    four-robot head-on script of tests/data it gives the audited run's 168 collision iterations.
+    `count`: poses -> (collisions, boundary violations), the experiment's rules (violations by default)."""
+
+    def __init__(self, poses, step=0, time_step=TIME_STEP, limits=None, count=violations):
+        self.poses = np.array(poses, dtype=float)
+        self.step = step
+        self.time_step = time_step
+        self.limits = limits or {}
+        self.count = count
+
+    def violations(self):
+        """What the next step would count (on the poses before its move)."""
+        return self.count(self.poses)
+
+    def advance(self, commands, to_step):
+        """Move on to `to_step` with `commands` (2 x N) in force; returns the counts of the steps
+        passed (each counted on its poses before the move)."""
+        collisions = outside = 0
+        while self.step < to_step:
+            c, b = self.count(self.poses)
+            collisions, outside = collisions + c, outside + b
+            self.poses = lookahead_poses(self.poses, commands, self.time_step, **self.limits)
+            self.step += 1
+        return collisions, outside
+
+
 @functools.lru_cache(maxsize=64)
 def robot_pairs(number_of_robots):
     """Index arrays (i, j) of every pair i < j, cached per N (the step's hot path uses them)."""
@@ -272,17 +343,45 @@ class StepGate:
 
 
 NOT_COMPLETED = "The run did not complete, so there is no acceptance estimate.\n"
+ACCEPTANCE_LIKELY = "No errors in your simulation! Acceptance of your experiment is likely!\n"
+
+
+def safety_lines(interventions=0, arrays=0, largest_change=0.0, mean_change=0.0, prevented_collisions=0,
+                 prevented_boundary=0):
+    """What the always-on safety layer did, for the end of a debug report: how often and how much
+    it changed the script's commands, and what the script's own commands would have made the
+    Robotarium count (collisions, robots outside: the safety node's UnfilteredReplay). Empty when
+    it never stepped in."""
+    lines = []
+    if interventions:
+        lines.append("The safety layer changed {0} of {1} command arrays (largest change {2:.3g}, mean {3:.3g} m/s or "
+                     "rad/s).\n".format(interventions, max(arrays, interventions), largest_change, mean_change))
+    if prevented_collisions or prevented_boundary:
+        what = [text.format(count) for count, text in (
+            (prevented_collisions, "{0} iteration(s) where robots would have collided"),
+            (prevented_boundary, "{0} iteration(s) where robots would have been outside the arena")) if count]
+        lines.append("Without it your script's own commands would have made about {0} (replayed without the safety "
+                     "layer): the Robotarium counts those and rejects an experiment with too many. Run ./robotarium "
+                     "verify SCRIPT to get the Robotarium's verdict.\n".format(" and ".join(what)))
+    return lines
 
 
 def debug_report(iterations, boundary_violations, collisions, actuator_limit_iterations, time_step=TIME_STEP,
                  completed=True, number_of_robots=None, real_testbed_max_robots=DEFAULT.real_testbed_max_robots,
-                 hardware_seed=None):
+                 hardware_seed=None, safety=None):
     """The text rps.Robotarium.call_at_scripts_end() prints, character for character, for a completed
     ideal run of at most real_testbed_max_robots robots. A run that did not complete (an error, an
     interruption, no call_at_scripts_end) gets the same counts but never the acceptance estimate:
     NOT_COMPLETED takes its place. Beside the estimated duration it also says when the run used more
     robots than the real Robotarium deploys, and that it ran hardware-like (hardware_seed: the seed
-    of robotarium_sim.hardware's model; None for the ideal testbed)."""
+    of robotarium_sim.hardware's model; None for the ideal testbed).
+
+    safety: safety_lines' keyword arguments (what the safety layer did). When its replay says the
+    script's own commands would have collided or left the arena, the acceptance estimate is
+    never given: the verdict follows what the script alone would have done, not what the safety
+    layer made of it; the report says so and points to ./robotarium verify."""
+    extra = safety_lines(**(safety or {}))
+    prevented = bool(safety) and bool(safety.get("prevented_collisions") or safety.get("prevented_boundary"))
     lines = ["##### DEBUG OUTPUT #####\n",
              "Your simulation will take approximately {0} real seconds when deployed on the Robotarium. \n\n"
              .format(int(np.ceil(iterations * time_step)))]
@@ -301,11 +400,13 @@ def debug_report(iterations, boundary_violations, collisions, actuator_limit_ite
         if actuator_limit_iterations:
             lines.append("\t Simulation had {0} iteration(s) where the actuator limits were exceeded.\n"
                          .format(actuator_limit_iterations))
+    elif completed and not prevented:
+        lines.append(ACCEPTANCE_LIKELY)
     elif completed:
-        lines.append("No errors in your simulation! Acceptance of your experiment is likely!\n")
+        lines.append("No errors in this simulation, but only because the safety layer stepped in.\n")
     if not completed:
         lines.append(("\n" if lines[-1].endswith(".\n") and not lines[-1].endswith("\n\n") else "") + NOT_COMPLETED)
-    return "".join(lines)
+    return "".join(lines + extra)
 
 
 class Testbed:
@@ -373,12 +474,8 @@ class Testbed:
 
     def _move(self):
         """Threshold the commands in force and integrate the unicycle over one time step."""
-        v, w = threshold_keeping_arc(self.velocities, **self.limits)
-        # Same expression order as rps so that runs agree bit for bit.
-        self.poses[0, :] = self.poses[0, :] + self.time_step * np.cos(self.poses[2, :]) * v
-        self.poses[1, :] = self.poses[1, :] + self.time_step * np.sin(self.poses[2, :]) * v
-        self.poses[2, :] = self.poses[2, :] + self.time_step * w
-        self.poses[2, :] = wrap_angle(self.poses[2, :])
+        self.poses[:] = unicycle_step(self.poses, threshold_keeping_arc(self.velocities, **self.limits),
+                                      self.time_step)
 
     @property
     def sim_time(self):
@@ -387,7 +484,44 @@ class Testbed:
     # The seed of the hardware-like model; None: the ideal testbed (the report names the mode).
     seed = None
 
-    def report(self, completed=True):
+    def report(self, completed=True, safety=None):
         return debug_report(self.steps, self.boundary_violations, self.collisions, self.actuator_limit_iterations,
                             self.time_step, completed, self.number_of_robots, self.config.real_testbed_max_robots,
-                            self.seed)
+                            self.seed, safety)
+
+
+class RunTally:
+    """What a run's report needs beside the testbed's counters: the step at which each error
+    counter first became non-zero (a verification's verdict names it), and what the safety layer
+    did: its interventions (how often, how much) and what the script's own commands would have made
+    the Robotarium count (SafetyReport.unfiltered_*, summed)."""
+
+    def __init__(self):
+        self.first_collision_step = 0    # the step (1: the first step() call) whose count made collisions > 0
+        self.first_boundary_step = 0
+        self.interventions = 0
+        self.largest_change = 0.0
+        self.change_sum = 0.0
+        self.prevented_collisions = 0
+        self.prevented_boundary = 0
+
+    def after_step(self, testbed):
+        """Call after every testbed.step()."""
+        if testbed.collisions and not self.first_collision_step:
+            self.first_collision_step = testbed.steps
+        if testbed.boundary_violations and not self.first_boundary_step:
+            self.first_boundary_step = testbed.steps
+
+    def add_safety_report(self, intervention, max_change, unfiltered_collisions=0, unfiltered_boundary=0):
+        if intervention:
+            self.interventions += 1
+            self.largest_change = max(self.largest_change, float(max_change))
+            self.change_sum += float(max_change)
+        self.prevented_collisions += int(unfiltered_collisions)
+        self.prevented_boundary += int(unfiltered_boundary)
+
+    def safety(self, arrays):
+        """safety_lines' keyword arguments, `arrays` command arrays in all."""
+        return dict(interventions=self.interventions, arrays=arrays, largest_change=self.largest_change,
+                    mean_change=self.change_sum / self.interventions if self.interventions else 0.0,
+                    prevented_collisions=self.prevented_collisions, prevented_boundary=self.prevented_boundary)

@@ -27,6 +27,8 @@ def _descriptor(description, value, low=-math.inf, high=math.inf, integer=False,
     range, or any change at all where the node reads the value only at start-up (read_only)."""
     if isinstance(value, bool):
         kind = ParameterType.PARAMETER_BOOL
+    elif isinstance(value, (list, tuple)) and value and all(isinstance(v, str) for v in value):
+        kind = ParameterType.PARAMETER_STRING_ARRAY
     elif isinstance(value, (list, tuple)):
         kind = ParameterType.PARAMETER_DOUBLE_ARRAY
     elif isinstance(value, str):
@@ -68,7 +70,8 @@ def declare_config(node, role=None):
         if role is not None and role not in field.used_by:
             continue
         default = getattr(DEFAULT, name)
-        default = [float(v) for v in default] if isinstance(default, tuple) else default
+        if isinstance(default, tuple):
+            default = list(default) if field.names else [float(v) for v in default]
         values[name] = declare_parameter(
             node, name, default, "%s (testbed configuration)" % field.description,
             low=field.low, high=field.high, integer=field.integer)

@@ -28,6 +28,12 @@ PHRASES = {
 EXIT_CODES = {COMPLETED: 0, SCRIPT_ERROR: 1, NO_END: 3, TESTBED_LOST: 4, CLIENT_LOST: 4, UNFINISHED: 4,
               TIME_LIMIT: 5, INTERRUPTED: 130}
 USAGE_ERROR = 2   # the command line itself was wrong (no such script, a bad option)
+# Exit codes of `./robotarium verify` (README): 0 the script is accepted, VERIFY_REJECTED it is
+# rejected (a rule is broken: --json names each), USAGE_ERROR a bad command line, TESTBED_PROBLEM
+# the testbed failed so there is no verdict, 128 + N interrupted by signal N.
+VERIFY_ACCEPTED = 0
+VERIFY_REJECTED = 6
+TESTBED_PROBLEM = 4   # = EXIT_CODES[TESTBED_LOST]
 
 
 def of_request(outcome):

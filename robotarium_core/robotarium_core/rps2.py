@@ -110,12 +110,21 @@ def at_pose(poses, goals, position_error, rotation_error):
 
 
 def debug_report(iterations, too_close, outside, actuator, obstacle_hits=0, time_step=model.TIME_STEP,
-                 completed=True):
+                 completed=True, safety=None):
     """The text 2.x's Robotarium.debug() prints, character for character, and our obstacle line. A
-    run that did not complete gets no verdict that it will run: model.NOT_COMPLETED instead."""
+    run that did not complete gets no verdict that it will run: model.NOT_COMPLETED instead; nor
+    does one whose commands the safety layer kept from colliding or leaving the arena (safety:
+    model.safety_lines' keyword arguments, whose lines end the report)."""
     lines = ["Your simulation took approximately {0:.2f} real seconds to execute.\n\n".format(iterations * time_step)]
     hard = too_close + outside + obstacle_hits
-    if hard == 0 and not completed:
+    extra = model.safety_lines(**(safety or {}))
+    prevented = bool(safety) and bool(safety.get("prevented_collisions") or safety.get("prevented_boundary"))
+    if hard == 0 and completed and prevented:
+        lines.append("No hard errors in this simulation, but only because the safety layer stepped in.\n\n")
+        if actuator:
+            lines.append("WARNING: {0} out of {1} (~{2:.0f}%) timesteps had velocity command(s) exceed actuator "
+                         "limits.\n\n".format(actuator, iterations, 100 * actuator / max(iterations, 1)))
+    elif hard == 0 and not completed:
         if actuator:
             lines.append("WARNING: {0} out of {1} (~{2:.0f}%) timesteps had velocity command(s) exceed actuator "
                          "limits.\n\n".format(actuator, iterations, 100 * actuator / max(iterations, 1)))
@@ -139,7 +148,7 @@ def debug_report(iterations, too_close, outside, actuator, obstacle_hits=0, time
         if obstacle_hits:
             lines.append("\t Simulation had {0} time steps where robots touched obstacles.\n".format(obstacle_hits))
         lines.append("\nPlease fix the noted errors in your simulation; otherwise, your experiment will be rejected.\n")
-    return "".join(lines)
+    return "".join(lines + extra)
 
 
 class Testbed2(model.Testbed):
@@ -189,9 +198,9 @@ class Testbed2(model.Testbed):
                                                      self.config.drive_on_rotation_error)[0]:
             self.drive_on_done_at = self.steps
 
-    def report(self, completed=True):
+    def report(self, completed=True, safety=None):
         return debug_report(self.steps, self.collisions, self.boundary_violations, self.actuator_limit_iterations,
-                            self.obstacle_hits, self.time_step, completed)
+                            self.obstacle_hits, self.time_step, completed, safety)
 
 
 # -- where robots start ----------------------------------------------------------------------------------

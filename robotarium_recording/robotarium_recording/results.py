@@ -64,27 +64,38 @@ def _run_settings(bag):
             "hardware_seed": int(final.hardware_seed) if hardware else None}
 
 
-def safety_interventions(bag, tolerance):
-    """(interventions, arrays, largest change, mean change) from the safety node's reports: an
-    intervention is an array whose safe command differs from the requested one by more than
-    `tolerance` for some robot, or a stop (SafetyReport.msg); the changes are those of the
-    interventions (stops included, as the largest finite speed they cancelled)."""
+def safety_summary(bag, tolerance):
+    """What the safety node did, from its reports: model.safety_lines' keyword arguments
+    (interventions, arrays, largest_change, mean_change, prevented_collisions, prevented_boundary)
+    and audit (a verification run: it let the script's commands through). An intervention is an
+    array whose safe command differs from the requested one by more than `tolerance` for some
+    robot, or a stop (SafetyReport.msg); the changes are those of the interventions (stops
+    included, as the largest finite speed they cancelled); prevented_*: its unfiltered replay of
+    the script's own commands, summed (0 in bags recorded before it existed)."""
+    tally, arrays, audit = model.RunTally(), 0, False
     name = bag.topic("safety_report", required=False)
-    if name not in bag.topics:
-        return 0, 0, 0.0, 0.0
-    changes = []
-    arrays = 0
-    for _, report in bag.decoded([name]):
+    for _, report in (bag.decoded([name]) if name in bag.topics else ()):
         status = report.status   # a string ("passthrough", "stop_...") in bags before the constants
         if status == COUNTS_ONLY:
             continue
         arrays += 1
+        audit = audit or bool(getattr(report, "audit", False))
         stop = status in STOP_STATUSES if isinstance(status, int) else str(status).startswith("stop")
-        if stop or report.max_change > tolerance:
-            changes.append(float(report.max_change))
-    if not changes:
-        return 0, arrays, 0.0, 0.0
-    return len(changes), arrays, max(changes), float(np.mean(changes))
+        tally.add_safety_report(stop or report.max_change > tolerance, report.max_change,
+                                getattr(report, "unfiltered_collisions", 0),
+                                getattr(report, "unfiltered_boundary_violations", 0))
+    return dict(tally.safety(arrays), audit=audit)
+
+
+def safety_interventions(bag, tolerance):
+    """(interventions, arrays, largest change, mean change): safety_summary's."""
+    summary = safety_summary(bag, tolerance)
+    return summary["interventions"], summary["arrays"], summary["largest_change"], summary["mean_change"]
+
+
+def _report_safety(summary):
+    """The debug report's safety lines: none for a verification run (nothing was prevented there)."""
+    return None if summary["audit"] else {k: v for k, v in summary.items() if k != "audit"}
 
 
 def _commands_in_force_lockstep(commands, n, steps):
@@ -177,12 +188,13 @@ def recompute(bag, run=None):
                          "(recorder started late or was killed?)." % (applied, steps))
 
     completed = _add_outcome(settings, run)
+    safety = safety_summary(bag, config.intervention_tolerance)
     return _cross_check(bag, {
         "iterations": steps, "collisions": collisions, "boundary_violations": boundary,
         "actuator_limit_iterations": actuator, "number_of_robots": n, "settings": settings,
         "report": model.debug_report(steps, boundary, collisions, actuator, config.time_step, completed, n,
-                                     config.real_testbed_max_robots, settings["hardware_seed"]),
-        "notes": notes, "config": config, "mismatches": [], "testbed": None})
+                                     config.real_testbed_max_robots, settings["hardware_seed"], _report_safety(safety)),
+        "notes": notes, "config": config, "mismatches": [], "testbed": None, "safety": safety})
 
 
 def _add_outcome(settings, run):
@@ -228,11 +240,13 @@ def _recompute_2x(bag, settings, config, track, n, steps, by_step, notes, experi
     for step, (velocities, requested_over) in enumerate(in_force, start=1):
         if step - 1 > done_at:   # step k moves from the poses of step k - 1
             actuator += bool(requested_over or rps2.exceeds_wheel_limit(velocities, config))
+    safety = safety_summary(bag, config.intervention_tolerance)
     result = {"iterations": steps, "collisions": too_close, "boundary_violations": outside,
               "actuator_limit_iterations": actuator, "obstacle_collisions": hits, "number_of_robots": n,
               "settings": settings, "notes": notes, "config": config, "mismatches": [], "testbed": None,
+              "safety": safety,
               "report": rps2.debug_report(steps, too_close, outside, actuator, hits, config.time_step,
-                                          _add_outcome(settings, run))}
+                                          _add_outcome(settings, run), _report_safety(safety))}
     if goals is not None:
         notes.append("2.x experiment: the drive-on phase took steps 1-%d (counted in the duration, not judged)"
                      % (done_at + 1))
@@ -245,7 +259,9 @@ def _cross_check(bag, result):
     settings, notes = result["settings"], result["notes"]
     result["outcome"], result["completed"] = settings["outcome"], settings["outcome"] == outcomes.COMPLETED
     result["first_line"] = outcomes.first_line(settings["outcome"], settings["detail"])
-    result["safety_interventions"] = safety_interventions(bag, result["config"].intervention_tolerance)
+    safety = result["safety"]
+    result["safety_interventions"] = (safety["interventions"], safety["arrays"], safety["largest_change"],
+                                      safety["mean_change"])
     final = settings["final"]
     if final is not None:
         testbed = {"iterations": int(final.step), "collisions": int(final.collisions),
@@ -312,6 +328,13 @@ def report_text(bag, numbers):
                      count, arrays, numbers["config"].intervention_tolerance,
                      "; change largest %.3g, mean %.3g" % (largest, mean) if count else "",
                      "; the testbed counted %d" % t["safety_interventions"] if t is not None else ""))
+    safety = numbers["safety"]
+    if safety["audit"]:
+        lines.append("verification: the safety node audited this run (./robotarium verify): it let the script's own "
+                     "commands through, so the counts above are the Robotarium's")
+    lines.append("unfiltered:   the script's own commands, replayed without the safety layer, would have made %d "
+                 "collision iteration(s) and %d of robots outside the arena" % (
+                     safety["prevented_collisions"], safety["prevented_boundary"]))
     lines += ["note:         " + note for note in numbers["notes"]]
     lines.append("messages:     " + ", ".join("%s %d" % (topic, info.count) for topic, info in sorted(bag.topics.items())))
     return "\n".join(lines) + "\n"

@@ -25,6 +25,19 @@ the arena, step by step (that module's docstring gives the guarantee, its assump
 If it has no recent poses, or the input is malformed, or the solver fails, it sends a stop for the
 robots concerned: never the raw command. Without this node nothing reaches the simulator.
 
+What the script alone would have done: it replays the script's own commands unfiltered from the
+run's initial poses (robotarium_core.model.UnfilteredReplay: each step the requested commands,
+scaled to the limits, move the replay as the simulator would) and reports the collisions and
+robots outside the arena the replay counts (SafetyReport.unfiltered_*; lockstep: those of the step
+the array makes). The simulator sums them into what the safety layer prevented, so a run kept safe
+only by this node is never told "Acceptance of your experiment is likely!". (A one-step look-ahead
+from the filtered poses, model.lookahead_violations, sees nothing: the certificate acts earlier.)
+
+Audit mode (ArmSafety.audit, set for ./robotarium verify only, never for a plain run): the
+certificate is computed and reported as always, but the script's own commands go out, scaled to
+the actuator limits along their arc, so collisions and boundary violations really happen and the
+simulator counts them as the Robotarium's verification does.
+
 cmd_requested takes any reliable publisher (`ros2 topic pub` too: robotarium_core.topics). The
 simulator's cmd_safe reader is volatile, so a command is held here until our cmd_safe writer has
 matched it (at most `lockstep_wait`): the first commands of a run are never lost to discovery.
@@ -91,6 +104,8 @@ class SafetyNode(Node):
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
         self._dropped_reported = dict(self.dropped)
         self._logged = set()
+        self.replay = None           # model.UnfilteredReplay: the run as the script's own commands would have made it
+        self.replay_counts = (0, 0)  # real time: its counts since the last report
         self.stale_stops = 0         # commands turned into a stop because the newest poses were too old
         self._stale_spell = None     # (first stop's time, stops so far, last log time) while poses stay old
 
@@ -126,12 +141,15 @@ class SafetyNode(Node):
         self.poses, self.poses_step, self.poses_time = None, -1, -np.inf
         self.commands = np.zeros((2, n))   # nobody has a command yet
         self.guard = Guard(bool(request.real_time), self.config.lockstep_wait)
+        self.replay, self.replay_counts = None, (0, 0)
         self.held.clear()
         self.last_step = 0
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
         self._dropped_reported = dict(self.dropped)
         response.success = True
-        response.message = ("guarding %s (%d robots)" % (request.run_id, n)) if request.run_id else "disarmed"
+        response.message = ("%s %s (%d robots)" % ("auditing (verification: the script's own commands go through)"
+                                                   if request.audit else "guarding", request.run_id, n)
+                            if request.run_id else "disarmed")
         self.get_logger().info(response.message)
         return response
 
@@ -170,6 +188,7 @@ class SafetyNode(Node):
         self.poses_step = msg.step
         self.poses_time = time.monotonic()
         self.check_drive_on()
+        self.follow_replay()
         self.decide(*self.guard.on_poses(msg.step))
 
     def on_experiment(self, msg):
@@ -304,6 +323,11 @@ class SafetyNode(Node):
 
         self.commands[0, ids] = v
         self.commands[1, ids] = w
+        if not self.armed.real_time:   # lockstep: what this array's step counts in the replay (it stands at the step before)
+            counts = self.replay.violations() if self.replay is not None else (0, 0)
+        else:   # real time: the steps the replay passed since the last report
+            counts, self.replay_counts = self.replay_counts, (0, 0)
+        report.unfiltered_collisions, report.unfiltered_boundary_violations = counts
         # The debug report's actuator count judges the script's own commands (over_limits), never
         # our interventions.
         safe, requested, over_limits, fell_back = filter_commands(self.certificate, self.commands, self.poses,
@@ -321,7 +345,31 @@ class SafetyNode(Node):
         report.solver_status = info["status"]
         report.max_change = float(change.max()) if n else 0.0
         report.robots_changed = int(np.count_nonzero(change.max(axis=0) > self.config.intervention_tolerance))
+        if self.armed.audit:   # verification: what the certificate would do is reported, the script's commands go
+            report.audit = True
+            safe = requested
         self.publish(step, np.arange(n), safe[0], safe[1], report, started, over_limits)
+
+    def follow_replay(self):
+        """Carry the unfiltered replay on to the newest poses' step with the script's commands in
+        force; it starts at the run's first poses (2.x: where the drive-on phase ends, which the
+        Robotarium does not judge)."""
+        c = self.config
+        if self.replay is None or self.drive_on_goals is not None:
+            self.replay = model.UnfilteredReplay(self.poses, self.poses_step, c.time_step, c.limits,
+                                                 self.count_violations)
+            return
+        collisions, outside = self.replay.advance(self.commands, self.poses_step)
+        self.replay_counts = (self.replay_counts[0] + collisions, self.replay_counts[1] + outside)
+
+    def count_violations(self, poses):
+        """(collisions, robots outside) as the experiment's report counts them: the guide's rules, or
+        2.x's (colliders too close; an iteration with any robot outside)."""
+        c = self.config
+        if self.api != rps2.API:
+            return model.violations(poses, c.robot_diameter, c.arena)
+        return (rps2.count_too_close(poses, c.collision_diameter, c.collision_offset),
+                int(np.any(model.outside_arena(poses, c.arena))))
 
     def note_stale_stop(self, now, age):
         """Count a stop for want of recent poses; log the first of a spell, then once a second."""

@@ -97,11 +97,19 @@ def to_float_array(values):
     return array.array("d", np.ascontiguousarray(values, dtype=np.float64).tobytes())
 
 
-def copy_counters(testbed, target):
-    """The debug report's counters and the sim time, into a status message or an end response."""
+def copy_counters(testbed, target, tally=None):
+    """The debug report's counters and the sim time (and the run's tally: first error steps, what
+    the safety layer did), into a status message or an end response."""
     target.sim_time = testbed.sim_time
     target.collisions = testbed.collisions
     target.boundary_violations = testbed.boundary_violations
+    if tally is not None:
+        target.first_collision_step = tally.first_collision_step
+        target.first_boundary_step = tally.first_boundary_step
+        target.intervention_max_change = tally.largest_change
+        target.intervention_change_sum = tally.change_sum
+        target.prevented_collisions = tally.prevented_collisions
+        target.prevented_boundary_violations = tally.prevented_boundary
     target.actuator_limit_iterations = testbed.actuator_limit_iterations
     target.command_timeouts = testbed.command_timeouts
     target.hardware = testbed.seed is not None
@@ -130,6 +138,8 @@ class SimulatorNode(Node):
         self.recording = ""
         self.outcome, self.outcome_detail = TestbedStatus.OUTCOME_NONE, ""   # how the last experiment ended
         self.safety_interventions = 0
+        self.tally = model.RunTally()   # first error steps, how much the safety layer changed and what it prevented
+        self.audit = False           # a verification run: the safety node lets the script's commands through
         self.stale_pose_stops = 0
         self.commands_accepted = 0
         self.last_command_step = 0   # the testbed's step when the last command was applied
@@ -162,7 +172,7 @@ class SimulatorNode(Node):
         self.commands = self.create_subscription(TwistArray, CMD_SAFE, self.on_commands,
                                                  command_input_qos(self.config.command_queue_depth), raw=True,
                                                  event_callbacks=warn_on_incompatible_qos(self, CMD_SAFE))
-        self.create_subscription(SafetyReport, SAFETY_REPORT, self.on_safety_report, TESTBED_QOS)
+        self.safety_reports = self.create_subscription(SafetyReport, SAFETY_REPORT, self.on_safety_report, TESTBED_QOS)
         self.create_subscription(String, RECORDING, self.on_recording, LATCHED)
         # A start waits for the safety node's answer (a coroutine): in a group of its own, so that
         # the node's other callbacks (that answer among them) run meanwhile.
@@ -236,7 +246,7 @@ class SimulatorNode(Node):
         try:
             armed = await self.arm_safety(ArmSafety.Request(
                 run_id=run_id, number_of_robots=n, real_time=bool(request.real_time), token=token,
-                safety_key=safety_key, poses_key=poses_key))
+                safety_key=safety_key, poses_key=poses_key, audit=bool(request.audit)))
         finally:
             self._starting = False
         if armed is not True:
@@ -252,6 +262,8 @@ class SimulatorNode(Node):
         self.key_hashes = (sha256(poses_key), sha256(safety_key))
         self.end_reason = ""
         self.safety_interventions = 0
+        self.tally = model.RunTally()
+        self.audit = bool(request.audit)
         self.outcome, self.outcome_detail = TestbedStatus.OUTCOME_NONE, ""
         self.stale_pose_stops = 0
         self.commands_accepted = 0
@@ -278,9 +290,10 @@ class SimulatorNode(Node):
         response.client_alive_topic = self.client_watch.subscription.topic_name
         response.client_lease = c.client_lease
         response.x, response.y, response.theta = (to_float_array(row) for row in self.testbed.poses)
-        response.message = "started %s: %d robots, %s%s" % (
+        response.message = "started %s: %d robots, %s%s%s" % (
             self.run_id, n, "real time at %g Hz" % c.rate if self.real_time else "lockstep",
-            "" if self.testbed.seed is None else ", hardware-like (seed %d)" % self.testbed.seed)
+            "" if self.testbed.seed is None else ", hardware-like (seed %d)" % self.testbed.seed,
+            ", audited for verification (the safety node lets the script's commands through)" if self.audit else "")
         self.get_logger().info(response.message)
         return response
 
@@ -380,14 +393,21 @@ class SimulatorNode(Node):
             self.client_watch.destroy()
             self.client_watch = None
         tb = self.testbed
+        # The safety node's reports of the last arrays may still wait in our queue: count them first.
+        for msg in take_waiting(self.safety_reports):
+            self.on_safety_report(msg)
         self.end_reason = reason
         response.success = True
         response.run_id = self.run_id
         response.steps = tb.steps
-        copy_counters(tb, response)
+        copy_counters(tb, response, self.tally)
         response.stale_pose_stops = self.stale_pose_stops
         response.obstacle_collisions = getattr(tb, "obstacle_hits", 0)
-        response.report = tb.report(completed=outcome == outcomes.COMPLETED)
+        response.audit = self.audit
+        response.safety_interventions = self.safety_interventions
+        # A verification run's report is the Robotarium's counts alone: nothing was prevented there.
+        response.report = tb.report(completed=outcome == outcomes.COMPLETED,
+                                     safety=None if self.audit else self.tally.safety(self.commands_accepted))
         response.recording = self.recording
         response.end_reason = reason
         response.dropped_cmd_safe = drop_counts(self.dropped)
@@ -446,6 +466,7 @@ class SimulatorNode(Node):
                         offset=offset)
         if not self.real_time:
             tb.step()
+            self.tally.after_step(tb)
             self.publish_state()
 
     def drop(self, reason, detail):
@@ -460,8 +481,11 @@ class SimulatorNode(Node):
     def on_safety_report(self, msg):
         if self.testbed is None:
             return
-        if is_intervention(msg, self.config.intervention_tolerance):
+        intervention = is_intervention(msg, self.config.intervention_tolerance)
+        if intervention:
             self.safety_interventions += 1
+        self.tally.add_safety_report(intervention, msg.max_change, msg.unfiltered_collisions,
+                                     msg.unfiltered_boundary_violations)
         if msg.status == SafetyReport.STATUS_STOP_NO_POSES:
             self.stale_pose_stops += 1
         self.dropped_requested = msg.dropped
@@ -481,6 +505,7 @@ class SimulatorNode(Node):
         self._last_tick = time.monotonic()
         tb.expire_commands(self._last_tick, self.config.command_timeout)
         tb.step()
+        self.tally.after_step(tb)
         self.publish_state(now)
 
     def publish_state(self, now=None):
@@ -532,13 +557,14 @@ class SimulatorNode(Node):
             msg.poses_key_sha256, msg.safety_key_sha256 = self.key_hashes
         msg.outcome, msg.outcome_detail = self.outcome, self.outcome_detail
         msg.stale_pose_stops = self.stale_pose_stops
+        msg.audit = self.audit
         if tb is None:
             msg.state = TestbedStatus.STATE_IDLE
         else:
             msg.state = TestbedStatus.STATE_RUNNING
             msg.number_of_robots = tb.number_of_robots
             msg.step = tb.steps
-            copy_counters(tb, msg)
+            copy_counters(tb, msg, self.tally)
         self.status_pub.publish(msg)
 
 
