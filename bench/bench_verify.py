@@ -84,11 +84,12 @@ def main(argv):
             with open(os.path.join(folder, "run.json")) as f:
                 run = json.load(f)
             replay = (run["prevented_collisions"], run["prevented_boundary_violations"])
-            said = "likely" if "Acceptance of your experiment is likely" in out.stdout else "not likely"
+            said = ("acceptance likely" if "Acceptance of your experiment is likely" in out.stdout else
+                    "safety layer prevented" if "would have made about" in out.stdout else "errors listed")
             rows.append((name, reference(script), audited, replay, one_step(folder),
                          "%s (%s)" % (verdict["verdict"], ", ".join(r["rule"] for r in verdict["rules"]) or "-"), said))
     print("| script | reference 0.0.0 | audited (verify) | replay estimate (run) | one-step look-ahead | verify | run's "
-          "acceptance estimate |")
+          "report says |")
     print("|---|---|---|---|---|---|---|")
     for name, ref, audited, replay, step, verdict, said in rows:
         print("| %s | %d / %d | %d / %d | %d / %d | %d / %d | %s | %s |" % (name, *ref, *audited, *replay, *step, verdict,
