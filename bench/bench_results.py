@@ -8,7 +8,7 @@
    own time (5,000 steps x 0.033 s = 165 s of experiment time, its wall time in real time).
 2. Capture: the client's per-step cost of watching the script's drawing
    (drawing.DrawingWatcher.changes) for the same drawing on the live figure, in microseconds per
-   step, and as a share of a lockstep step through the stack (the README's stack benchmark:
+   step, and as a share of a lockstep step through the stack (docs/benchmarks.md, the stack benchmark:
    170 steps/s at N = 20, so 5.9 ms a step).
 Run: ./robotarium bench results [--steps 5000] [--robots 6 20 50]
 """
@@ -23,7 +23,7 @@ import numpy as np
 from robotarium_core.config import DEFAULT
 from robotarium_recording.bag import PoseTrack
 
-LOCKSTEP_STEP = 1 / 170.1   # s, README: the whole stack in lockstep at N = 20
+LOCKSTEP_STEP = 1 / 170.1   # s, docs/benchmarks.md: the whole stack in lockstep at N = 20
 
 
 def synthetic_run(n, steps):

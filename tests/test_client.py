@@ -10,6 +10,8 @@ from robotarium_client.session import RunOptions
 from robotarium_core.model import RobotariumError
 from devtools.rosutil import NodeProcess, unique_domain_id
 
+pytestmark = pytest.mark.node   # real testbed nodes in subprocesses
+
 
 @pytest.fixture(scope="module")
 def testbed(tmp_path_factory):

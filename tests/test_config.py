@@ -2,6 +2,8 @@
 carried with each run so its report is computed with the numbers the run was made with."""
 import dataclasses
 import math
+import os
+import re
 
 import numpy as np
 import pytest
@@ -15,6 +17,8 @@ from robotarium_recording import results
 from robotarium_recording.bag import Bag
 
 from test_recorder import NS, Stack
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def write_config(path, **changes):
@@ -68,6 +72,7 @@ def test_the_configuration_travels_as_yaml():
 
 # -- the nodes ---------------------------------------------------------------------------------------
 
+@pytest.mark.node
 def test_parameters_explain_themselves_and_refuse_changes_they_would_ignore(tmp_path):
     stack = Stack(tmp_path, recorder=False)
     try:
@@ -88,6 +93,7 @@ def test_parameters_explain_themselves_and_refuse_changes_they_would_ignore(tmp_
         stack.close()
 
 
+@pytest.mark.node
 def test_a_run_is_reported_with_the_configuration_it_was_made_with(tmp_path):
     """A testbed with a wider arena and a 0.2 s command timeout: the recorded run carries both, and
     the report recomputed from the bag uses them (the packaged defaults would count a robot at
@@ -116,3 +122,26 @@ def test_a_run_is_reported_with_the_configuration_it_was_made_with(tmp_path):
     # the packaged defaults would have got this run wrong
     track = bag.poses()
     assert model.outside_arena(np.array([track.x[-1], track.y[-1], track.theta[-1]]), DEFAULT.arena).all()
+
+
+def fields_read(source):
+    """The configuration fields a node's source reads (`config.X`, `c.X`), with those behind the
+    derived properties (`c.limits` reads the wheel numbers) expanded."""
+    import inspect
+    derived = {name: set(re.findall(r"self\.(\w+)", inspect.getsource(value.fget))) & set(config.FIELDS)
+               for name, value in vars(TestbedConfig).items() if isinstance(value, property)}
+    read = set()
+    for name in re.findall(r"\b(?:config|c)\.(\w+)", source):
+        read |= derived.get(name, {name} & set(config.FIELDS))
+    return read
+
+
+@pytest.mark.parametrize("role, module", [("safety", "robotarium_safety/robotarium_safety/safety_node.py")])
+def test_a_node_declares_every_field_it_reads(role, module):
+    # A field a node reads but does not declare keeps the packaged value whatever its params file
+    # says (drive_on_position_error was read by the safety node and declared for the simulator only).
+    with open(os.path.join(REPO, module)) as source:
+        read = fields_read(source.read())
+    undeclared = sorted(name for name in read if role not in config.FIELDS[name].used_by)
+    assert read and not undeclared, "%s reads %s but declares it not (add %r to its used_by)" % (
+        module, undeclared, role)

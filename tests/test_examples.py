@@ -17,6 +17,8 @@ import pytest
 from robotarium_client.testbed import LocalTestbed, testbed_answers as answers_in_namespace
 from devtools.rosutil import REPO, node_env, unique_domain_id
 
+pytestmark = pytest.mark.e2e   # every example script through ./robotarium run
+
 OUR_EXAMPLES = sorted(p for p in glob.glob(os.path.join(REPO, "examples", "*.py")))
 # The guide's scripts as printed (examples/guide/, repairs of the PDF text listed in each header).
 # All of them run in CI (about 5 minutes together in lockstep: 3.3.1, 3.6.1 and 3.8.2 have 5000

@@ -1,6 +1,6 @@
 """The testbed under faults and foreign traffic, with real processes: only the experiment's client
 moves robots, a lost client frees the testbed, floods cost nothing, and every failure is reported
-as what it is (README: "Faults and what the testbed does"; bench/bench_faults.py measures the
+as what it is (docs/faults.md; bench/bench_faults.py measures the
 bounds, printed in that table).
 
 One testbed (simulator, safety node, recorder in subprocesses, on a domain of its own) serves the
@@ -32,6 +32,8 @@ from robotarium_core.config import DEFAULT
 from robotarium_core.topics import TESTBED_QOS
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
 from robotarium_msgs.srv import EndExperiment
+
+pytestmark = pytest.mark.node   # real testbed nodes in subprocesses
 
 NS = "/robotarium"
 STEPS_FOREVER = os.path.join(REPO, "tests", "data", "steps_forever.py")
@@ -505,7 +507,7 @@ def test_a_lost_recorder_is_reported_and_its_bag_recovered(healthy, capsys):
 # -- the SROS2 policy ------------------------------------------------------------------------------
 
 def test_sros2_policy_gives_cmd_safe_and_poses_one_writer_each():
-    """The policy we ship (sros2/robotarium.policy.xml) says what the README promises: only the
+    """The policy we ship (sros2/robotarium.policy.xml) says what docs/safety.md promises: only the
     safety node's enclave publishes cmd_safe, only the simulator's publishes poses and arms the
     safety node, and no client may publish either."""
     root = ET.parse(os.path.join(REPO, "sros2", "robotarium.policy.xml")).getroot()

@@ -24,6 +24,8 @@ from robotarium_core.topics import LATCHED
 from robotarium_recording.recorder_node import RunRecorder
 from devtools.rosutil import NodeProcess, RosProbe, SafetyStandIn, unique_domain_id
 
+pytestmark = pytest.mark.node   # real testbed nodes in subprocesses
+
 NS = "/robotarium"
 
 

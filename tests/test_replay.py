@@ -17,6 +17,8 @@ from robotarium_recording.bag import Bag
 from robotarium_recording.replay_node import ReplayClock, publisher_qos
 from devtools.rosutil import REPO, NodeProcess, RosProbe, unique_domain_id
 
+pytestmark = pytest.mark.node   # real testbed nodes in subprocesses
+
 NS = "/robotarium"
 SAMPLE = os.path.join(REPO, "bags", "sample_consensus")
 DELAY = 3.0   # seconds the replay waits before publishing, so that the probe is matched

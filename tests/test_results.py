@@ -24,6 +24,7 @@ V = [0.2, 0.1, 0.1]
 W = [0.0, 0.0, 5.0]
 
 
+@pytest.mark.node
 def test_report_from_the_bag_equals_the_live_report_and_results_are_written(stack, tmp_path):  # noqa: F811
     steps = 45
     stack.start(3, START, name="report")

@@ -18,6 +18,8 @@ import pytest
 from robotarium_msgs.msg import RobotPoses
 from devtools.rosutil import REPO, RosProbe, node_env, unique_domain_id
 
+pytestmark = pytest.mark.e2e   # the real ros2 CLI against a launched testbed
+
 TOOLS = os.path.normpath(os.path.join(REPO, "..", "shared", "ros2-tools"))
 ROS2 = os.path.join(TOOLS, "ros2")
 PARAMS = os.path.join(REPO, "install", "share", "robotarium_core", "config", "testbed.yaml")

@@ -14,6 +14,8 @@ import pytest
 from devtools.rosutil import REPO
 from tests.test_examples import check_bag, run, run_folder, testbed  # noqa: F401 (testbed: the module's fixture)
 
+pytestmark = pytest.mark.e2e   # every 2.1.0 example through ./robotarium run
+
 EXAMPLES = os.path.join(REPO, "examples", "rps2")
 ALL = sorted(os.path.relpath(p, EXAMPLES) for p in glob.glob(os.path.join(EXAMPLES, "**", "*.py"), recursive=True)
              if not p.endswith("uni_ekf.py"))   # uni_ekf.py is a module ekf_experiment.py imports

@@ -11,6 +11,8 @@ from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id
 from robotarium_core.topics import TESTBED_QOS, readers_matched
 from test_simulator_node import as_array, command, lockstep
 
+pytestmark = pytest.mark.node   # real testbed nodes in subprocesses
+
 NS = "/robotarium"
 
 

@@ -14,6 +14,8 @@ from devtools.rosutil import REPO, NodeProcess, RosProbe, SafetyStandIn, node_en
 from robotarium_core.config import DEFAULT
 from robotarium_core.topics import TESTBED_QOS
 
+pytestmark = pytest.mark.node   # real testbed nodes in subprocesses
+
 NS = "/robotarium"
 
 

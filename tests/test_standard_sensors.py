@@ -204,6 +204,7 @@ def stamp_ns(msg):
 RATE = 10.0
 
 
+@pytest.mark.node
 def test_a_2x_experiment_publishes_them_at_the_rate_and_they_are_recorded(tmp_path):
     n, steps = 3, 45
     config = tmp_path / "testbed.yaml"     # the rate set here, whatever the packaged default

@@ -30,6 +30,8 @@ import pytest
 
 from devtools.rosutil import CliRun, NodeProcess, RosProbe, node_env, processes_on_domain, unique_domain_id
 
+pytestmark = pytest.mark.e2e   # whole runs through ./robotarium
+
 NAMESPACE = "/lifetime"
 # Real time, two robots, forever (a goal loop that never converges); prints RUNNING once it runs.
 FOREVER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "run_forever.py")

@@ -158,8 +158,8 @@ FIELDS = {
     "drive_on_wave_margin": Field("m; a robot waits on its charger until those going deeper are this much past its goal",
                                   0.0, used_by=(CLIENT,)),
     "drive_on_position_error": Field("m; the drive-on phase ends when every robot is this close to its pose", 0.0,
-                                     used_by=(SIMULATOR,)),
-    "drive_on_rotation_error": Field("rad; ... and its heading this close", 0.0, used_by=(SIMULATOR,)),
+                                     used_by=(SIMULATOR, SAFETY, CLIENT)),
+    "drive_on_rotation_error": Field("rad; ... and its heading this close", 0.0, used_by=(SIMULATOR, SAFETY, CLIENT)),
     "drive_on_max_steps": Field("steps before the drive-on phase gives up with an error", 1, 10**7,
                                 low_open=False, used_by=(CLIENT,), integer=True),
     # -- ./robotarium verify --

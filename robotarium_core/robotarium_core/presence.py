@@ -6,7 +6,7 @@ threads every 2/3 of the offered lease, however busy the process's Python is, an
 process is gone (killed, crashed, cut off). A `Watch` on that topic requests a lease of `lease`
 seconds and calls `on_lost` once no writer has been alive for that long (or one left cleanly):
 0.6-0.75 s after a kill -9 with the nodes' 0.75 s lease, 1.7-1.9 s with the clients' 2 s one, on
-this project's 2-core machine (README, "Faults and what the testbed does").
+this project's 2-core machine (docs/faults.md).
 
 Measured here: the reader's *requested* lease is what decides (a reader that requests an infinite
 lease never hears of a lost writer), and a writer must offer a lease no longer than the reader

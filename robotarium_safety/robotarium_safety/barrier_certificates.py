@@ -4,84 +4,18 @@ Each creator has the name, parameters and defaults of the guide (../shared/seed/
 robotarium_python_guide.txt §4.5-4.6) and of the Robotarium Python simulator it documents (PyPI
 robotarium-python-simulator 0.0.0, "rps": rps/utilities/barrier_certificates.py and
 barrier_certificates2.py), and returns a function with the guide's call signature that poses the
-same minimally invasive QP as its rps namesake. The formulas, as rps writes them:
+same minimally invasive QP as its rps namesake. The safety node's certificate,
+create_unicycle_barrier_certificate_with_centre_boundary (not in the guide; every number from the
+testbed configuration), adds rows on the robots' centres that carry the testbed's guarantee:
 
-Single integrator, create_single_integrator_barrier_certificate{,_with_boundary,2}:
-    the request is first scaled so that every column has norm <= magnitude_limit (rps scales the
-    request; the answer itself is not bounded), then
-        min ||u - dxi||^2  subject to, for every pair i < j, with e = x_i - x_j, h = |e|^2 - r^2,
-        -2 e.(u_i - u_j) <= g h^3       g = barrier_gain (the "2" variant: unsafe_barrier_gain when h < 0)
-    and, with a boundary [x_min, x_max, y_min, y_max], for every robot
-        u_x <= 0.4 g (x_max - r/2 - x)^3,   -u_x <= 0.4 g (x - x_min - r/2)^3,   the same for y.
-Unicycle, create_unicycle_barrier_certificate{,_with_boundary,2}:
-    the single-integrator certificate with radius safety_radius + projection_distance on the point
-    p = (x, y) + l (cos t, sin t) ahead of each robot (l = projection_distance):
-        dxi = [[cos t, -l sin t], [sin t, l cos t]] (v, w),   then back
-        v = cos t dxi_x + sin t dxi_y,   w = (-sin t dxi_x + cos t dxi_y) / l,   |w| capped at pi
-    (rps create_uni_to_si_dynamics and create_si_to_uni_mapping).
-Differential drive, create_unicycle_differential_drive_barrier_certificate{,_with_boundary} and
-create_robust_barriers (Emam et al. 2022, robust to wheel-speed disturbances):
-    the decision variable is the wheel speeds w_i = D^-1 (v_i, w_i), D = [[R/2, R/2], [-R/B, R/B]]
-    (R wheel radius, B base length);  min ||L (w - w_requested)||^2 with L = diag(1, l) D, subject to
-        pairs:      hi.w_i + hj.w_j >= -g h^3 + d (|hi|_1 + |hj|_1),  hi = 2 e' M_i D, hj = -2 e' M_j D,
-                    e = p_i - p_j, M_i = [[cos t, -l sin t], [sin t, l cos t]]; d (|hi|_1 + |hj|_1) is
-                    rps's -min over the four wheel disturbances (+-d, +-d) of hi.delta (and hj.delta)
-        obstacles:  hi.w_i >= -g h^3 + d |hi|_1 with e = p_i - obstacle
-        boundary (the _with_boundary variant; no disturbance term, as rps):
-                    (M_i D)_x . w_i <= 0.4 g (x_max - r/2 - p_x)^3,  >= -0.4 g (p_x - x_min - r/2)^3, same for y
-        wheels:     |w| <= wheel_vel_limit.
-
-The safety node's certificate, create_unicycle_barrier_certificate_with_centre_boundary (not in
-the guide; every number from the testbed configuration, robotarium_core/testbed.yaml), is the
-unicycle one (the pair rows on the points ahead, as above, except that a pair already closer
-than the radius is held, not pushed apart: bound max(g h^3, 0)) plus rows on the robots' CENTRES,
-which carry the testbed's guarantee; the guide's boundary rows on the points ahead are left out.
-
-The testbed's guarantee (the collision rule of the simulator and the debug report,
-model.count_collisions: two robot centres within robot_diameter):
     Whatever the requested commands, after every step every two robot centres are more than
-    robot_diameter apart: at least D = robot_diameter + collision_margin (0.115 m) apart, or, for
-    a pair that started closer than D, no closer than at the start; and every centre stays
-    boundary_margin inside the arena (one that started outside that line moves no further out).
-    Assumptions: (1) each step's command was filtered at the poses that step starts from
-    (lockstep: always; real time: only when the node filters at every tick: a command held over
-    several ticks, or filtered at older poses, is not covered); (2) the simulator then moves each
-    robot by one forward-Euler step of time_step (model.Testbed.step), after scaling its (v, w) by
-    any factor in [0, 1] of its own (the wheel-limit thresholding of the node and of the simulator,
-    a stop, a command timeout; command latency or wheel dynamics, as on real robots, are not
-    covered); (3) the start poses are more than robot_diameter apart (the simulator refuses
-    others). Exact up to floating-point rounding (~1e-16 m a step).
+    robot_diameter apart (at least robot_diameter + collision_margin, or, for a pair that started
+    closer, no closer than at the start), and every centre stays boundary_margin inside the arena,
+    provided each step's command was filtered at the poses that step starts from and the robots
+    move as model.Testbed.step moves them after any scaling of (v, w) by a factor in [0, 1].
 
-Why it holds. The centre c_k of robot k with heading n_k = (cos t_k, sin t_k) moves in one step to
-c_k + T a_k v_k n_k (T = time_step, a_k in [0, 1] the later scaling); the turn rate only changes
-the heading for the next step. Every centre row bounds one robot's forward speed alone,
-        s v_k <= b    with b >= 0,
-so standing still satisfies all of them (with the pair rows' bounds clipped at 0, u = 0 satisfies
-every row: the QP always has an answer), and a_k s v_k <= max(0, s v_k) <= b: any later scaling
-keeps every row. The rows:
-    pairs (i, j), e = c_i - c_j, h = |e|^2 - D^2, gamma = collision_barrier_rate in (0, 1]:
-        -2 (e.n_i) v_i <= r / 2,   2 (e.n_j) v_j <= r / 2,   r = max(0, gamma h / T)
-    Each robot keeps its own half of the approach: a joint row on v_i and v_j would not survive
-    the scaling (a robot backing away, then slowed by the wheel limits, would leave its
-    neighbour's approach uncovered). After the step
-        |e'|^2 = |e|^2 + 2 T e.(a_i v_i n_i - a_j v_j n_j) + T^2 |a_i v_i n_i - a_j v_j n_j|^2
-               >= |e|^2 - T r,
-    so h >= 0 gives h' >= (1 - gamma) h >= 0, i.e. |e'| >= D, and h < 0 (started closer) gives
-    r = 0 and |e'| >= |e|. By induction |e| >= min(D, |e_0|) > robot_diameter at every step.
-    A linear (discrete-time) barrier, not the cubic of the guide's rows: with the guide's gain the
-    cubic starts braking 0.3-0.4 m out and slowed a 50-robot script by a third (tests/data/
-    crowd_to_goals.py, seed 4: mean goal error 0.83 m instead of 0.52 m after 1000 steps); the
-    linear one only acts within centimetres of D, and is the exact condition in discrete time.
-    boundary, for each robot and each edge (gap: from the centre to the edge less boundary_margin):
-        cos t v <= q(x_max - m - x),   -cos t v <= q(x - x_min - m),   the same in y with sin t,
-        q(gap) = max(0, min(0.4 g gap^3, gap / T))
-    so x' = x + T a cos t v <= x + gap: no centre crosses the margin line, and one already past it
-    moves no further out. A turn never moves a centre, so none of these rows stops a robot turning.
-The rows are in the QP (in its variable u, the velocity of the point ahead: v = n.u), so the
-answer trades speed against steering as the other rows do; then, because OSQP solves only to a
-tolerance, each robot's v is clamped into the interval its rows allow (over every pair whose rows
-its speed could break: _CentreGuard), which makes them hold exactly. The clip of w at pi changes
-only w. If the QP fails, the answer is the stop, which holds every row.
+The formulas of every certificate, the guarantee's assumptions and its proof are in
+docs/safety.md ("The certificates in formulas", "Why the guarantee holds").
 
 Where we differ from rps, on purpose: the caller's arrays are never modified (rps scales dxi in
 place); inputs are validated with a RobotariumError that names the parameter; the unicycle

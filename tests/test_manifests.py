@@ -1,0 +1,108 @@
+"""Each package's package.xml declares what its code imports at run time (and nothing it does not),
+requirements.txt pins every PyPI package that code imports, and every package has one version."""
+import ast
+import glob
+import os
+import re
+import sys
+import xml.etree.ElementTree as ElementTree
+
+from devtools import REPO
+
+# Top-level module -> (rosdep key in package.xml, distribution in requirements.txt or None for a ROS package
+# that the ROS wheels bring).
+PYTHON_DEPENDENCIES = {
+    "numpy": ("python3-numpy", "numpy"),
+    "yaml": ("python3-yaml", "PyYAML"),
+    "scipy": ("python3-scipy", "scipy"),
+    "matplotlib": ("python3-matplotlib", "matplotlib"),
+    "osqp": ("python3-osqp-pip", "osqp"),
+    "quadprog": ("python3-quadprog-pip", "quadprog"),
+    "mcap": ("python3-mcap-pip", "mcap"),
+    "rosbags": ("python3-rosbags-pip", "rosbags"),
+    "imageio_ffmpeg": ("python3-imageio-ffmpeg-pip", "imageio-ffmpeg"),
+    "PIL": ("python3-pil", "pillow"),
+    "foxglove": ("python3-foxglove-sdk-pip", "foxglove-sdk"),
+}
+# Declared without an import, and why.
+NOT_IMPORTED = {
+    ("robotarium_msgs", "rosidl_default_runtime"): "what generated interfaces need at run time",
+    ("robotarium_client", "robotarium_sim"): "./robotarium run starts the simulator node as a process",
+    ("robotarium_recording", "ffmpeg"): "the video encoder, where the imageio-ffmpeg wheel brings none",
+    ("robotarium_recording", "geometry_msgs"): "the recorder imports the class of each recorded topic by name",
+    ("robotarium_recording", "sensor_msgs"): "the recorder imports the class of each recorded topic by name",
+}
+SKIP = {"setuptools"}   # setup.py's own
+
+
+def packages():
+    return sorted(os.path.basename(os.path.dirname(p)) for p in glob.glob(os.path.join(REPO, "*", "package.xml")))
+
+
+def declared(package):
+    root = ElementTree.parse(os.path.join(REPO, package, "package.xml")).getroot()
+    return {e.text.strip() for tag in ("exec_depend", "depend") for e in root.iter(tag)}
+
+
+def imported(package):
+    """Top-level modules that the package's Python files import (inside functions too), but its own."""
+    own = {os.path.basename(os.path.dirname(p)) for p in glob.glob(os.path.join(REPO, package, "*", "__init__.py"))}
+    modules = set()
+    for path in glob.glob(os.path.join(REPO, package, "**", "*.py"), recursive=True):
+        if "/examples/" in path or os.path.basename(path) == "setup.py":
+            continue
+        with open(path) as f:
+            tree = ast.parse(f.read(), path)
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                modules.update(alias.name.split(".")[0] for alias in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                modules.add(node.module.split(".")[0])
+    # An interface package "imports" the packages whose types its .msg and .srv files use.
+    for path in glob.glob(os.path.join(REPO, package, "msg", "*.msg")) + glob.glob(os.path.join(REPO, package, "srv", "*.srv")):
+        with open(path) as f:
+            modules.update(re.findall(r"^\s*([a-z][a-z0-9_]*)/[A-Z]\w*", f.read(), re.MULTILINE))
+    return {m for m in modules if m not in sys.stdlib_module_names and m not in own and m not in SKIP}
+
+
+def rosdep_key(module):
+    return PYTHON_DEPENDENCIES[module][0] if module in PYTHON_DEPENDENCIES else module
+
+
+def test_every_import_is_declared_and_every_declaration_imported():
+    problems = []
+    for package in packages():
+        keys = {rosdep_key(m) for m in imported(package)}
+        problems += ["%s imports %s: add <exec_depend>%s</exec_depend>" % (package, k, k)
+                     for k in sorted(keys - declared(package))]
+        problems += ["%s declares %s, which nothing in it imports: remove it, or say why in NOT_IMPORTED" % (package, k)
+                     for k in sorted(declared(package) - keys) if (package, k) not in NOT_IMPORTED]
+    assert not problems, "\n".join(problems)
+
+
+def test_requirements_pin_every_python_package_the_code_imports():
+    with open(os.path.join(REPO, "requirements.txt")) as f:
+        pinned = {re.split(r"[=<>\[]", line.strip())[0].lower() for line in f if line.strip() and line[0] != "#"}
+    modules = set().union(*(imported(p) for p in packages()))
+    unknown = sorted(m for m in modules if m not in PYTHON_DEPENDENCIES and not m.startswith(("rcl", "robotarium_"))
+                     and not m.endswith(("_msgs", "_srvs")) and m not in ("rps", "rps2", "launch", "launch_ros",
+                                                                             "ament_index_python", "rclpy"))
+    assert not unknown, "imports not mapped in PYTHON_DEPENDENCIES (test_manifests.py): %s" % unknown
+    missing = sorted(PYTHON_DEPENDENCIES[m][1] for m in modules if m in PYTHON_DEPENDENCIES
+                     and PYTHON_DEPENDENCIES[m][1].lower() not in pinned)
+    assert not missing, "requirements.txt lacks %s" % missing
+
+
+def test_one_version_for_every_package():
+    versions = {}
+    for package in packages():
+        root = ElementTree.parse(os.path.join(REPO, package, "package.xml")).getroot()
+        versions[package + "/package.xml"] = root.find("version").text.strip()
+        setup = os.path.join(REPO, package, "setup.py")
+        if os.path.exists(setup):
+            with open(setup) as f:
+                versions[package + "/setup.py"] = re.search(r'version="([^"]+)"', f.read()).group(1)
+    assert len(set(versions.values())) == 1, versions
+    for package in packages():
+        with open(os.path.join(REPO, package, "CHANGELOG.rst")) as f:
+            assert "\n%s (" % versions[package + "/package.xml"] in f.read(), package
