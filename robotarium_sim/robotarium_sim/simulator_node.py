@@ -208,9 +208,9 @@ class SimulatorNode(Node):
             if request.wait:
                 response.ticket = self.line.join(request.ticket, request.holder or "a client", now)
                 response.place = self.line.place(response.ticket)
-            response.message = ("the testbed is busy: %s; %d waiting%s. It is free when that experiment ends (its client "
-                                "ends it, or is gone for %g s; ./robotarium end --force is the operator's override)."
-                                % (response.holding, len(self.line.entries),
+            response.message = ("the testbed is busy: its experiment is still running (%s); %d waiting%s. It is free when "
+                                "that experiment ends (its client ends it, or is gone for %g s; ./robotarium end --force "
+                                "is the operator's override)." % (response.holding, len(self.line.entries),
                                    ", you are number %d" % response.place if response.place else "",
                                    self.config.client_lease))
             return response
