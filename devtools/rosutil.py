@@ -184,7 +184,12 @@ def processes_on_domain(domain_id):
     """{pid: command line} of every live process on this machine whose environment has this
     ROS_DOMAIN_ID: with a domain of one's own (unique_domain_id), every process a test started
     there, however it was started or orphaned, and nothing else."""
-    wanted = b"ROS_DOMAIN_ID=%d" % domain_id
+    return processes_with_env("ROS_DOMAIN_ID", domain_id)
+
+
+def processes_with_env(name, value):
+    """{pid: command line} of every live process on this machine whose environment has name=value."""
+    wanted = ("%s=%s" % (name, value)).encode()
     found = {}
     for entry in os.listdir("/proc"):
         if not entry.isdigit():

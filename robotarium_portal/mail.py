@@ -1,0 +1,82 @@
+"""The service's mail: the confirmation link, "issues found" and "completed" (Django's mail: SMTP when
+configured, else files in the data folder's mail/)."""
+import logging
+
+from django.conf import settings
+from django.contrib.auth.tokens import PasswordResetTokenGenerator
+from django.core.mail import send_mail
+from django.urls import reverse
+from django.utils.encoding import force_bytes
+from django.utils.http import urlsafe_base64_encode
+
+
+logger = logging.getLogger("robotarium_portal")
+
+
+def try_sending(send, *args):
+    """send(*args); a mail server that fails is logged, never a broken page or job. Whether it went."""
+    try:
+        send(*args)
+        return True
+    except Exception as error:   # noqa: BLE001 - SMTP and socket errors alike
+        logger.error("could not send mail (%s): %s", send.__name__, error)
+        return False
+
+
+class ConfirmationTokens(PasswordResetTokenGenerator):
+    """Django's signed, expiring tokens; a confirmed address makes its old links void."""
+    key_salt = "robotarium_portal.mail.ConfirmationTokens"
+
+    def _make_hash_value(self, user, timestamp):
+        return "%s%s%s%s" % (user.pk, user.email, timestamp, user.profile.email_confirmed)
+
+
+confirmation_tokens = ConfirmationTokens()
+
+
+def send_confirmation(request, user):
+    path = reverse("confirm", args=[urlsafe_base64_encode(force_bytes(user.pk)), confirmation_tokens.make_token(user)])
+    link = request.build_absolute_uri(path)
+    send_mail("Robotarium: confirm your email address",
+              "Hello %s,\n\nplease confirm your address for the Robotarium by opening this link:\n\n%s\n\n"
+              "An administrator then approves your account; after that you can submit experiments.\n"
+              % (user.profile.name, link),
+              settings.DEFAULT_FROM_EMAIL, [user.email])
+
+
+def _experiment_link(experiment):
+    return settings.PORTAL_URL + reverse("experiment", args=[experiment.pk])
+
+
+def send_issues_found(experiment):
+    send_mail("Robotarium: issues found in experiment #%d \"%s\"" % (experiment.pk, experiment.title),
+              "Your experiment #%d \"%s\" was not run:\n\n%s\n\nIts page: %s\n"
+              % (experiment.pk, experiment.title, experiment.detail, _experiment_link(experiment)),
+              settings.DEFAULT_FROM_EMAIL, [experiment.owner.email])
+
+
+def send_completed(experiment):
+    send_mail("Robotarium: experiment #%d \"%s\" has completed" % (experiment.pk, experiment.title),
+              "Your experiment #%d \"%s\" has completed.\n\n%s\n\nThe results (video, scripts, data files, "
+              "log files): %s\n" % (experiment.pk, experiment.title, experiment.detail, _experiment_link(experiment)),
+              settings.DEFAULT_FROM_EMAIL, [experiment.owner.email])
+
+
+def send_approved(user):
+    send_mail("Robotarium: your account is approved",
+              "Hello %s,\n\nan administrator approved your Robotarium account: you can submit experiments now.\n\n%s\n"
+              % (user.profile.name, settings.PORTAL_URL + reverse("dashboard")),
+              settings.DEFAULT_FROM_EMAIL, [user.email])
+
+
+def tell_administrators(user):
+    """A confirmed account waits for approval: the administrators hear of it."""
+    from django.contrib.auth import get_user_model
+    staff = list(get_user_model().objects.filter(is_staff=True, is_active=True).exclude(email="")
+                 .values_list("email", flat=True))
+    if staff:
+        send_mail("Robotarium: %s waits for approval" % user.email,
+                  "%s (%s, %s) confirmed their address and waits for approval:\n\n%s\n"
+                  % (user.profile.name, user.profile.institute, user.email,
+                     settings.PORTAL_URL + reverse("approvals")),
+                  settings.DEFAULT_FROM_EMAIL, staff)

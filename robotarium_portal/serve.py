@@ -1,0 +1,218 @@
+"""./robotarium serve: the portal (waitress, a WSGI server) and its two workers (django-q2 clusters:
+"verify" and "runs") on this machine, everything kept in one data folder. Stop it (Ctrl-C) and start
+it again: the experiments' states are in the database, and the jobs are made again from them."""
+import argparse
+import fcntl
+import getpass
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+from robotarium_core import lifeline
+
+REPOSITORY = Path(__file__).resolve().parent.parent
+STOP_GRACE = 60.0   # s a worker has to stop its job (a run ends its experiment and writes its results)
+
+
+def parse(argv):
+    parser = argparse.ArgumentParser(
+        prog="./robotarium serve",
+        description="Run your own Robotarium: the web portal (accounts, experiments, verification, the queue, "
+                    "results) and one worker, on this machine. Everything it keeps (SQLite database, "
+                    "experiments, mail) is in the data folder.",
+        epilog="First administrator: ./robotarium serve --create-admin you@example.org (asks for a password). "
+               "Mail goes to DATA/mail/ (one file per message) unless ROBOTARIUM_SMTP_HOST (and "
+               "ROBOTARIUM_SMTP_PORT, _USER, _PASSWORD, _TLS=1, ROBOTARIUM_MAIL_FROM) name an SMTP server.")
+    parser.add_argument("--data", default=str(REPOSITORY / "service"),
+                        help="the service's folder (default: service/ in the repository)")
+    parser.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1; 0.0.0.0: "
+                        "every interface, then name the host the users type with --allowed-host)")
+    parser.add_argument("--port", type=int, default=8000, help="port (default 8000; 0: any free one)")
+    parser.add_argument("--allowed-host", action="append", default=[],
+                        help="a host name the portal answers to besides localhost (repeat for several)")
+    parser.add_argument("--create-admin", metavar="EMAIL",
+                        help="create (or make) an administrator account with this email, asking for its password "
+                             "(read from standard input when it is not a terminal), then exit")
+    parser.add_argument("--run-domain", type=int, help="ROS_DOMAIN_ID of the runs' testbed (default: a free one)")
+    parser.add_argument("--verify-domain", type=int,
+                        help="ROS_DOMAIN_ID of the verification's testbed (default: a free one)")
+    return parser.parse_args(argv)
+
+
+def setup_django(data):
+    os.environ["ROBOTARIUM_PORTAL_DATA"] = str(Path(data).resolve())
+    os.environ.setdefault("DJANGO_SETTINGS_MODULE", "robotarium_portal.settings")
+    import django
+    django.setup()
+
+
+def create_admin(email):
+    from django.contrib.auth import get_user_model
+    from django.contrib.auth.password_validation import validate_password
+    from django.core.exceptions import ValidationError
+
+    from robotarium_portal.models import Profile
+    email = email.strip().lower()
+    if sys.stdin.isatty():
+        password = getpass.getpass("Password for %s: " % email)
+        if getpass.getpass("Password again: ") != password:
+            sys.exit("[robotarium] error: the two passwords differ; nothing was changed")
+    else:
+        password = sys.stdin.readline().rstrip("\n")
+    user = get_user_model().objects.filter(username=email).first() or get_user_model()(username=email, email=email)
+    try:
+        validate_password(password, user)
+    except ValidationError as error:
+        sys.exit("[robotarium] error: %s Nothing was changed." % " ".join(error.messages))
+    user.is_staff = user.is_superuser = True
+    user.set_password(password)
+    user.save()
+    Profile.objects.update_or_create(user=user, defaults={
+        "name": "Administrator", "email_confirmed": True, "approved": True})
+    print("[robotarium] %s is an administrator: log in at the portal; its admin pages are under /admin/" % email)
+
+
+def free_domain():
+    sys.path.insert(0, str(REPOSITORY))
+    from devtools.rosutil import unique_domain_id   # a file lock held while this process lives
+    return unique_domain_id()
+
+
+class Workers:
+    """The two django-q2 clusters, each in a process group of its own (its jobs' processes included)."""
+
+    def __init__(self, data, env, lock):
+        self.lock = lock   # held by the workers too: no second serve on this folder while one of them lives
+        self.processes = {}
+        self.logs = Path(data) / "logs"
+        self.logs.mkdir(exist_ok=True)
+        self.env = env
+
+    def start(self):
+        for name in ("verify", "runs"):
+            log = open(self.logs / ("worker-%s.txt" % name), "ab")
+            env, pass_fds = lifeline.for_child(self.env)
+            self.processes[name] = subprocess.Popen(
+                [sys.executable, "-m", "robotarium_portal.worker", name], env=env, pass_fds=pass_fds + (self.lock.fileno(),),
+                stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, process_group=0, cwd=REPOSITORY)
+
+    def dead(self):
+        return [name for name, p in self.processes.items() if p.poll() is not None]
+
+    def stop(self):
+        """Stop the jobs first (each ./robotarium ends its experiment and writes its results), then the
+        clusters (SIGTERM to each cluster's main process: it lets its worker finish and exits), and SIGKILL
+        what is left of a cluster after STOP_GRACE."""
+        from robotarium_portal import tasks
+        tasks.stop_jobs()
+        for process in self.processes.values():
+            if process.poll() is None:
+                process.send_signal(signal.SIGTERM)
+        deadline = time.monotonic() + STOP_GRACE
+        for process in self.processes.values():
+            try:
+                process.wait(timeout=max(0.1, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                pass
+            try:
+                os.killpg(process.pid, signal.SIGKILL)   # the cluster's own processes, whatever is left
+            except ProcessLookupError:
+                pass
+            process.wait()
+
+
+def main(argv=None):
+    args = parse(argv)
+    data = Path(args.data).resolve()
+    data.mkdir(parents=True, exist_ok=True)
+    lock = open(data / "serve.lock", "w")
+    if args.create_admin is None:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            sys.exit("[robotarium] error: another ./robotarium serve uses %s (or the workers of one that was "
+                     "stopped are still ending their jobs); stop it first, or give this one its own --data folder" % data)
+    setup_django(data)
+    from django.core.management import call_command
+    call_command("migrate", interactive=False, verbosity=0)
+    if args.create_admin is not None:
+        return create_admin(args.create_admin)
+
+    import waitress
+
+    from robotarium_portal import tasks
+    from robotarium_portal.wsgi import application
+    for stale in [tasks.jobs_dir() / "stopping", *tasks.jobs_dir().glob("*.pgid")]:   # of a previous life
+        stale.unlink(missing_ok=True)
+    tasks.reconcile()   # before any worker: the jobs again from the experiments' states
+    hosts = ["localhost", "127.0.0.1", "[::1]"] + args.allowed_host + (
+        [args.host] if args.host not in ("0.0.0.0", "::") else [])
+    try:
+        server = waitress.create_server(application, host=args.host, port=args.port, threads=8)
+    except OSError as error:
+        sys.exit("[robotarium] error: cannot listen on %s:%d (%s); choose another with --port (0: any free one)"
+                 % (args.host, args.port, error.strerror or error))
+    shown_host = args.allowed_host[0] if args.allowed_host else ("127.0.0.1" if args.host in ("0.0.0.0", "::")
+                                                                 else args.host)
+    url = "http://%s:%d/" % (shown_host, int(server.effective_port))
+    env = dict(os.environ, ROBOTARIUM_PORTAL_URL=url.rstrip("/"), ROBOTARIUM_PORTAL_HOSTS=",".join(hosts),
+               ROBOTARIUM_PORTAL_RUN_DOMAIN=str(args.run_domain if args.run_domain is not None else free_domain()),
+               ROBOTARIUM_PORTAL_VERIFY_DOMAIN=str(args.verify_domain if args.verify_domain is not None
+                                                   else free_domain()),
+               PYTHONPATH=os.pathsep.join([str(REPOSITORY), os.environ.get("PYTHONPATH", "")]))
+    os.environ.update({k: env[k] for k in ("ROBOTARIUM_PORTAL_URL", "ROBOTARIUM_PORTAL_HOSTS")})
+    from django.conf import settings
+    settings.ALLOWED_HOSTS = hosts
+    workers = Workers(data, env, lock)
+    workers.start()
+    mailer = settings.MAILERS["default"]
+    mail = ("the SMTP server %s:%s" % (mailer["OPTIONS"]["host"], mailer["OPTIONS"]["port"])
+            if mailer["BACKEND"].endswith("smtp.EmailBackend") else "%s (one file per message)" % settings.MAIL_DIR)
+    print("[robotarium] the Robotarium portal is at %s" % url, flush=True)
+    print("[robotarium] data (database, experiments, worker logs) in %s; mail goes to %s" % (data, mail), flush=True)
+    print("[robotarium] runs on ROS_DOMAIN_ID %s, verification on %s; Ctrl-C stops it (nothing is lost)"
+          % (env["ROBOTARIUM_PORTAL_RUN_DOMAIN"], env["ROBOTARIUM_PORTAL_VERIFY_DOMAIN"]), flush=True)
+    from django.contrib.auth import get_user_model
+    if not get_user_model().objects.filter(is_staff=True).exists():
+        print("[robotarium] no administrator yet: ./robotarium serve --create-admin you@example.org%s"
+              % ("" if args.data == str(REPOSITORY / "service") else " --data %s" % args.data), flush=True)
+
+    class Stop(Exception):
+        pass
+
+    def stop(signum, frame):
+        raise Stop()
+
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, stop)
+
+    def watch():
+        while True:
+            time.sleep(2.0)
+            if workers.dead():
+                print("[robotarium] error: the %s worker stopped (its log is in %s); stopping the service"
+                      % (", ".join(workers.dead()), workers.logs), flush=True)
+                os.kill(os.getpid(), signal.SIGTERM)
+                return
+
+    threading.Thread(target=watch, daemon=True).start()
+    try:
+        server.run()
+    except Stop:
+        pass
+    finally:
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, signal.SIG_IGN)   # the stop below is not cut short by a second Ctrl-C
+        print("[robotarium] stopping the workers (a running experiment runs again at the next start)", flush=True)
+        server.close()
+        workers.stop()
+        print("[robotarium] stopped", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

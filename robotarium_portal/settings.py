@@ -1,0 +1,135 @@
+"""Django settings of the portal. Everything the service keeps lives under one data folder
+(ROBOTARIUM_PORTAL_DATA, default service/ in the repository): the SQLite database, the secret key,
+the experiments' files and results, and outgoing mail (unless an SMTP server is configured)."""
+import os
+import secrets
+from pathlib import Path
+
+REPOSITORY = Path(os.environ.get("ROBOTARIUM_ROOT") or Path(__file__).resolve().parent.parent)
+DATA_DIR = Path(os.environ.get("ROBOTARIUM_PORTAL_DATA") or REPOSITORY / "service").resolve()
+DATA_DIR.mkdir(parents=True, exist_ok=True)
+EXPERIMENTS_DIR = DATA_DIR / "experiments"
+MAIL_DIR = DATA_DIR / "mail"
+
+
+def _secret_key():
+    """Made once per service and kept in its data folder (never in the repository)."""
+    path = DATA_DIR / "secret_key"
+    if not path.exists():
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        with os.fdopen(fd, "w") as f:
+            f.write(secrets.token_urlsafe(50))
+    return path.read_text().strip()
+
+
+SECRET_KEY = _secret_key()
+DEBUG = os.environ.get("ROBOTARIUM_PORTAL_DEBUG") == "1"
+ALLOWED_HOSTS = [h for h in os.environ.get("ROBOTARIUM_PORTAL_HOSTS", "localhost,127.0.0.1,[::1]").split(",") if h]
+# The address the service is reached at, for links in mail sent by the worker (no request at hand there).
+PORTAL_URL = os.environ.get("ROBOTARIUM_PORTAL_URL", "http://localhost:8000").rstrip("/")
+
+INSTALLED_APPS = [
+    "robotarium_portal.apps.PortalConfig",   # first: its registration/ templates over the admin's
+    "django.contrib.admin",
+    "django.contrib.auth",
+    "django.contrib.contenttypes",
+    "django.contrib.sessions",
+    "django.contrib.messages",
+    "django.contrib.staticfiles",
+    "django_q",
+]
+MIDDLEWARE = [
+    "django.middleware.security.SecurityMiddleware",
+    "django.contrib.sessions.middleware.SessionMiddleware",
+    "django.middleware.common.CommonMiddleware",
+    "django.middleware.csrf.CsrfViewMiddleware",
+    "django.contrib.auth.middleware.AuthenticationMiddleware",
+    "django.contrib.messages.middleware.MessageMiddleware",
+    "django.middleware.clickjacking.XFrameOptionsMiddleware",
+]
+ROOT_URLCONF = "robotarium_portal.urls"
+TEMPLATES = [{
+    "BACKEND": "django.template.backends.django.DjangoTemplates",
+    "DIRS": [],
+    "APP_DIRS": True,
+    "OPTIONS": {"context_processors": [
+        "django.template.context_processors.request",
+        "django.contrib.auth.context_processors.auth",
+        "django.contrib.messages.context_processors.messages",
+    ]},
+}]
+WSGI_APPLICATION = "robotarium_portal.wsgi.application"
+
+# SQLite in WAL mode (the portal and the workers read and write at once); IMMEDIATE transactions take
+# the write lock up front, so two writers wait for each other instead of failing.
+DATABASES = {"default": {
+    "ENGINE": "django.db.backends.sqlite3",
+    "NAME": DATA_DIR / "portal.sqlite3",
+    "OPTIONS": {"timeout": 30, "transaction_mode": "IMMEDIATE",
+                "init_command": "PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL;"},
+}}
+DEFAULT_AUTO_FIELD = "django.db.models.BigAutoField"
+
+AUTH_PASSWORD_VALIDATORS = [
+    {"NAME": "django.contrib.auth.password_validation.UserAttributeSimilarityValidator"},
+    {"NAME": "django.contrib.auth.password_validation.MinimumLengthValidator"},
+    {"NAME": "django.contrib.auth.password_validation.CommonPasswordValidator"},
+    {"NAME": "django.contrib.auth.password_validation.NumericPasswordValidator"},
+]
+LOGIN_URL = "login"
+LOGIN_REDIRECT_URL = "dashboard"
+LOGOUT_REDIRECT_URL = "login"
+
+LANGUAGE_CODE = "en-us"
+TIME_ZONE = "UTC"
+USE_I18N = False
+USE_TZ = True
+STATIC_URL = "static/"
+
+# Mail: to a real SMTP server when ROBOTARIUM_SMTP_HOST is set, else one file per message in mail/.
+DEFAULT_FROM_EMAIL = os.environ.get("ROBOTARIUM_MAIL_FROM", "robotarium@localhost")
+if os.environ.get("ROBOTARIUM_SMTP_HOST"):
+    MAILERS = {"default": {"BACKEND": "django.core.mail.backends.smtp.EmailBackend", "OPTIONS": {
+        "host": os.environ["ROBOTARIUM_SMTP_HOST"], "port": int(os.environ.get("ROBOTARIUM_SMTP_PORT", "25")),
+        "username": os.environ.get("ROBOTARIUM_SMTP_USER", ""),
+        "password": os.environ.get("ROBOTARIUM_SMTP_PASSWORD", ""),
+        "use_tls": os.environ.get("ROBOTARIUM_SMTP_TLS") == "1", "timeout": 30}}}
+else:
+    MAILERS = {"default": {"BACKEND": "django.core.mail.backends.filebased.EmailBackend",
+                           "OPTIONS": {"file_path": str(MAIL_DIR)}}}
+
+# Uploads: Django keeps small files in memory and larger ones in a temporary file; the request may be
+# a little over the files' own total (the form's fields).
+PORTAL_MAX_FILES = int(os.environ.get("ROBOTARIUM_PORTAL_MAX_FILES", "20"))
+PORTAL_MAX_FILE_BYTES = int(os.environ.get("ROBOTARIUM_PORTAL_MAX_FILE_BYTES", str(5 * 1024 * 1024)))
+PORTAL_MAX_PENDING = int(os.environ.get("ROBOTARIUM_PORTAL_MAX_PENDING", "3"))
+DATA_UPLOAD_MAX_NUMBER_FILES = PORTAL_MAX_FILES + 1   # the form says how many are too many, not Django's 400
+DATA_UPLOAD_MAX_MEMORY_SIZE = 2 * 1024 * 1024
+FILE_UPLOAD_MAX_MEMORY_SIZE = 2 * 1024 * 1024
+
+# The jobs (django-q2, ORM broker: the queue is a table of this database; a job is claimed by a
+# conditional UPDATE, so by one worker only). Two clusters: "verify" answers submissions while
+# "runs" drives the testbed, one experiment at a time, first come first served.
+# timeout: a run is stopped at the testbed's time limit (900 s) plus start and the results' video;
+# retry (> timeout) is when a claimed job nobody finished is handed out again.
+Q_CLUSTER = {
+    "name": "runs",
+    "orm": "default",
+    "workers": 1,
+    "recycle": 50,
+    "timeout": 1800,
+    "retry": 2100,
+    "max_attempts": 1,
+    "ack_failures": True,
+    "poll": 0.5,
+    "catch_up": False,
+    "save_limit": 200,
+    "ALT_CLUSTERS": {"verify": {"timeout": 600, "retry": 720}},
+}
+LOGGING = {
+    "version": 1,
+    "disable_existing_loggers": False,
+    "handlers": {"console": {"class": "logging.StreamHandler"}},
+    "loggers": {name: {"handlers": ["console"], "level": os.environ.get("ROBOTARIUM_PORTAL_LOG", "WARNING")}
+                for name in ("django_q", "robotarium_portal")},
+}

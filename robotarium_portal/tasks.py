@@ -1,0 +1,302 @@
+"""The jobs the workers run (django-q2 tasks): verify a submission, run the oldest queued experiment.
+
+Each job claims its experiment with a conditional UPDATE (state X -> Y where the state is still X), so a
+job handed out twice, or two workers, never verify or run one experiment twice. The experiment table is
+the truth; the broker's queue only says that there is work (reconcile() rebuilds it from the table)."""
+import functools
+import json
+import logging
+import os
+import re
+import shutil
+import signal
+import subprocess
+import time
+
+from django.conf import settings
+from django.db.models import F
+from django.utils import timezone
+from django_q.models import OrmQ
+from django_q.tasks import async_task
+
+from robotarium_portal import mail
+from robotarium_portal.files import copy_files
+from robotarium_portal.models import Experiment
+
+logger = logging.getLogger("robotarium_portal")
+VERIFY_CLUSTER, RUN_CLUSTER = "verify", "runs"
+# ./robotarium verify's exit codes (its fixed interface)
+VERIFY_ACCEPTED, VERIFY_TESTBED, VERIFY_REJECTED = 0, 4, 6
+VERIFY_TIMEOUT = 540      # s; under the verify cluster's job timeout (settings.Q_CLUSTER)
+RESULTS_GRACE = 600       # s after the time limit for the start, the end and the results' video
+STEP_LINE = re.compile(rb"\[robotarium\] step (\d+)")
+# What a user's script must not see of the service (the environment is passed on to its run).
+SECRET_VARIABLES = ("ROBOTARIUM_SMTP_PASSWORD", "ROBOTARIUM_SMTP_USER", "DJANGO_SETTINGS_MODULE")
+
+
+@functools.cache
+def time_limit():
+    """The testbed configuration's time limit (900 s: the Robotarium's 15-minute slot); read once."""
+    from robotarium_core.config import TestbedConfig
+    return TestbedConfig.load().time_limit
+
+
+def enqueue_verification(experiment):
+    async_task("robotarium_portal.tasks.verify_experiment", experiment.pk, cluster=VERIFY_CLUSTER,
+               task_name="verify #%d" % experiment.pk)
+
+
+def enqueue_run():
+    async_task("robotarium_portal.tasks.run_next", cluster=RUN_CLUSTER, task_name="run the next experiment")
+
+
+def reconcile():
+    """At the service's start, before any worker: every job from the experiments' states. A run that a stop
+    cut short goes back to the head of the queue (its queued_at is kept) and runs again."""
+    OrmQ.objects.filter(key__in=[VERIFY_CLUSTER, RUN_CLUSTER]).delete()
+    for experiment in Experiment.objects.filter(state=Experiment.RUNNING):
+        experiment.state = Experiment.QUEUED
+        experiment.detail = ("The service stopped during run %d (at %s); the experiment runs again from the start."
+                             % (experiment.attempts, timezone.now().strftime("%Y-%m-%d %H:%M UTC")))
+        experiment.save(update_fields=["state", "detail"])
+    Experiment.objects.filter(state=Experiment.VERIFYING).update(state=Experiment.SUBMITTED)
+    for experiment in Experiment.objects.filter(state=Experiment.SUBMITTED).order_by("submitted_at", "pk"):
+        enqueue_verification(experiment)
+    for _ in range(Experiment.objects.filter(state=Experiment.QUEUED).count()):
+        enqueue_run()
+
+
+def job_env(domain_variable):
+    """The environment of a job's ./robotarium: its own DDS domain, localhost discovery, no service secrets."""
+    env = {k: v for k, v in os.environ.items() if k not in SECRET_VARIABLES}
+    env["ROS_DOMAIN_ID"] = os.environ.get(domain_variable) or os.environ.get("ROS_DOMAIN_ID", "0")
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["MPLBACKEND"] = "Agg"
+    env["ROBOTARIUM_PROGRESS"] = "2"   # a progress line every 2 s: the page shows the step
+    return env
+
+
+def jobs_dir():
+    path = settings.DATA_DIR / "jobs"
+    path.mkdir(exist_ok=True)
+    return path
+
+
+def stopping():
+    """The service is stopping (serve wrote the mark before it stopped the jobs): a job cut short now is
+    not the experiment's failure; reconcile() at the next start hands it out again."""
+    return (jobs_dir() / "stopping").exists()
+
+
+def run_command(command, cwd, env, output_path, timeout, job):
+    """Run command in its own process group (so nothing of it is left behind), its output in a file.
+    The group's id is in jobs/<job>.pgid while it runs (serve stops it there). The exit code, or None
+    when it ran past timeout (then the whole group is killed)."""
+    pgid_file = jobs_dir() / ("%s.pgid" % job)
+    with open(output_path, "wb") as output:
+        process = subprocess.Popen(command, cwd=cwd, env=env, stdout=output, stderr=subprocess.STDOUT,
+                                   stdin=subprocess.DEVNULL, process_group=0)
+        pgid_file.write_text(str(process.pid))
+        try:
+            return process.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            stop_group(process.pid)
+            return None
+        finally:
+            pgid_file.unlink(missing_ok=True)
+
+
+def stop_jobs():
+    """The service stops: mark it (a job cut short now is not its experiment's failure) and stop every
+    running job's ./robotarium."""
+    (jobs_dir() / "stopping").touch()
+    for pgid_file in jobs_dir().glob("*.pgid"):
+        try:
+            stop_group(int(pgid_file.read_text()))
+        except (ValueError, OSError):
+            pass
+
+
+def stop_group(pgid, grace=30.0):
+    """SIGTERM to the group (./robotarium stops its testbed and writes its results), SIGKILL after grace."""
+    for sig, wait in ((signal.SIGTERM, grace), (signal.SIGKILL, 0.0)):
+        try:
+            os.killpg(pgid, sig)
+        except ProcessLookupError:
+            return
+        deadline = time.monotonic() + wait
+        while time.monotonic() < deadline:
+            try:
+                os.killpg(pgid, 0)
+            except ProcessLookupError:
+                return
+            time.sleep(0.2)
+
+
+def _tail(path, lines=15):
+    try:
+        with open(path, encoding="utf-8", errors="replace") as f:
+            return "".join(f.readlines()[-lines:]).strip()
+    except OSError:
+        return ""
+
+
+def rejection_text(verdict):
+    """The rules the verifier found broken, one per line: the rule, the count against its limit, the first step."""
+    lines = []
+    for rule in verdict.get("rules") or []:
+        where = " (first at step %s)" % rule["first_step"] if rule.get("first_step") is not None else ""
+        count = " %s times, limit %s" % (rule.get("count"), rule.get("limit")) if rule.get("limit") is not None else ""
+        lines.append("%s:%s%s. %s" % (rule.get("rule"), count, where, rule.get("message") or ""))
+    return "\n".join(lines) or (verdict.get("report") or "rejected")
+
+
+def failing_truthfully(job):
+    """A job that breaks (a full disk, a bug) leaves its experiment failed with the error, not verifying or
+    running forever; the error goes on to django-q2's failed tasks too."""
+    def guarded(experiment):
+        try:
+            return job(experiment)
+        except Exception as error:
+            _finish(experiment, Experiment.FAILED, "Failed: the service's %s job broke (%s: %s); an administrator "
+                    "has its trace in the admin pages (failed tasks)." % (job.__name__, type(error).__name__, error))
+            raise
+    return guarded
+
+
+def verify_experiment(pk):
+    """./robotarium verify on a copy of the experiment's files: accepted -> queued, else rejected or failed."""
+    if not Experiment.objects.filter(pk=pk, state=Experiment.SUBMITTED).update(state=Experiment.VERIFYING):
+        return "experiment %d is not waiting for verification" % pk
+    return _verify(Experiment.objects.get(pk=pk))
+
+
+@failing_truthfully
+def _verify(experiment):
+    pk = experiment.pk
+    work = experiment.folder / "verify"
+    shutil.rmtree(work, ignore_errors=True)
+    copy_files(experiment.files_dir, work)
+    verdict_path = experiment.folder / "verification.json"
+    verdict_path.unlink(missing_ok=True)
+    output = experiment.folder / "verification-output.txt"
+    # Not recorded (the verdict and its report are what the experiment keeps); its run folder beside the verdict.
+    command = [str(settings.REPOSITORY / "robotarium"), "verify", experiment.main_file,
+               "--robots", str(experiment.number_of_robots), "--duration", str(experiment.estimated_duration),
+               "--json", str(verdict_path), "--no-record", "--results-dir", str(experiment.folder / "verification")]
+    began = time.monotonic()
+    code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_VERIFY_DOMAIN"), output, VERIFY_TIMEOUT,
+                       VERIFY_CLUSTER)
+    experiment.timings = {"verify_command": round(time.monotonic() - began, 3)}
+    shutil.rmtree(work, ignore_errors=True)
+    if stopping():
+        return "the service stopped during the verification of experiment %d" % pk
+    try:
+        verdict = json.loads(verdict_path.read_text())
+    except (OSError, ValueError):
+        verdict = None
+    if code == VERIFY_ACCEPTED and verdict and verdict.get("verdict") == "accepted":
+        return _queue(experiment, verdict, "")
+    if code == VERIFY_REJECTED and verdict:
+        return _finish(experiment, Experiment.REJECTED, "Rejected by the verification:\n" + rejection_text(verdict),
+                       verification=verdict, timings=experiment.timings)
+    if code is None:
+        why = "the verification did not end within %d s" % VERIFY_TIMEOUT
+    elif code == VERIFY_TESTBED:
+        why = "the verification's testbed had a problem (exit code 4)"
+    else:
+        why = "the verification could not run (exit code %s)" % code
+    return _finish(experiment, Experiment.FAILED, "Failed: %s; a person may submit it again.\n%s"
+                   % (why, _tail(output)), verification=verdict, timings=experiment.timings)
+
+
+def _queue(experiment, verdict, detail):
+    Experiment.objects.filter(pk=experiment.pk, state=Experiment.VERIFYING).update(
+        state=Experiment.QUEUED, queued_at=timezone.now(), verification=verdict, detail=detail,
+        timings=experiment.timings)
+    enqueue_run()
+    return "experiment %d queued" % experiment.pk
+
+
+def _finish(experiment, state, detail, **fields):
+    experiment.refresh_from_db()
+    experiment.state, experiment.detail, experiment.finished_at = state, detail, timezone.now()
+    for name, value in fields.items():
+        setattr(experiment, name, value)
+    experiment.save()
+    try:
+        if state == Experiment.COMPLETED:
+            mail.send_completed(experiment)
+        else:
+            mail.send_issues_found(experiment)
+    except Exception as error:   # noqa: BLE001 - the mail server's trouble; the page tells the truth anyway
+        logger.error("could not mail %s about experiment %d: %s", experiment.owner.email, experiment.pk, error)
+    return "experiment %d %s" % (experiment.pk, state)
+
+
+def run_next():
+    """Claim the oldest queued experiment (first come, first served) and run it."""
+    while True:
+        experiment = Experiment.objects.filter(state=Experiment.QUEUED).order_by("queued_at", "pk").first()
+        if experiment is None:
+            return "the queue is empty"
+        if Experiment.objects.filter(pk=experiment.pk, state=Experiment.QUEUED).update(
+                state=Experiment.RUNNING, started_at=timezone.now(), attempts=F("attempts") + 1):
+            break   # else another worker took it first: try the next
+    experiment.refresh_from_db()
+    return run_experiment(experiment)
+
+
+def run_folder(experiment, attempt=None):
+    return experiment.folder / ("run-%d" % (attempt or experiment.attempts))
+
+
+def current_step(experiment):
+    """The last step the running experiment's progress lines named, or None."""
+    try:
+        with open(run_folder(experiment) / "output.txt", "rb") as f:
+            f.seek(0, os.SEEK_END)
+            f.seek(max(0, f.tell() - 8192))
+            steps = STEP_LINE.findall(f.read())
+    except OSError:
+        return None
+    return int(steps[-1]) if steps else None
+
+
+@failing_truthfully
+def run_experiment(experiment):
+    """./robotarium run in real time, hardware-like, in the experiment's own working folder; then the results."""
+    root = run_folder(experiment)
+    shutil.rmtree(root, ignore_errors=True)
+    work, results = root / "work", root / "results"
+    copy_files(experiment.files_dir, work)
+    results.mkdir(parents=True)
+    limit = time_limit()
+    command = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--hardware",
+               "--time-limit", "%g" % limit, "--bags-dir", str(results), "--results-dir", str(results),
+               experiment.main_file]
+    began = time.monotonic()
+    code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_RUN_DOMAIN"), root / "output.txt",
+                       limit + RESULTS_GRACE, RUN_CLUSTER)
+    experiment.timings = dict(experiment.timings or {}, run_command=round(time.monotonic() - began, 3))
+    if stopping():
+        return "the service stopped during the run of experiment %d" % experiment.pk
+    folders = sorted((p for p in results.iterdir() if (p / "run.json").exists()), key=lambda p: p.stat().st_mtime)
+    run = json.loads((folders[-1] / "run.json").read_text()) if folders else {}
+    outcome = run.get("outcome", "")
+    # What the page said before the run (not verified; an earlier run cut short by a stop) stays said.
+    earlier = "\n\n" + experiment.detail if experiment.detail else ""
+    experiment.results = str(folders[-1].relative_to(experiment.folder)) if folders else ""
+    experiment.run_outcome = outcome
+    if outcome in ("completed", "time_limit"):
+        detail = run.get("detail") or "Run completed."
+        return _finish(experiment, Experiment.COMPLETED, detail + earlier, results=experiment.results,
+                       run_outcome=outcome, timings=experiment.timings)
+    if code is None:
+        why = "the run did not end within %d s of its start" % (limit + RESULTS_GRACE)
+    elif run.get("detail"):
+        why = run["detail"]
+    else:
+        why = "./robotarium run ended with exit code %s and no results:\n%s" % (code, _tail(root / "output.txt"))
+    return _finish(experiment, Experiment.FAILED, "Failed: " + why + earlier, results=experiment.results,
+                   run_outcome=outcome, timings=experiment.timings)

@@ -1,0 +1,654 @@
+"""The Robotarium service (robotarium_portal): its security rules through Django's test client, and a
+real browser (headless Chromium) walking the guide's whole flow against `./robotarium serve`.
+
+The security tests run the real views, forms, database (SQLite in a folder of their own) and mail
+(Django's test outbox). The walk starts `./robotarium serve` itself, with its mail sent to a real SMTP
+server (aiosmtpd) the test starts, its runs and verification on ROS_DOMAIN_IDs of their own, and stops
+the service mid-run to check that the experiment runs again and completes after the restart.
+"""
+import os
+import re
+import shutil
+import signal
+import socket
+import sqlite3
+import subprocess
+import tempfile
+import threading
+import time
+
+import pytest
+
+from devtools.rosutil import REPO, processes_on_domain, processes_with_env, unique_domain_id
+
+DATA = tempfile.mkdtemp(prefix="robotarium-portal-test-")
+os.environ["ROBOTARIUM_PORTAL_DATA"] = DATA
+os.environ["ROBOTARIUM_PORTAL_HOSTS"] = "testserver,localhost,127.0.0.1"
+os.environ.setdefault("DJANGO_SETTINGS_MODULE", "robotarium_portal.settings")
+
+import django  # noqa: E402
+
+django.setup()
+from django.core import mail  # noqa: E402
+from django.core.files.uploadedfile import SimpleUploadedFile  # noqa: E402
+from django.core.management import call_command  # noqa: E402
+from django.http import Http404  # noqa: E402
+from django.test import Client, override_settings  # noqa: E402
+from django.test.utils import setup_test_environment  # noqa: E402
+from django_q.models import OrmQ  # noqa: E402
+
+from robotarium_portal import files  # noqa: E402
+from robotarium_portal.models import Experiment, ExperimentFile, Profile, ReturnMessage  # noqa: E402
+
+PASSWORD = "a-long-Passphrase-7"
+SCRIPT = "import numpy as np\nprint('hello')\n"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def database():
+    setup_test_environment()   # mail into mail.outbox
+    # Django's advice for tests: a fast hasher (the service keeps Django's default, PBKDF2)
+    from django.conf import settings
+    settings.PASSWORD_HASHERS = ["django.contrib.auth.hashers.MD5PasswordHasher"]
+    call_command("migrate", interactive=False, verbosity=0)
+    yield
+    shutil.rmtree(DATA, ignore_errors=True)
+
+
+_count = [0]
+
+
+def make_user(approved=True, confirmed=True, staff=False):
+    from django.contrib.auth import get_user_model
+    _count[0] += 1
+    email = "user%d-%d@example.org" % (os.getpid(), _count[0])
+    user = get_user_model().objects.create_user(username=email, email=email, password=PASSWORD, is_staff=staff)
+    Profile.objects.create(user=user, name="User %d" % _count[0], city="Atlanta", state="GA", institute="GT",
+                           reason="class", email_confirmed=confirmed, approved=approved)
+    return user
+
+
+def client_for(user):
+    client = Client()
+    assert client.login(username=user.username, password=PASSWORD)
+    return client
+
+
+def experiment_of(user, title="Swap", files_=None, results=None):
+    experiment = Experiment.objects.create(owner=user, title=title, estimated_duration=30, number_of_robots=2,
+                                           main_file="main.py")
+    for name, text in (files_ or {"main.py": SCRIPT}).items():
+        experiment.files_dir.mkdir(parents=True, exist_ok=True)
+        (experiment.files_dir / name).write_text(text)
+        ExperimentFile.objects.create(experiment=experiment, name=name, size=len(text))
+    if results:
+        folder = experiment.folder / "run-1" / "results" / "run"
+        (folder / "data").mkdir(parents=True)
+        for name, text in results.items():
+            (folder / name).write_text(text)
+        experiment.results = "run-1/results/run"
+        experiment.state = Experiment.COMPLETED
+        experiment.save()
+    return experiment
+
+
+def post_form(client, url, action="save", uploads=(), **fields):
+    data = {"title": "Swap", "description": "two robots", "estimated_duration": 30, "number_of_robots": 2,
+            "action": action, **fields}
+    if uploads:
+        data["upload"] = list(uploads)
+    return client.post(url, data, follow=True)
+
+
+# --- a user sees only their own experiments ----------------------------------------------------------------
+
+def test_another_users_experiment_results_files_and_settings_answer_404():
+    owner, other = make_user(), make_user()
+    experiment = experiment_of(owner, results={"log.txt": "the script's prints", "data/out.txt": "saved"})
+    urls = ["/experiments/%d/" % experiment.pk, "/experiments/%d/settings.json" % experiment.pk,
+            "/experiments/%d/files/main.py" % experiment.pk, "/experiments/%d/results/log.txt" % experiment.pk,
+            "/experiments/%d/results/data/out.txt" % experiment.pk]
+    mine, theirs = client_for(owner), client_for(other)
+    for url in urls:
+        assert mine.get(url).status_code == 200, url
+        assert theirs.get(url).status_code == 404, url
+    assert b"the script's prints" in b"".join(mine.get(urls[3]).streaming_content)
+    # nor can they delete or change it
+    assert theirs.post("/experiments/%d/delete/" % experiment.pk).status_code == 404
+    assert post_form(theirs, urls[0], title="taken").status_code == 404
+    experiment.refresh_from_db()
+    assert experiment.title == "Swap"
+    # the dashboard lists only one's own
+    assert b"Swap" in mine.get("/?tab=completed").content and b"Swap" not in theirs.get("/?tab=completed").content
+    assert Client().get(urls[0]).status_code == 302   # nobody logged in: to the log-in page
+
+
+# --- only administrators approve accounts and write return messages ------------------------------------------
+
+def test_only_administrators_approve_accounts_and_write_return_messages():
+    waiting = make_user(approved=False)
+    owner, admin = make_user(), make_user(staff=True)
+    experiment = experiment_of(owner)
+    user_client = client_for(owner)
+    user_client.post("/staff/approvals/%d/" % waiting.profile.pk)
+    assert user_client.get("/staff/approvals/").status_code == 302   # to the admin's log-in
+    user_client.post("/experiments/%d/message/" % experiment.pk, {"text": "I approve of myself"})
+    waiting.profile.refresh_from_db()
+    assert not waiting.profile.approved
+    assert not ReturnMessage.objects.filter(experiment=experiment).exists()
+
+    admin_client = client_for(admin)
+    listing = admin_client.get("/staff/approvals/").content.decode()
+    assert waiting.email in listing and owner.email not in listing   # only those waiting
+    mail.outbox.clear()
+    admin_client.post("/staff/approvals/%d/" % waiting.profile.pk)
+    assert [m.to for m in mail.outbox] == [[waiting.email]] and "approved" in mail.outbox[0].subject
+    admin_client.post("/experiments/%d/message/" % experiment.pk, {"text": "Nice swap; slow down near the wall."})
+    waiting.profile.refresh_from_db()
+    assert waiting.profile.approved and waiting.profile.approved_by == admin
+    assert "Nice swap; slow down near the wall." in user_client.get("/experiments/%d/" % experiment.pk).content.decode()
+
+
+# --- an unconfirmed or unapproved account cannot submit -------------------------------------------------------
+
+def test_sign_up_confirm_approve_then_submit():
+    make_user(staff=True)   # an administrator to tell
+    mail.outbox.clear()
+    client = Client()
+    response = client.post("/signup/", {"email": "Ada@Example.org", "password": PASSWORD, "confirmation": PASSWORD,
+                                        "name": "Ada", "city": "Atlanta", "state": "GA", "institute": "GT",
+                                        "reason": "swarm lab"})
+    assert b"Thank you for signing up" in response.content
+    (message,) = mail.outbox
+    assert message.to == ["ada@example.org"]
+    link = re.search(r"http://testserver(/confirm/\S+/)", message.body).group(1)
+
+    assert client.login(username="ada@example.org", password=PASSWORD)
+    response = post_form(client, "/experiments/new/", action="submit",
+                         uploads=[SimpleUploadedFile("main.py", SCRIPT.encode())])
+    experiment = Experiment.objects.get(owner__username="ada@example.org")
+    assert experiment.state == Experiment.SAVED and b"Confirm your email address first" in response.content
+
+    mail.outbox.clear()
+    assert client.get(link).status_code == 200
+    assert Profile.objects.get(user__username="ada@example.org").email_confirmed
+    assert "ada@example.org waits for approval" in mail.outbox[0].subject   # the administrators hear of it
+    assert client.get(link).status_code == 400   # a used link is void
+    response = post_form(client, "/experiments/%d/" % experiment.pk, action="submit")
+    experiment.refresh_from_db()
+    assert experiment.state == Experiment.SAVED and b"waits for an administrator" in response.content
+
+    Profile.objects.filter(user__username="ada@example.org").update(approved=True)
+    before = OrmQ.objects.filter(key="verify").count()
+    post_form(client, "/experiments/%d/" % experiment.pk, action="submit")
+    experiment.refresh_from_db()
+    assert experiment.state == Experiment.SUBMITTED and experiment.main_file == "main.py"
+    assert OrmQ.objects.filter(key="verify").count() == before + 1   # its verification job is queued
+
+
+def test_a_mail_server_that_is_down_costs_no_account_and_no_page():
+    with socket.socket() as s:   # a port nobody listens on: the connection is refused
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    down = {"default": {"BACKEND": "django.core.mail.backends.smtp.EmailBackend",
+                        "OPTIONS": {"host": "127.0.0.1", "port": port, "timeout": 5}}}
+    with override_settings(MAILERS=down):
+        response = Client().post("/signup/", {"email": "eve@example.org", "password": PASSWORD,
+                                              "confirmation": PASSWORD, "name": "Eve", "city": "Atlanta",
+                                              "state": "GA", "institute": "GT", "reason": "class"})
+    assert response.status_code == 200 and b"could not be sent just now" in response.content
+    assert Profile.objects.filter(user__username="eve@example.org").exists()
+
+
+# --- uploaded files stay in the experiment's folder, within limits ----------------------------------------------
+
+@pytest.mark.parametrize("name", ["../escape.py", "/etc/passwd", "..", ".bashrc", "a b.py", "semi;colon.py",
+                                  "back\\slash.py", "ünï.py", "x" * 101 + ".py", "new\nline.py"])
+def test_file_names_that_could_leave_the_folder_are_refused(name):
+    assert files.name_problem(name)
+    with pytest.raises(Http404):
+        files.inside(DATA, name)
+
+
+def test_odd_upload_names_are_refused_and_nothing_is_written_outside():
+    user = make_user()
+    client = client_for(user)
+    before = set(os.listdir(DATA)) | {"experiments"}
+    for name in ("a b.py", "semi;colon.py", ".bashrc", "ünï.py"):
+        response = post_form(client, "/experiments/new/", uploads=[SimpleUploadedFile(name, b"print(1)\n")])
+        assert b"is not allowed" in response.content, name
+    assert not Experiment.objects.filter(owner=user).exists()
+    # a path is cut to its last part by Django's parser: it lands inside, as escape.py
+    post_form(client, "/experiments/new/", uploads=[SimpleUploadedFile("../../escape.py", b"print(1)\n")])
+    experiment = Experiment.objects.get(owner=user)
+    assert experiment.file_names() == ["escape.py"] and (experiment.files_dir / "escape.py").exists()
+    assert set(os.listdir(DATA)) == before
+    # nor can a download name leave the folder (the secret key is two levels up)
+    assert client.get("/experiments/%d/files/../../../secret_key" % experiment.pk).status_code == 404
+    completed = experiment_of(user, results={"log.txt": "x"})
+    # the run folder is DATA/experiments/<id>/run-1/results/run: five levels below DATA
+    for name in ("../../../../../secret_key", "data/../../../../../../secret_key",
+                 "%2e%2e/%2e%2e/%2e%2e/%2e%2e/%2e%2e/secret_key"):
+        assert client.get("/experiments/%d/results/%s" % (completed.pk, name)).status_code == 404, name
+
+
+@override_settings(PORTAL_MAX_FILES=2, PORTAL_MAX_FILE_BYTES=1000)
+def test_upload_count_and_size_limits_say_so():
+    user = make_user()
+    client = client_for(user)
+    three = [SimpleUploadedFile("f%d.py" % k, b"x = 1\n") for k in range(3)]
+    response = post_form(client, "/experiments/new/", uploads=three, main_file="f0.py")
+    assert b"Too many files: 3; an experiment has at most 2." in response.content
+    response = post_form(client, "/experiments/new/", uploads=[SimpleUploadedFile("big.py", b"#" * 2000)])
+    assert b"Too large (at most" in response.content and b"big.py" in response.content
+    assert not Experiment.objects.filter(owner=user).exists()
+    two = [SimpleUploadedFile("f%d.py" % k, b"x = 1\n") for k in range(2)]
+    post_form(client, "/experiments/new/", uploads=two, main_file="f0.py")
+    assert Experiment.objects.get(owner=user).file_names() == ["f0.py", "f1.py"]
+
+
+# --- user text is text everywhere ----------------------------------------------------------------------------
+
+def test_user_written_text_is_escaped_everywhere():
+    attack = "<script>alert('x')</script>"
+    user = make_user(approved=False)
+    Profile.objects.filter(user=user).update(name=attack, reason=attack)
+    experiment = experiment_of(user, title=attack)
+    Experiment.objects.filter(pk=experiment.pk).update(description=attack, state=Experiment.QUEUED,
+                                                       queued_at=experiment.created, detail=attack)
+    ReturnMessage.objects.create(experiment=experiment, text=attack)
+    admin = client_for(make_user(staff=True))
+    pages = [client_for(user).get("/"), client_for(user).get("/experiments/%d/" % experiment.pk),
+             client_for(user).get("/queue/"), admin.get("/staff/approvals/")]
+    for response in pages:
+        html = response.content.decode()
+        assert "&lt;script&gt;alert(" in html, response.request["PATH_INFO"]
+        assert attack not in html, response.request["PATH_INFO"]
+    # an uploaded .html is shown as text, never as this site's page
+    experiment_of(user, files_={"main.py": SCRIPT, "page.html": attack})
+    response = client_for(user).get("/experiments/%d/files/page.html" % (experiment.pk + 1))
+    assert response["Content-Type"].startswith("text/plain")
+
+
+# --- at most PORTAL_MAX_PENDING pending experiments per user ---------------------------------------------------
+
+@override_settings(PORTAL_MAX_PENDING=2)
+def test_a_user_has_at_most_the_configured_pending_experiments():
+    user = make_user()
+    client = client_for(user)
+    for k in range(3):
+        response = post_form(client, "/experiments/new/", action="submit", title="try %d" % k,
+                             uploads=[SimpleUploadedFile("main.py", SCRIPT.encode())])
+    states = dict(Experiment.objects.filter(owner=user).values_list("title", "state"))
+    assert states == {"try 0": "submitted", "try 1": "submitted", "try 2": "saved"}
+    assert b"You have 2 experiments pending, the most one may have" in response.content
+    # one finishes: the saved one may go
+    Experiment.objects.filter(owner=user, title="try 0").update(state=Experiment.COMPLETED)
+    saved = Experiment.objects.get(owner=user, title="try 2")
+    post_form(client, "/experiments/%d/" % saved.pk, action="submit", title="try 2")
+    saved.refresh_from_db()
+    assert saved.state == Experiment.SUBMITTED
+
+
+def test_settings_json_has_the_guide_fields():
+    user = make_user()
+    experiment = experiment_of(user, files_={"main.py": SCRIPT, "helper.py": "X = 1\n"})
+    response = client_for(user).get("/experiments/%d/settings.json" % experiment.pk)
+    assert response.json() == {"title": "Swap", "description": "", "estimated_duration": 30, "number_of_robots": 2,
+                               "main_file": "main.py", "files": ["helper.py", "main.py"]}
+    assert "attachment" in response["Content-Disposition"]
+
+
+def test_password_reset_through_the_mailed_link():
+    user = make_user()
+    mail.outbox.clear()
+    client = Client()
+    client.post("/password/reset/", {"email": user.email})
+    (message,) = mail.outbox
+    link = re.search(r"http://testserver(/password/reset/\S+/)", message.body).group(1)
+    form = client.get(link, follow=True)   # Django moves the token into the session and redirects
+    new = "another-Passphrase-9"
+    done = client.post(form.redirect_chain[-1][0], {"new_password1": new, "new_password2": new}, follow=True)
+    assert b"Your password is set" in done.content
+    assert Client().login(username=user.username, password=new)
+
+
+# --- the whole flow in a real browser, against ./robotarium serve -------------------------------------------
+
+# The experiment of the walk: a main file, a helper module it imports and a data file it reads; it saves a
+# data file and prints. It turns its robots in place until the test drops `release` into its working
+# folder (at most 900 steps, 30 s; its verification runs them all), so the test can stop the service while
+# it surely runs. The second experiment drives four robots head-on into each other: rejected.
+WALK_FILES = {
+    "main.py": """import os
+import numpy as np
+import rps.robotarium as robotarium
+from helper import turn_rates
+
+gains = np.loadtxt("gains.txt")
+print("read %d gains from gains.txt" % len(gains), flush=True)
+N = 2
+r = robotarium.Robotarium(number_of_robots=N, show_figure=False, sim_in_real_time=True,
+                          initial_conditions=np.array([[-0.4, 0.4], [0.0, 0.0], [0.0, 0.0]]))
+for k in range(900):
+    r.get_poses()
+    r.set_velocities(np.arange(N), turn_rates(gains, N))
+    r.step()
+    if k >= 30 and os.path.exists("release"):
+        break
+np.savetxt("turned.txt", [k])
+print("helper module and data file used; the robots turned for", k + 1, "steps", flush=True)
+r.call_at_scripts_end()
+""",
+    "helper.py": """import numpy as np
+
+
+def turn_rates(gains, n):
+    return np.vstack([np.zeros(n), gains[:n]])
+""",
+    "gains.txt": "0.5\n-0.5\n0.2\n",
+}
+TIMEOUT = 240.0
+HEAD_ON = os.path.join(REPO, "tests", "data", "head_on_no_barrier.py")   # 168 collision iterations
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class Serve:
+    """./robotarium serve in a session of its own, its output collected."""
+
+    def __init__(self, args, env):
+        self.lines = []
+        self.process = subprocess.Popen([os.path.join(REPO, "robotarium"), "serve", *args], env=env, cwd=REPO,
+                                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                        start_new_session=True)
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self):
+        for line in self.process.stdout:
+            self.lines.append(line.rstrip("\n"))
+
+    def wait_for_address(self):
+        deadline = time.monotonic() + TIMEOUT
+        while time.monotonic() < deadline and self.process.poll() is None:
+            for line in self.lines:
+                found = re.search(r"portal is at (http://\S+)", line)
+                if found:
+                    return found.group(1)
+            time.sleep(0.2)
+        raise AssertionError("serve did not start:\n" + "\n".join(self.lines))
+
+    def stop(self):
+        """Ctrl-C, as an operator stops it; never left behind."""
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGINT)
+            try:
+                self.process.wait(timeout=120)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.process.pid, signal.SIGKILL)
+                self.process.wait()
+                raise AssertionError("serve did not stop within 120 s:\n" + "\n".join(self.lines))
+        return self.process.returncode
+
+
+class SmtpInbox:
+    """A real SMTP server (aiosmtpd) on localhost that keeps what it receives."""
+
+    def __init__(self):
+        from aiosmtpd.controller import Controller
+        self.messages = []
+        inbox = self
+
+        class Handler:
+            async def handle_DATA(self, server, session, envelope):
+                inbox.messages.append((envelope.rcpt_tos, envelope.content.decode("utf-8", "replace")))
+                return "250 OK"
+
+        self.controller = Controller(Handler(), hostname="127.0.0.1", port=free_port())
+        self.controller.start()
+        self.port = self.controller.port
+
+    def wait_for(self, to, subject_part):
+        deadline = time.monotonic() + TIMEOUT
+        while time.monotonic() < deadline:
+            for rcpt, text in self.messages:
+                if to in rcpt and subject_part in text:
+                    return text
+            time.sleep(0.2)
+        raise AssertionError("no mail to %s about %r; got %s" % (to, subject_part, self.messages))
+
+    def close(self):
+        self.controller.stop()
+
+
+def goto(page, url):
+    page.events.clear()
+    page.send("Page.navigate", {"url": url})
+    page.wait_for("Page.loadEventFired", 60)
+
+
+def fill_and_click(page, values, button):
+    """Type the values into the form's fields (by id) and click the button: a real form post."""
+    for field, value in values.items():
+        page.evaluate("document.getElementById(%r).value = %s" % (field, _js(value)))
+    page.events.clear()
+    page.evaluate("document.querySelector(%s).click()" % _js(button))
+    page.wait_for("Page.loadEventFired", 60)
+
+
+def _js(value):
+    import json
+    return json.dumps(value)
+
+
+def text_of(page, selector):
+    return page.evaluate("(document.querySelector(%s) || {textContent: null}).textContent" % _js(selector))
+
+
+def log_in(page, base, email):
+    goto(page, base + "login/")
+    fill_and_click(page, {"id_username": email, "id_password": PASSWORD}, "button[type=submit]")
+    assert "Dashboard" in page.evaluate("document.title"), page.evaluate("document.body.innerText")
+
+
+def log_out(page):
+    page.events.clear()
+    page.evaluate("document.querySelector('header form button').click()")
+    page.wait_for("Page.loadEventFired", 60)
+
+
+def sign_up(page, base, email, name):
+    goto(page, base + "signup/")
+    fill_and_click(page, {"id_email": email, "id_password": PASSWORD, "id_confirmation": PASSWORD, "id_name": name,
+                          "id_city": "Atlanta", "id_state": "GA", "id_institute": "Georgia Tech",
+                          "id_reason": "multi-robot class"}, "button[type=submit]")
+    assert "Thank you for signing up" in page.evaluate("document.body.innerText")
+
+
+def experiment_row(data, pk):
+    with sqlite3.connect(os.path.join(data, "portal.sqlite3"), timeout=30) as db:
+        return db.execute("SELECT state, attempts, detail FROM robotarium_portal_experiment WHERE id = ?",
+                          (pk,)).fetchone()
+
+
+def service_logs(data):
+    """The workers' logs and the jobs' output, for a failure's message."""
+    texts = []
+    for folder, _, names in os.walk(data):
+        for name in names:
+            if name.startswith("worker-") or name in ("output.txt", "verification-output.txt"):
+                with open(os.path.join(folder, name), errors="replace") as f:
+                    texts.append("--- %s\n%s" % (os.path.join(folder, name), f.read()[-3000:]))
+    return "\n".join(texts)
+
+
+def wait_for_state(data, pk, states, attempts=None):
+    deadline = time.monotonic() + TIMEOUT
+    while time.monotonic() < deadline:
+        row = experiment_row(data, pk)
+        if row[0] in states and (attempts is None or row[1] == attempts):
+            return row
+        if row[0] in ("rejected", "failed") and row[0] not in states:
+            raise AssertionError("experiment %d %s: %s\n%s" % (pk, row[0], row[2], service_logs(data)))
+        time.sleep(0.3)
+    raise AssertionError("experiment %d still %s (wanted %s)\n%s" % (pk, row, states, service_logs(data)))
+
+
+@pytest.mark.e2e
+def test_the_whole_flow_in_a_real_browser_with_a_restart_mid_run(tmp_path):
+    from devtools.browser import Browser, find_chromium
+    if find_chromium() is None:
+        pytest.skip("no chromium here and it could not be installed (./robotarium test installs Debian's "
+                    "package when it runs as root with apt-get)")
+    data = str(tmp_path / "service")
+    for name, text in WALK_FILES.items():
+        (tmp_path / name).write_text(text)
+    run_domain, verify_domain = unique_domain_id(), unique_domain_id()
+    inbox = SmtpInbox()
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("ROBOTARIUM_PORTAL", "DJANGO_"))}
+    env.update(ROBOTARIUM_SMTP_HOST="127.0.0.1", ROBOTARIUM_SMTP_PORT=str(inbox.port))
+    args = ["--data", data, "--port", str(free_port()), "--run-domain", str(run_domain),
+            "--verify-domain", str(verify_domain)]
+    admin = subprocess.run([os.path.join(REPO, "robotarium"), "serve", "--data", data, "--create-admin",
+                            "admin@example.org"], input=PASSWORD + "\n", text=True, env=env, cwd=REPO,
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=TIMEOUT)
+    assert admin.returncode == 0 and "is an administrator" in admin.stdout, admin.stdout
+    serve = Serve(args, env)
+    shots = os.environ.get("ROBOTARIUM_PORTAL_SCREENSHOTS")
+    try:
+        base = serve.wait_for_address()
+        with Browser() as browser:
+            page = browser.open(base + "signup/")
+            sign_up(page, base, "ada@example.org", "Ada Lovelace")
+            confirmation = inbox.wait_for("ada@example.org", "confirm your email")
+            link = re.search(r"(http://\S+/confirm/\S+/)", confirmation).group(1)
+            goto(page, link)
+            assert "Your email address is confirmed" in page.evaluate("document.body.innerText")
+
+            log_in(page, base, "admin@example.org")
+            goto(page, base + "staff/approvals/")
+            assert "ada@example.org" in page.evaluate("document.body.innerText")
+            page.events.clear()
+            page.evaluate("document.querySelector('button[value=\"ada@example.org\"]').click()")
+            page.wait_for("Page.loadEventFired", 60)
+            assert "Approved Ada Lovelace" in page.evaluate("document.body.innerText")
+            log_out(page)
+
+            log_in(page, base, "ada@example.org")
+            goto(page, base + "experiments/new/")
+            document = page.send("DOM.getDocument")["root"]["nodeId"]
+            upload = page.send("DOM.querySelector", {"nodeId": document, "selector": "#id_upload"})["nodeId"]
+            page.send("DOM.setFileInputFiles", {"nodeId": upload,
+                                                "files": [str(tmp_path / name) for name in WALK_FILES]})
+            fill_and_click(page, {"id_title": "Turn <in> place", "id_description": "two robots turn",
+                                  "id_estimated_duration": "90", "id_number_of_robots": "2",
+                                  "id_main_file": "main.py"}, "button[value=submit]")
+            assert "Submitted" in page.evaluate("document.body.innerText"), page.evaluate("document.body.innerText")
+            pk = int(re.search(r"/experiments/(\d+)/", page.evaluate("location.href")).group(1))
+            assert text_of(page, "h1").startswith("Turn <in> place")   # the title is text
+            goto(page, base + "experiments/new/")
+            document = page.send("DOM.getDocument")["root"]["nodeId"]
+            upload = page.send("DOM.querySelector", {"nodeId": document, "selector": "#id_upload"})["nodeId"]
+            page.send("DOM.setFileInputFiles", {"nodeId": upload, "files": [HEAD_ON]})
+            fill_and_click(page, {"id_title": "Head-on", "id_estimated_duration": "10", "id_number_of_robots": "4"},
+                           "button[value=submit]")
+            head_on = int(re.search(r"/experiments/(\d+)/", page.evaluate("location.href")).group(1))
+            goto(page, base + "experiments/%d/" % pk)
+
+            # Verified, queued, running: the page names the step; then the service is stopped mid-run.
+            deadline = time.monotonic() + TIMEOUT
+            while text_of(page, "#step") is None:
+                assert time.monotonic() < deadline, page.evaluate("document.body.innerText") + service_logs(data)
+                time.sleep(0.5)
+                goto(page, base + "experiments/%d/" % pk)
+            assert text_of(page, "#state") == "running"
+            if shots:
+                goto(page, base)
+                screenshot(page, os.path.join(shots, "portal_dashboard.png"))
+            assert serve.stop() == 0, "\n".join(serve.lines)
+            assert experiment_row(data, pk)[:2] == ("running", 1)   # the truth: it was running, nothing else
+            assert processes_on_domain(run_domain) == {} and processes_on_domain(verify_domain) == {}
+
+            serve = Serve(args, env)
+            assert serve.wait_for_address() == base
+            wait_for_state(data, pk, ("running",), attempts=2)
+            work = os.path.join(data, "experiments", str(pk), "run-2", "work")
+            deadline = time.monotonic() + TIMEOUT
+            while not os.path.isdir(work):
+                assert time.monotonic() < deadline
+                time.sleep(0.2)
+            open(os.path.join(work, "release"), "w").close()
+            state, attempts, detail = wait_for_state(data, pk, ("completed",))
+            assert "Run completed." in detail
+            inbox.wait_for("ada@example.org", "has completed")
+
+            # The head-on script: rejected by the verification, the rule with its count and first step shown
+            # on its page and in the mail.
+            wait_for_state(data, head_on, ("rejected",))
+            goto(page, base + "experiments/%d/" % head_on)
+            rejection = text_of(page, "#detail")
+            assert text_of(page, "#state") == "rejected" and "collisions:" in rejection, rejection
+            assert re.search(r"collisions: \d+ times, limit 100 \(first at step \d+\)", rejection), rejection
+            assert "collisions:" in inbox.wait_for("ada@example.org", "issues found")
+
+            goto(page, base + "experiments/%d/" % pk)
+            body = page.evaluate("document.body.innerText")
+            for section in ("Experiment Settings", "Experiment Video", "Scripts", "Return Messages", "Data Files",
+                            "Log Files"):
+                assert section in body, section
+            assert "The service stopped during run 1" in body   # said truthfully on its page
+            log = text_of(page, "#log")
+            assert "read 3 gains from gains.txt" in log and "helper module and data file used" in log, log
+            assert "turned.txt" in text_of(page, "#data-files")
+            assert {"main.py", "helper.py", "gains.txt"} <= set(text_of(page, "#scripts").split())
+            assert ".mcap" in text_of(page, "#log-files") and "Run completed." in text_of(page, "#report")
+            played = page.evaluate("""new Promise(async (resolve) => {
+                const video = document.getElementById('video');
+                await video.play();
+                const start = video.currentTime;
+                setTimeout(() => resolve({start: start, now: video.currentTime, ready: video.readyState}), 500);
+            })""", await_promise=True)
+            assert played["now"] > played["start"] and played["ready"] >= 2, played
+            saved = page.evaluate("""fetch(document.querySelector('#data-files a').href).then(r => r.text())""",
+                                  await_promise=True)
+            assert int(float(saved)) >= 30
+            if shots:
+                page.evaluate("document.getElementById('video').pause()")
+                screenshot(page, os.path.join(shots, "portal_results.png"), full=True)
+            results_url = page.evaluate("location.href")
+            log_out(page)
+
+            # A second user: 404 on the first user's results, files and settings.
+            sign_up(page, base, "bob@example.org", "Bob")
+            log_in(page, base, "bob@example.org")
+            for url in (results_url, results_url + "settings.json", results_url + "files/main.py",
+                        results_url + "results/log.txt"):
+                assert page.evaluate("fetch(%s).then(r => r.status)" % _js(url), await_promise=True) == 404, url
+
+        # serve killed outright: its workers notice (their lifeline) and stop; nothing of the service is left.
+        serve.process.kill()
+        serve.process.wait()
+        deadline = time.monotonic() + 60
+        while processes_with_env("ROBOTARIUM_PORTAL_DATA", os.path.realpath(data)):
+            assert time.monotonic() < deadline, processes_with_env("ROBOTARIUM_PORTAL_DATA", os.path.realpath(data))
+            time.sleep(0.2)
+    finally:
+        serve.stop()
+        inbox.close()
+    assert processes_on_domain(run_domain) == {} and processes_on_domain(verify_domain) == {}
+
+
+def screenshot(page, path, full=False):
+    """A PNG of the page at a laptop's width (docs/)."""
+    import base64
+    height = page.evaluate("document.documentElement.scrollHeight") if full else 800
+    page.send("Emulation.setDeviceMetricsOverride", {"width": 1280, "height": height, "deviceScaleFactor": 1,
+                                                     "mobile": False})
+    shot = page.send("Page.captureScreenshot", {"format": "png", "captureBeyondViewport": full})
+    with open(path, "wb") as f:
+        f.write(base64.b64decode(shot["data"]))
+    page.send("Emulation.clearDeviceMetricsOverride")
