@@ -81,6 +81,7 @@ def output_when_done(process, timeout):
     return "".join(process.lines)
 
 
+@pytest.mark.e2e   # whole runs through ./robotarium on one testbed
 def test_a_second_student_waits_in_line_and_a_third_is_refused_with_no_wait(testbed, tmp_path):
     env = testbed
     dave = start_run(env, tmp_path, "--lockstep", os.path.join(DATA, "steps_forever.py"), "lockstep")
