@@ -498,6 +498,7 @@ def wait_for_state(data, pk, states, attempts=None):
     raise AssertionError("experiment %d still %s (wanted %s)\n%s" % (pk, row, states, service_logs(data)))
 
 
+@pytest.mark.e2e
 def test_the_whole_flow_in_a_real_browser_with_a_restart_mid_run(tmp_path):
     from devtools.browser import Browser, find_chromium
     if find_chromium() is None:

@@ -24,12 +24,12 @@ import pytest
 from robotarium_client.testbed import LocalTestbed, testbed_answers as answers_in_namespace
 from devtools.rosutil import REPO, node_env, unique_domain_id
 
+pytestmark = pytest.mark.e2e   # whole runs through ./robotarium
+
 START = "np.array([[0.0, 0.5], [0.0, 0.0], [0.0, 0.0]])"
 HEADER = """import time
 import rps.robotarium as robotarium
 import numpy as np
-
-pytestmark = pytest.mark.e2e   # whole runs through ./robotarium
 N = 2
 r = robotarium.Robotarium(number_of_robots=N, show_figure=True, sim_in_real_time=False, initial_conditions=%s)
 r.axes.scatter([1.0], [0.5], s=300, marker='s', facecolors='none', edgecolors='r', linewidth=4)

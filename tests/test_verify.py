@@ -106,6 +106,7 @@ def reference_collisions(script):
     return int(match.group(1)) if match else 0
 
 
+@pytest.mark.e2e   # ./robotarium verify or run, whole
 @pytest.mark.skipif(not reference_available(), reason="the reference simulator's venv (.venv-reference) is missing")
 def test_the_head_on_script_is_rejected_for_collisions_counted_as_the_robotarium_counts(env, tmp_path):
     code, document, out = verify_script(env, tmp_path, HEAD_ON, "--robots", "4", "--duration", "10")
@@ -123,6 +124,7 @@ def test_the_head_on_script_is_rejected_for_collisions_counted_as_the_robotarium
     assert abs(rule["count"] - reference) <= 0.1 * reference, (rule["count"], reference)
 
 
+@pytest.mark.e2e   # ./robotarium verify or run, whole
 def test_a_script_that_leaves_the_arena_is_rejected(env, tmp_path):
     code, document, out = verify_script(env, tmp_path, os.path.join(DATA, "leaves_arena.py"))
     assert code == 6, out
@@ -132,6 +134,7 @@ def test_a_script_that_leaves_the_arena_is_rejected(env, tmp_path):
     assert "Not checked" not in out   # rejected: nothing is said to pass
 
 
+@pytest.mark.e2e   # ./robotarium verify or run, whole
 def test_a_wrong_robot_count_and_a_too_long_run_are_rejected(env, tmp_path):
     code, document, out = verify_script(env, tmp_path, os.path.join(DATA, "two_robots_to_goals.py"),
                                         "--robots", "3", "--duration", "3")
@@ -143,6 +146,7 @@ def test_a_wrong_robot_count_and_a_too_long_run_are_rejected(env, tmp_path):
     assert "Verification failed (robots)" in out and "Verification failed (duration)" in out
 
 
+@pytest.mark.e2e   # ./robotarium verify or run, whole
 @pytest.mark.parametrize("name, rule", [("syntax_error.py", "compile"), ("imports_outside.py", "imports"),
                                         ("raises_midway.py", "script_error"), ("no_end.py", "no_end")])
 def test_a_broken_script_is_rejected_with_the_right_rule(env, tmp_path, name, rule):
@@ -162,6 +166,7 @@ runpy.run_path(%r, run_name="__main__")
 """
 
 
+@pytest.mark.e2e   # ./robotarium verify or run, whole
 @pytest.mark.parametrize("name, robots, duration", [("3_5_1_single_integrator_barrier_certificate.py", 10, 60),
                                                     ("3_7_1_consensus.py", 12, 33)])
 def test_guide_scripts_are_accepted(env, tmp_path, name, robots, duration):
@@ -176,6 +181,7 @@ def test_guide_scripts_are_accepted(env, tmp_path, name, robots, duration):
     assert "Verification passed:" in out
 
 
+@pytest.mark.e2e   # ./robotarium verify or run, whole
 def test_run_of_the_head_on_script_no_longer_calls_acceptance_likely(env, tmp_path):
     completed = run_cli(env, "run", "--no-video", "--results-dir", str(tmp_path / "results"),
                         "--bags-dir", str(tmp_path / "bags"), HEAD_ON)
@@ -195,6 +201,7 @@ def test_run_of_the_head_on_script_no_longer_calls_acceptance_likely(env, tmp_pa
     assert "Acceptance" not in text and "would have made about %d iteration(s)" % prevented in text
 
 
+@pytest.mark.e2e   # ./robotarium verify or run, whole
 def test_usage_errors_and_help(env, tmp_path):
     completed = run_cli(env, "verify", str(tmp_path / "missing.py"))
     assert completed.returncode == outcomes.USAGE_ERROR and "no such script" in completed.stderr

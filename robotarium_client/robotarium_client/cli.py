@@ -279,6 +279,8 @@ HINTS = {
                      "log/testbed/, otherwise look at the machine running ./robotarium up"),
     "client_lost": "the testbed ended the experiment because it stopped hearing from the script",
     "time_limit": "the experiment reached its time limit",
+    "testbed_busy": ("the testbed was busy with another experiment (nothing ran): run again without --no-wait to wait in "
+                     "line for it; ./robotarium status shows who holds it"),
 }
 
 
@@ -344,7 +346,7 @@ def print_summary(run_dir, run, cwd):
 
 def run_script(script, script_args=(), real_time=None, record=True, bags_dir=None, results=True, video=True,
                local_testbed=True, config_file=None, time_limit=None, results_dir=None, hardware=False, seed=0,
-               rps_api=None, audit=False, own_testbed=False):
+               rps_api=None, audit=False, own_testbed=False, wait=True):
     """Run an experiment script against the testbed (starting one here if none answers and
     `local_testbed` allows it). Whatever happens, the run folder gets the log, the report, the
     results page and run.json (with the plot and the video when the run was recorded here); a
@@ -389,14 +391,14 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
     try:
         return _run_script(script, script_args, real_time, record, bags_dir, results, video, local_testbed,
                            config_file, time_limit, hardware, seed, interruption, results_dir, started_at, rps_api,
-                           audit, own_testbed)
+                           audit, own_testbed, wait)
     finally:
         interruption.restore()
 
 
 def _run_script(script, script_args, real_time, record, bags_dir, results, video, local_testbed, config_file,
                 time_limit, hardware, seed, interruption, results_dir, started_at, rps_api=None, audit=False,
-                own_testbed=False):
+                own_testbed=False, wait=True):
     from robotarium_core import outcomes
     ns = namespace()
     testbed = None
@@ -422,7 +424,7 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
     options = session.RunOptions(real_time=real_time, local_testbed=False, namespace=ns, experiment_name=name,
                                  progress_interval=session.progress_from_environment(10.0), time_limit=time_limit,
                                  config_file=os.path.abspath(config_file) if config_file else None,
-                                 hardware=hardware, seed=seed, audit=audit,
+                                 hardware=hardware, seed=seed, audit=audit, wait=wait,
                                  rps_api=rps_api or session.rps_api_from_environment())
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
@@ -522,7 +524,7 @@ def cmd_run(args):
                             bags_dir=args.bags_dir, video=not args.no_video,
                             local_testbed=not args.no_local_testbed, config_file=args.config,
                             time_limit=args.time_limit, results_dir=args.results_dir, hardware=args.hardware,
-                            seed=args.seed, rps_api=args.rps)
+                            seed=args.seed, rps_api=args.rps, wait=not args.no_wait)
     return code
 
 
@@ -615,9 +617,13 @@ def _describe_status(msg):
     info = {"running": True, "experiment": msg.experiment, "run_id": msg.run_id, "mode": msg.mode,
             "number_of_robots": msg.number_of_robots, "step": msg.step, "sim_time": msg.sim_time,
             "since": time.strftime("%Y-%m-%d %H:%M:%S", since) if since else None, "dropped": dropped}
-    text = "experiment %s running since %s: %d robots, %s, step %d (%.1f s of testbed time)" % (
+    info.update(holder=msg.holder, waiting=list(msg.waiting))
+    text = "experiment %s running since %s: %d robots, %s, step %d (%.1f s of testbed time)%s%s" % (
         msg.run_id, time.strftime("%H:%M:%S", since) + " (%s)" % _ago(time.time() - time.mktime(since))
-        if since else "?", msg.number_of_robots, msg.mode, msg.step, msg.sim_time)
+        if since else "?", msg.number_of_robots, msg.mode, msg.step, msg.sim_time,
+        ", held by %s" % msg.holder if msg.holder else "",
+        "; waiting in line: %s" % "; ".join("%d. %s" % (k, who) for k, who in enumerate(msg.waiting, start=1))
+        if msg.waiting else "")
     foreign = ["%s: %s" % (name, ", ".join("%d %s" % (n, reason) for reason, n in counts.items()))
                for name, counts in dropped.items() if counts]
     if foreign:
@@ -737,7 +743,8 @@ whatever happens, the run folder (the last line printed names it) gets log.txt, 
 line says how the run ended), run.json, index.html, and from a recording made here trajectories.png and
 run.mp4. Exit codes: 0 the run completed (call_at_scripts_end); 1 the script raised an exception or
 could not be compiled or imported (then no testbed is started); 2 a bad command line; 3 the script
-ended without call_at_scripts_end(); 4 no testbed, or it was lost or ended the experiment; 5 the time limit;
+ended without call_at_scripts_end(); 4 no testbed, it was busy and --no-wait said not to wait, or it was lost
+or ended the experiment; 5 the time limit;
 128 + N interrupted by signal N (130: Ctrl-C, 143: SIGTERM, 129: SIGHUP)."""
 
 
@@ -818,6 +825,9 @@ def main(argv=None):
                                       "(default: robotarium_core's testbed.yaml)")
     run.add_argument("--results-dir", help="where runs not recorded here keep their results "
                                            "(default: results/)")
+    run.add_argument("--no-wait", action="store_true",
+                     help="when the testbed is busy with another experiment, exit at once (code 4) instead of waiting "
+                          "in line for it (first come, first served)")
     run.add_argument("--no-local-testbed", action="store_true",
                      help="never start a testbed here: wait up to 60 s for one to answer (./robotarium up)")
     run.add_argument("--rps", choices=session.RPS_APIS, default=None,
@@ -906,7 +916,8 @@ def main(argv=None):
         # `./robotarium run script.py --lockstep` works too: our own flags may follow the script.
         own = {"--lockstep": ("mode", "lockstep"), "--real-time": ("mode", "real-time"),
                "--no-record": ("no_record", True), "--no-video": ("no_video", True),
-               "--no-local-testbed": ("no_local_testbed", True), "--hardware": ("hardware", True)}
+               "--no-local-testbed": ("no_local_testbed", True), "--hardware": ("hardware", True),
+               "--no-wait": ("no_wait", True)}
         rest, given = [], iter(args.script_args)
         for arg in given:
             if arg in own:

@@ -56,6 +56,25 @@ class TestbedLost(RuntimeError):
     __test__ = False  # not a pytest class
 
 
+class TestbedBusy(RuntimeError):
+    """The testbed is busy with another experiment and this client would not wait (--no-wait)."""
+
+
+LINE_POLL = 0.5         # s between a waiting client's asks (well within the testbed's line_lease)
+LINE_REPORT = 10.0      # s between lines saying who holds the testbed, when nothing else changed
+
+
+def holder_of_this_process():
+    """Who asks for the testbed, as those waiting and ./robotarium status show it."""
+    import getpass
+    import socket
+    try:
+        user = getpass.getuser()
+    except (KeyError, OSError):
+        user = "?"
+    return "%s@%s pid %d %s" % (user, socket.gethostname(), os.getpid(), os.path.basename(sys.argv[0] or "python"))
+
+
 class EndedByTestbed(RuntimeError):
     """The testbed ended the experiment (an operator's ./robotarium end --force, a stopped testbed)."""
 
@@ -287,7 +306,8 @@ class Robotarium(RobotariumABC):
                                           seed=int(self._options.seed), audit=bool(self._options.audit))
         request.x, request.y, request.theta = (row.tolist() for row in self.initial_conditions)
         self._complete_start_request(request)
-        response = self._call(self._start_client, request)
+        request.wait, request.holder = bool(self._options.wait), holder_of_this_process()
+        response = self._wait_in_line(request)
         if not response.success:
             incomplete = not self._watches["safety"].seen   # the testbed's fault, not the request's
             self._shutdown()
@@ -315,6 +335,28 @@ class Robotarium(RobotariumABC):
         # Likewise a node is reported lost only once we saw it there: wait for the simulator's and
         # the safety node's first sign of life (moments; their presences assert every 0.17 s).
         self._spin_until(lambda: self._watches["simulator"].seen and self._watches["safety"].seen, STEP_TIMEOUT)
+
+    def _wait_in_line(self, request):
+        """Ask to start until the testbed takes us: a busy testbed puts a waiting client in its line
+        (first come, first served; robotarium_core.line), and we say our place and who holds it
+        whenever that changes (and every LINE_REPORT s). Ctrl-C leaves the line (the testbed forgets
+        a ticket nobody asks with)."""
+        said, said_at = None, 0.0
+        while True:
+            response = self._call(self._start_client, request)
+            if not response.busy:
+                return response
+            if not request.wait:
+                self._shutdown()
+                raise TestbedBusy("The testbed in %s is busy: %s. Run again without --no-wait to wait in line for it "
+                                  "(./robotarium status shows who holds it)." % (self._ns, response.holding))
+            request.ticket = response.ticket
+            news = (response.place, response.holding.split(", step")[0])
+            if news != said or time.monotonic() - said_at > LINE_REPORT:
+                print("[robotarium] waiting for the testbed: number %d in line; it is held by %s (Ctrl-C leaves the "
+                      "line)" % (response.place, response.holding), file=sys.stderr, flush=True)
+                said, said_at = news, time.monotonic()
+            self._spin_until(lambda: False, LINE_POLL)
 
     def _complete_start_request(self, request):
         """What a subclass adds to the StartExperiment request (robotarium2: the 2.x API's fields)."""

@@ -73,6 +73,8 @@ class RunOptions:
     # A verification run (./robotarium verify only): the safety node audits and lets the script's own
     # commands through, so the debug report counts what the Robotarium's verification counts.
     audit: bool = False
+    # Wait in line for a busy testbed (first come, first served); False: refuse at once (--no-wait).
+    wait: bool = True
 
     def to_json(self):
         return json.dumps(dataclasses.asdict(self))
@@ -117,13 +119,13 @@ def remember_uncaught_exceptions():
 def describe_exception(exc):
     """'KeyError: 'goal'' - the exception's type and the first line of its message."""
     text = str(exc).strip().splitlines()
-    return "%s: %s" % (type(exc).__name__, text[0][:200]) if text else type(exc).__name__
+    return "%s: %s" % (type(exc).__name__, text[0]) if text else type(exc).__name__
 
 
 def failure_of(exc, step, where=""):
     """(outcome, detail) of a run that an exception ended at `step` (robotarium_core.outcomes);
     `where` says where in the script, e.g. "line 57 of go.py"."""
-    from robotarium_client.robotarium import EndedByTestbed, TestbedLost
+    from robotarium_client.robotarium import EndedByTestbed, TestbedBusy, TestbedLost
     from robotarium_core import outcomes
     at = "at step %d%s" % (step, " (%s)" % where if where else "")
     if isinstance(exc, KeyboardInterrupt):
@@ -132,6 +134,8 @@ def failure_of(exc, step, where=""):
         return outcomes.INTERRUPTED, "interrupted by %s %s" % (exc.signal_name, at)
     if isinstance(exc, EndedByTestbed):   # an operator's end --force, a testbed that was stopped
         return outcomes.INTERRUPTED, "interrupted %s: %s" % (at, str(exc).rstrip("."))
+    if isinstance(exc, TestbedBusy):
+        return outcomes.TESTBED_BUSY, str(exc).rstrip(".")
     if isinstance(exc, TestbedLost):
         return outcomes.TESTBED_LOST, "the testbed was lost %s: %s" % (at, str(exc).split(". ")[0])
     return outcomes.SCRIPT_ERROR, "the script raised %s %s" % (describe_exception(exc), at)

@@ -73,6 +73,8 @@ FIELDS = {
                         low_open=False, used_by=(CLIENT,)),
     "client_lease": Field("s; a client gone this long (killed, crashed, network lost) loses its experiment", 0.1, 60.0,
                           used_by=(SIMULATOR,)),
+    "line_lease": Field("s; a client waiting in line for a busy testbed that stops asking this long leaves the line",
+                        0.5, 60.0, used_by=(SIMULATOR,)),
     "node_lease": Field("s; a simulator, safety node or recorder gone this long is reported lost", 0.1, 60.0),
     "viewer_rate": Field("Hz at which the simulator publishes the markers topic for viewers (RViz, Foxglove), "
                          "while one subscribes", 0.0, 100.0, used_by=(SIMULATOR,)),
@@ -250,6 +252,7 @@ class TestbedConfig:
     held_commands_limit: int
     time_limit: float
     client_lease: float
+    line_lease: float
     node_lease: float
     viewer_rate: float
     trail_length: float

@@ -361,9 +361,9 @@ def safety_lines(interventions=0, arrays=0, largest_change=0.0, mean_change=0.0,
             (prevented_collisions, "{0} iteration(s) where robots would have collided"),
             (prevented_boundary, "{0} iteration(s) where robots would have been outside the arena")) if count]
         lines.append("Without it your script's own commands would have made about {0} (replayed without the safety "
-                     "layer): the Robotarium counts those and rejects an experiment with too many. Run ./robotarium "
-                     "verify SCRIPT to get the Robotarium's verdict.\n".format(" and ".join(what)))
-    return lines
+                     "layer): the Robotarium counts those and rejects an experiment with too many. For the "
+                     "Robotarium's verdict: ./robotarium verify SCRIPT\n".format(" and ".join(what)))
+    return ["\n"] + lines if lines else lines   # apart from the Robotarium's own text
 
 
 def debug_report(iterations, boundary_violations, collisions, actuator_limit_iterations, time_step=TIME_STEP,
@@ -406,6 +406,8 @@ def debug_report(iterations, boundary_violations, collisions, actuator_limit_ite
         lines.append("No errors in this simulation, but only because the safety layer stepped in.\n")
     if not completed:
         lines.append(("\n" if lines[-1].endswith(".\n") and not lines[-1].endswith("\n\n") else "") + NOT_COMPLETED)
+    if extra and lines[-1].endswith("\n\n"):
+        extra = extra[1:]
     return "".join(lines + extra)
 
 

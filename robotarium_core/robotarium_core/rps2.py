@@ -148,6 +148,8 @@ def debug_report(iterations, too_close, outside, actuator, obstacle_hits=0, time
         if obstacle_hits:
             lines.append("\t Simulation had {0} time steps where robots touched obstacles.\n".format(obstacle_hits))
         lines.append("\nPlease fix the noted errors in your simulation; otherwise, your experiment will be rejected.\n")
+    if extra and lines[-1].endswith("\n\n"):
+        extra = extra[1:]
     return "".join(lines + extra)
 
 

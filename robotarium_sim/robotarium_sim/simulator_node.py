@@ -71,6 +71,7 @@ from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, SensorRead
 from robotarium_msgs.srv import ArmSafety, EndExperiment, StartExperiment
 
 from robotarium_core import cdr, markers, model, outcomes, presence, rps2, scene
+from robotarium_core.line import Line
 from robotarium_core.node_tools import declare_config, run_node, take_waiting
 from robotarium_core.topics import (CMD_SAFE, command_input_qos, CONFIG, DEFAULT_NAMESPACE, END_EXPERIMENT, EXPERIMENT,
                                     LATCHED, MARKERS, OBSTACLES, POSE_ARRAY, POSES, RECORDING, SAFETY_ARM, SAFETY_REPORT,
@@ -154,6 +155,9 @@ class SimulatorNode(Node):
         self.end_reason = ""
         self.client_watch = None
         self._client_deadline = None
+        self.line = Line(self.config.line_lease)   # clients waiting for the testbed, first come first served
+        self.holder = ""             # who holds the running experiment (StartExperiment.holder)
+        self._started_at = ""
 
         self.poses_pub = self.create_publisher(RobotPoses, POSES, TESTBED_QOS)
         self.pose_array_pub = self.create_publisher(PoseArray, POSE_ARRAY, 10)
@@ -191,13 +195,32 @@ class SimulatorNode(Node):
 
     # -- experiments -------------------------------------------------------------------------
 
+    def holding(self):
+        """Who holds the testbed, for those waiting: holder, run, since when, step."""
+        if self.testbed is None:
+            return "an experiment that is starting"
+        return "%s: run %s since %s, step %d" % (self.holder or "a client", self.run_id, self._started_at,
+                                                 self.testbed.steps)
+
     async def on_start(self, request, response):
         response.success = False
-        if self.testbed is not None or self._starting:
-            response.message = ("experiment %r is still running; it ends when its client ends it, when its client is "
-                                "gone for %g s, or with ./robotarium end --force (an operator's override)."
-                                % (self.experiment, self.config.client_lease))
+        now = time.monotonic()
+        self.line.prune(now)
+        if self.testbed is not None or self._starting or self.line.first() not in (None, request.ticket):
+            # Busy, or others waited first: refused; with `wait`, a place in the line (first come, first served).
+            response.busy = True
+            busy = self.testbed is not None or self._starting
+            response.holding = self.holding() if busy else "nobody (the next in line starts now)"
+            if request.wait:
+                response.ticket = self.line.join(request.ticket, request.holder or "a client", now)
+                response.place = self.line.place(response.ticket)
+            response.message = ("the testbed is busy: its experiment is still running (%s); %d waiting%s. It is free when "
+                                "that experiment ends (its client ends it, or is gone for %g s; ./robotarium end --force "
+                                "is the operator's override)." % (response.holding, len(self.line.entries),
+                                   ", you are number %d" % response.place if response.place else "",
+                                   self.config.client_lease))
             return response
+        self.line.leave(request.ticket)
         name = request.name or "experiment"
         if not re.fullmatch(r"[A-Za-z0-9_-]{1,64}", name):
             response.message = "name %r must be 1 to 64 letters, digits, '-' or '_'." % name
@@ -254,6 +277,8 @@ class SimulatorNode(Node):
             return response
 
         self.testbed = testbed
+        self.holder = request.holder
+        self._started_at = time.strftime("%H:%M:%S")
         self.real_time = bool(request.real_time)
         self.gate = model.StepGate(self.real_time)
         self.experiment = name
@@ -558,6 +583,8 @@ class SimulatorNode(Node):
         msg.outcome, msg.outcome_detail = self.outcome, self.outcome_detail
         msg.stale_pose_stops = self.stale_pose_stops
         msg.audit = self.audit
+        msg.holder = self.holder if tb is not None else ""
+        msg.waiting = self.line.holders()
         if tb is None:
             msg.state = TestbedStatus.STATE_IDLE
         else:
