@@ -220,13 +220,11 @@ def check_script(script):
     started, with the message python would print."""
     import ast
     import importlib.util
-    import tokenize
+
+    from robotarium_client.verify import COMPILE_ERRORS, compile_script
     try:
-        with tokenize.open(script) as f:
-            source = f.read()
-        tree = ast.parse(source, filename=script)
-        compile(tree, script, "exec", dont_inherit=True)
-    except (SyntaxError, ValueError, UnicodeDecodeError) as error:
+        source, tree = compile_script(script)
+    except COMPILE_ERRORS as error:
         import traceback
         text = "".join(traceback.format_exception_only(type(error), error))
         where = " (line %d of %s)" % (error.lineno, os.path.basename(script)) if getattr(error, "lineno", None) else ""

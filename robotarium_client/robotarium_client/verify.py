@@ -48,16 +48,26 @@ def _is_allowed(name, allowed, folder):
     return os.path.isfile(os.path.join(folder, name + ".py")) or os.path.isdir(os.path.join(folder, name))
 
 
+COMPILE_ERRORS = (SyntaxError, ValueError, UnicodeDecodeError)
+
+
+def compile_script(script):
+    """The script's source and syntax tree, compiled as `python SCRIPT` would (its encoding
+    line honoured); raises one of COMPILE_ERRORS where python would refuse it."""
+    import tokenize
+    with tokenize.open(script) as f:
+        source = f.read()
+    tree = ast.parse(source, filename=script)
+    compile(tree, script, "exec", dont_inherit=True)
+    return source, tree
+
+
 def static_rules(script, config):
     """The rules judged before anything runs: the script compiles ('compile', with the line) and
     imports only allowed modules ('imports', one rule naming every such import). [] when both hold."""
-    import tokenize
     try:
-        with tokenize.open(script) as f:
-            source = f.read()
-        tree = ast.parse(source, filename=script)
-        compile(tree, script, "exec", dont_inherit=True)
-    except (SyntaxError, ValueError, UnicodeDecodeError) as error:
+        _, tree = compile_script(script)
+    except COMPILE_ERRORS as error:
         line = getattr(error, "lineno", None)
         what = ("%s: %s" % (type(error).__name__, error.msg) if isinstance(error, SyntaxError)
                 else "%s: %s" % (type(error).__name__, error))
