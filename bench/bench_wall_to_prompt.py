@@ -1,0 +1,134 @@
+"""Wall to prompt (issue 26, goal 1): the time from pressing Enter to the prompt with every result
+in hand, for one 3-robot script of 300 lockstep steps with no figure and no barrier certificate
+(bench/wall_script.py), measured side by side in one run:
+
+  (peer)  the Robotarium simulator 0.0.0 (.venv-reference), `python wall_script.py`: one process,
+          no results;
+  (cold)  `./robotarium run --lockstep wall_script.py` with no testbed up: it starts one for the
+          run and stops it afterwards; every result (report, plot, video, page);
+  (cold, --no-video)  the same without the video;
+  (up)    the same with `./robotarium up` already running on the domain; and --no-video.
+
+Each command runs through ./robotarium as a user types it (the environment check included),
+on a ROS_DOMAIN_ID of its own, with the machine's default discovery range; the wall time is from
+the start of the command to its exit. The script prints its constructor and loop times (inside
+the script). Runs are interleaved (--repeat times) so every row sees the same machine load; the
+table gives the medians, then the goals' verdicts: <= 2.5 s cold and <= 1.5 s with a testbed up,
+both with every result.
+Run: ./robotarium bench wall_to_prompt [--repeat 3]
+"""
+import argparse
+import os
+import platform
+import re
+import shutil
+import signal
+import statistics
+import subprocess
+import tempfile
+import time
+
+from devtools.reference import REFERENCE_PYTHON, _reference_env
+from devtools.rosutil import unique_domain_id
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROBOTARIUM = os.path.join(REPO, "robotarium")
+SCRIPT = os.path.join(REPO, "bench", "wall_script.py")
+GOALS = {"cold": 2.5, "up": 1.5}   # s, with every result (issue 26, goal 1)
+
+
+def timed(command, env, cwd):
+    """(wall seconds, constructor s, loop s, output) of one command."""
+    started = time.perf_counter()
+    out = subprocess.run(command, env=env, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                         timeout=300)
+    wall = time.perf_counter() - started
+    match = re.search(r"TIMES ([0-9.]+) ([0-9.]+)", out.stdout)
+    if out.returncode != 0 or not match:
+        raise RuntimeError("%s failed (exit code %d):\n%s" % (" ".join(command), out.returncode, out.stdout))
+    return wall, float(match.group(1)), float(match.group(2)), out.stdout
+
+
+def results_of(output):
+    """The files of the run folder the last line names."""
+    match = re.search(r"files: (.*)", output)
+    return set(match.group(1).split(", ")) if match else set()
+
+
+class Up:
+    """./robotarium up on the domain, until stop()."""
+
+    def __init__(self, env, bags):
+        self.process = subprocess.Popen([ROBOTARIUM, "up", "--bags-dir", bags], env=env, stdout=subprocess.DEVNULL,
+                                        stderr=subprocess.PIPE, text=True, start_new_session=True)
+        for line in self.process.stderr:
+            if "testbed up" in line:
+                return
+        raise RuntimeError("./robotarium up did not come up")
+
+    def stop(self):
+        os.killpg(self.process.pid, signal.SIGINT)
+        try:
+            self.process.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            os.killpg(self.process.pid, signal.SIGKILL)
+            self.process.wait()
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+    print("wall to prompt, %s, %s, %d cores, Python %s, load average %.2f %.2f %.2f" % (
+        time.strftime("%Y-%m-%d %H:%M"), platform.machine(), os.cpu_count(), platform.python_version(),
+        *os.getloadavg()), flush=True)
+    subprocess.run([ROBOTARIUM, "setup"], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    work = tempfile.mkdtemp(prefix="bench-wall-")
+    bags = os.path.join(work, "bags")
+    env = {k: v for k, v in os.environ.items() if k not in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOCALHOST_ONLY")}
+    cold_env = dict(env, ROS_DOMAIN_ID=str(unique_domain_id()))
+    up_env = dict(env, ROS_DOMAIN_ID=str(unique_domain_id()))
+    run = [ROBOTARIUM, "run", "--lockstep", "--bags-dir", bags, "--results-dir", os.path.join(work, "results")]
+    rows = {"peer": [], "cold": [], "cold --no-video": [], "up": [], "up --no-video": []}
+    files = {}
+    try:
+        up = Up(up_env, bags)
+        try:
+            for _ in range(args.repeat):   # interleaved: every row sees the same load
+                rows["peer"].append(timed([REFERENCE_PYTHON, SCRIPT], _reference_env(), tempfile.gettempdir()))
+                rows["cold"].append(timed(run + [SCRIPT], cold_env, work))
+                rows["cold --no-video"].append(timed(run + ["--no-video", SCRIPT], cold_env, work))
+                rows["up"].append(timed(run + [SCRIPT], up_env, work))
+                rows["up --no-video"].append(timed(run + ["--no-video", SCRIPT], up_env, work))
+                for name in ("cold", "up"):
+                    files[name] = results_of(rows[name][-1][3])
+        finally:
+            up.stop()
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    print("3 robots, 300 lockstep steps, no figure, no barrier (bench/wall_script.py); median of %d runs, "
+          "interleaved" % args.repeat)
+    print("| | wall to prompt (s) | constructor / loop (s) | runs (s) |")
+    print("|---|---|---|---|")
+    labels = {"peer": "Robotarium simulator 0.0.0 (one process, no results)",
+              "cold": "`./robotarium run`, no testbed up (starts one), with video",
+              "cold --no-video": "same, `--no-video`",
+              "up": "`./robotarium up` already running, with video",
+              "up --no-video": "same, `--no-video`"}
+    median = {}
+    for name, runs in rows.items():
+        median[name] = statistics.median(r[0] for r in runs)
+        print("| %s | %.2f | %.2f / %.2f | %s |" % (
+            labels[name], median[name], statistics.median(r[1] for r in runs), statistics.median(r[2] for r in runs),
+            " ".join("%.2f" % r[0] for r in runs)))
+    print("load average after: %.2f %.2f %.2f" % os.getloadavg())
+    for name, goal in GOALS.items():
+        complete = {"report.txt", "trajectories.png", "run.mp4", "index.html"} <= files.get(name, set())
+        print("goal: %s with every result <= %.1f s: %.2f s (%.1f x the peer's %.2f s)%s -> %s" % (
+            labels[name], goal, median[name], median[name] / median["peer"], median["peer"],
+            "" if complete else " (results missing: %s)" % sorted(files.get(name, ())),
+            "met" if median[name] <= goal and complete else "not met"))
+
+
+if __name__ == "__main__":
+    main()
