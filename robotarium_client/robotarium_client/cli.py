@@ -394,6 +394,42 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
         interruption.restore()
 
 
+# Seconds a testbed elsewhere on the domain has to answer before `run` starts one here. DDS discovery
+# takes tens of milliseconds on a network (a new participant's announcement is answered at once);
+# the nodes started behind the start gate import meanwhile, so the search costs little.
+PROBE_WAIT = 1.0
+# ... and one seen running on this machine (in the process table) has the time it had before.
+LOCAL_PROBE_WAIT = 3.0
+
+
+def discovery_is_local():
+    """Whether DDS discovery on this shell's domain reaches only this machine (then the process
+    table knows every testbed that could answer)."""
+    reach = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").strip().upper()
+    return reach in ("LOCALHOST", "OFF") and not os.environ.get("ROS_STATIC_PEERS", "").strip()
+
+
+def find_or_start_testbed(ns, record, bags_dir, config_file):
+    """The testbed for a run: None when one answers in `ns` on the domain, else a LocalTestbed
+    started here. Its nodes start at once behind a start gate (their imports overlap the search)
+    and join DDS only once no testbed answered: never two testbeds in one namespace."""
+    from robotarium_client import local_testbeds
+    here = local_testbeds.matching(local_testbeds.find(), ns, local_testbeds.domain_id())
+    running_here = any(any(name.startswith("simulator") for name in t["nodes"]) for t in here)
+    if running_here:   # ./robotarium up (or ros2 run) on this machine: it answers
+        if testbed_answers(ns, timeout=LOCAL_PROBE_WAIT):
+            return None
+    testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file).start(gated=True)
+    try:
+        if not running_here and not discovery_is_local() and testbed_answers(ns, timeout=PROBE_WAIT):
+            testbed.cancel()
+            return None
+    except BaseException:
+        testbed.cancel()
+        raise
+    return testbed.open()
+
+
 def _run_script(script, script_args, real_time, record, bags_dir, results, video, local_testbed, config_file,
                 time_limit, hardware, seed, interruption, results_dir, started_at, rps_api=None, audit=False,
                 own_testbed=False, wait=True):
@@ -405,16 +441,20 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
     if own_testbed:
         if interruption.signum is None:
             testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file).start()
-    elif testbed_answers(ns, timeout=3.0 if local_testbed else 60.0):
-        say("using the testbed that answers in %s" % ns)
     elif not local_testbed:
-        say("no testbed answers in %s on ROS_DOMAIN_ID %s (--no-local-testbed forbids starting one); "
-            "start it with ./robotarium up" % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
-        return outcomes.EXIT_CODES[outcomes.TESTBED_LOST], None, None
+        if testbed_answers(ns, timeout=60.0):
+            say("using the testbed that answers in %s" % ns)
+        else:
+            say("no testbed answers in %s on ROS_DOMAIN_ID %s (--no-local-testbed forbids starting one); "
+                "start it with ./robotarium up" % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
+            return outcomes.EXIT_CODES[outcomes.TESTBED_LOST], None, None
     elif interruption.signum is None:
-        testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file).start()
-        say("no testbed answers in %s: started one on this machine for this run (logs in %s)"
-            % (ns, _shown(testbed.log_dir)))
+        testbed = find_or_start_testbed(ns, record, bags_dir, config_file)
+        if testbed is None:
+            say("using the testbed that answers in %s" % ns)
+        else:
+            say("no testbed answers in %s: started one on this machine for this run (logs in %s)"
+                % (ns, _shown(testbed.log_dir)))
     work = tempfile.mkdtemp(prefix="robotarium-run-")
     info_path = os.path.join(work, "run.json")
     log_path = os.path.join(work, "log.txt")

@@ -49,6 +49,7 @@ STARTUP_WAIT = 60.0   # s for a testbed started here to come up
 EXIT_TIME_LIMIT = 5   # exit code of a script stopped at the time limit (README: exit codes)
 STEP_TIMEOUT = 10.0   # s without poses after a step() before we give up with an explanation
 CONFIG_WAIT = 2.0     # s for the testbed's latched configuration once its services answer
+GRAPH_POLL = 0.01     # s between looks at what only the DDS graph says (a reader matched) while waiting
 
 
 class TestbedLost(RuntimeError):
@@ -261,7 +262,8 @@ class Robotarium(RobotariumABC):
 
         local_allowed = self._options.local_testbed
         wait = self._options.connect_wait if local_allowed else max(self._options.connect_wait, STARTUP_WAIT)
-        if not self._start_client.wait_for_service(timeout_sec=wait):
+        from robotarium_core.node_tools import wait_for_service
+        if not wait_for_service(self._start_client, wait):
             if not local_allowed:
                 self._shutdown()
                 raise RuntimeError(
@@ -270,7 +272,7 @@ class Robotarium(RobotariumABC):
                     % (self._ns, os.environ.get("ROS_DOMAIN_ID", "0")))
             print("[robotarium] no testbed answers in %s: starting one on this machine" % self._ns, file=sys.stderr)
             self._local_testbed = LocalTestbed(ns=self._ns).start()
-            if not self._start_client.wait_for_service(timeout_sec=STARTUP_WAIT):
+            if not wait_for_service(self._start_client, STARTUP_WAIT):
                 failed = self._local_testbed.failed()
                 self._shutdown()
                 raise RuntimeError("The local testbed did not come up (exited: %s); see %s."
@@ -451,11 +453,13 @@ class Robotarium(RobotariumABC):
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 return False
-            self._executor.spin_once(timeout_sec=min(remaining, 0.1))
+            # (messages wake it at once; the graph - a reader matched - is looked at every GRAPH_POLL)
+            self._executor.spin_once(timeout_sec=min(remaining, GRAPH_POLL))
         return True
 
     def _call(self, client, request, timeout=30.0):
-        if not client.wait_for_service(timeout_sec=timeout):
+        from robotarium_core.node_tools import wait_for_service
+        if not wait_for_service(client, timeout):
             raise TestbedLost("The testbed's %s service is gone." % client.srv_name)
         future = client.call_async(request)
         if not self._spin_until(future.done, timeout):

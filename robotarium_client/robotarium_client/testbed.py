@@ -100,6 +100,7 @@ class LocalTestbed:
 
     def __init__(self, log_dir=None, record=True, ns=None, bags_dir=None, quiet=True, config_file=None,
                  hardware=False):
+        self.gate = None
         self.ns = ns or namespace()
         self.config_file = config_file
         self.log_dir = log_dir   # None: log/testbed/<namespace>_<domain>_<pid>/, chosen at start
@@ -110,11 +111,17 @@ class LocalTestbed:
         self.processes = {}
         self.registry_entry = None
 
-    def start(self):
+    def start(self, gated=False):
+        """Start the nodes. gated: they import and then wait at a start gate before joining DDS,
+        until open() lets them go on (or cancel() ends them): `./robotarium run` starts them so
+        while it still looks for a testbed on the domain."""
         self.log_dir = self.log_dir or default_log_dir(self.ns)
         os.makedirs(self.log_dir, exist_ok=True)
         # Each node reads the lifeline's end: it stops when this process is gone, however it went.
         env, pass_fds = lifeline.for_child(os.environ)
+        self.gate = lifeline.StartGate() if gated else None
+        if self.gate is not None:
+            env, pass_fds = self.gate.for_child(env, pass_fds)
         for name in self.names:
             extra = ["-p", "bags_dir:=%s" % self.bags_dir] if name == "recorder" and self.bags_dir else []
             if name == "simulator" and self.hardware:
@@ -123,8 +130,30 @@ class LocalTestbed:
             self.processes[name] = (subprocess.Popen(
                 node_command(name, self.ns, extra, self.config_file), stdout=log, stderr=subprocess.STDOUT if log else None,
                 env=env, pass_fds=pass_fds, start_new_session=True), log)
-        self.registry_entry = local_testbeds.register(self, owner_command())
+        if self.gate is None:
+            self.registry_entry = local_testbeds.register(self, owner_command())
+        else:
+            self.gate.close_read_end()
         return self
+
+    def open(self):
+        """Let the nodes of a gated start go on (they join DDS now)."""
+        self.registry_entry = local_testbeds.register(self, owner_command())
+        self.gate.open(len(self.processes))
+        self.gate = None
+        return self
+
+    def cancel(self):
+        """End the nodes of a gated start that was not opened: they never joined DDS (no
+        experiment, no recording), so they are killed at once rather than waited for."""
+        self.gate.close()
+        self.gate = None
+        for process, log in self.processes.values():
+            _kill_group(process)
+            if log:
+                log.close()
+        self.processes = {}
+        shutil.rmtree(self.log_dir, ignore_errors=True)   # nothing ran: no logs to keep
 
     def failed(self):
         """Names of nodes that exited, with their exit codes."""
@@ -133,6 +162,9 @@ class LocalTestbed:
     def stop(self, grace=5.0):
         """SIGINT everyone (the simulator ends a running experiment, the recorder closes its bag:
         node_tools.run_node's wind-down, at most 2 s), then SIGKILL what is left after `grace`."""
+        if self.gate is not None:   # never let through: nothing to wind down
+            self.cancel()
+            return
         for process, _ in self.processes.values():
             if process.poll() is None:
                 os.killpg(process.pid, signal.SIGINT)
@@ -156,12 +188,21 @@ class LocalTestbed:
         self.stop()
 
 
+def _kill_group(process):
+    try:
+        os.killpg(process.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    process.wait()
+
+
 def testbed_answers(ns=None, timeout=3.0):
     """True when a simulator on this DDS domain offers <ns>/start_experiment within `timeout`."""
     import rclpy
     from rclpy.context import Context
     from rclpy.node import Node
 
+    from robotarium_core.node_tools import wait_for_service
     from robotarium_msgs.srv import StartExperiment
 
     context = Context()
@@ -169,7 +210,7 @@ def testbed_answers(ns=None, timeout=3.0):
     try:
         node = Node("robotarium_probe_%d" % os.getpid(), context=context)
         client = node.create_client(StartExperiment, "%s/start_experiment" % (ns or namespace()))
-        found = client.wait_for_service(timeout_sec=timeout)
+        found = wait_for_service(client, timeout)
         node.destroy_node()
         return found
     finally:

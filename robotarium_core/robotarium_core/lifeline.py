@@ -54,3 +54,71 @@ def watch(on_lost, name="lifeline"):
 
     threading.Thread(target=wait, name=name, daemon=True).start()
     return True
+
+
+# -- a start gate: processes started early, held until their starter decides ------------------------
+
+GATE_ENV = "ROBOTARIUM_START_GATE_FD"
+
+
+class StartGate:
+    """Start processes now and let them go on later, or never: `./robotarium run` starts a testbed's
+    nodes while it still looks for one on the domain, so their imports (most of a node's start)
+    overlap the search; each node waits at the gate (pass_start_gate) before it joins DDS. open()
+    lets them go on; a gate closed without open() (cancel(), or the starter's death) makes them exit
+    without ever having joined DDS."""
+
+    def __init__(self):
+        self._read, self._write = os.pipe()
+
+    def for_child(self, env, pass_fds):
+        """(env, pass_fds) for subprocess.Popen, with this gate added."""
+        return dict(env, **{GATE_ENV: str(self._read)}), tuple(pass_fds) + (self._read,)
+
+    def open(self, children):
+        """Let `children` processes through (each takes one byte)."""
+        try:
+            os.write(self._write, b"1" * children)
+        except BrokenPipeError:   # they are all gone already: LocalTestbed.failed() says so
+            pass
+        self.close()
+
+    def close_read_end(self):
+        """After the children were started: only they read."""
+        try:
+            os.close(self._read)
+        except OSError:
+            pass
+        self._read = -1
+
+    def close(self):
+        for fd in (self._read, self._write):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        self._read = self._write = -1
+
+
+def pass_start_gate():
+    """In a process started behind a StartGate, wait until it opens: True then, or at once when
+    there is no gate; False when it was closed without opening (exit without joining DDS)."""
+    value = os.environ.pop(GATE_ENV, None)
+    if value is None:
+        return True
+    try:
+        fd = int(value)
+        if not stat.S_ISFIFO(os.fstat(fd).st_mode):
+            return True   # a stale variable: no gate
+        while True:
+            try:
+                return os.read(fd, 1) == b"1"
+            except InterruptedError:
+                continue
+    except (ValueError, OSError, KeyboardInterrupt):
+        return False
+    finally:
+        try:
+            os.close(fd)
+        except (OSError, UnboundLocalError):
+            pass

@@ -115,6 +115,22 @@ class StopRequest:
             self._wake.trigger()
 
 
+SERVICE_POLL = 0.01   # s between looks at the DDS graph while waiting for a service
+
+
+def wait_for_service(client, timeout):
+    """Client.wait_for_service without its 0.25 s steps (rclpy sleeps that long between looks at
+    the graph): True as soon as the service is there, False after `timeout` seconds."""
+    deadline = time.monotonic() + timeout
+    while client.context.ok():
+        if client.service_is_ready():
+            return True
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(SERVICE_POLL)
+    return False
+
+
 def take_waiting(subscription, limit=10_000):
     """The messages waiting in `subscription`'s queue, taken now (raw bytes for a raw=True one).
 
@@ -160,7 +176,11 @@ def run_node(make_node, name, args=None, before_destroy=None):
     WIND_DOWN_LIMIT passed (a second signal cuts it short). So on Ctrl-C, `kill`, or the death of
     the process that started the testbed, the simulator ends the running experiment and the recorder
     records that end and closes the bag before anything exits. Nodes started with `ros2 run` get
-    no lifeline and stop on the signals alone."""
+    no lifeline and stop on the signals alone. A node started behind a start gate
+    (lifeline.StartGate: ./robotarium run, while it looks for a testbed) waits there first and
+    exits at once (0) when the gate is closed without opening."""
+    if not lifeline.pass_start_gate():
+        return 0
     bounded_memory()
     # rclpy's own handlers would shut the context down at the first signal, before the wind-down.
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
