@@ -50,6 +50,10 @@ _STAMP_FIRST = {"std_msgs/Header", "Header", "std_msgs/msg/Header", "builtin_int
 _INFINITE = {"sec": 9223372036, "nsec": 854775807}   # RMW_DURATION_INFINITE as rosbag2 writes it
 # libyaml's emitter when PyYAML has it: the pure-Python one costs the recorder ~5 % of a core.
 _DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+# A bag of up to this many bytes keeps its messages in memory from the scan that opens it, so the
+# report, the plot and the video read the file once, not once per topic they need.
+KEEP_IN_MEMORY = 64 * 1024 * 1024
 
 
 def _repo_root():
@@ -350,6 +354,18 @@ BagMessage = namedtuple("BagMessage", "topic type log_time publish_time data")
 TopicInfo = namedtuple("TopicInfo", "type count offered_qos")
 
 
+def _once(method):
+    """A Bag method that reads the same whatever the call: computed once per Bag (a copy of a list)."""
+    def once(self):
+        memo = self.__dict__.setdefault("_memo", {})
+        if method.__name__ not in memo:
+            memo[method.__name__] = method(self)
+        value = memo[method.__name__]
+        return list(value) if isinstance(value, list) else value
+    once.__name__, once.__doc__ = method.__name__, method.__doc__
+    return once
+
+
 class Bag:
     """A recorded run (a rosbag2 folder, its metadata.yaml or an .mcap file), read record by record.
 
@@ -369,7 +385,7 @@ class Bag:
             meta = os.path.join(path, "metadata.yaml")
             if os.path.isfile(meta):
                 with open(meta, encoding="utf-8") as f:
-                    self.metadata = (yaml.safe_load(f) or {}).get("rosbag2_bagfile_information")
+                    self.metadata = (yaml.load(f, Loader=_LOADER) or {}).get("rosbag2_bagfile_information")
             names = (self.metadata or {}).get("relative_file_paths") or []
             files = [os.path.join(path, os.path.basename(n)) for n in names]
             files = [f for f in files if os.path.isfile(f)] or sorted(glob.glob(os.path.join(path, "*.mcap")))
@@ -401,12 +417,15 @@ class Bag:
         self.topics = {}
         self.start_ns, self.end_ns = None, None
         counts, types, qos = {}, {}, {}
+        kept = [] if sum(os.path.getsize(f) for f in self.files) <= KEEP_IN_MEMORY else None
         for path in self.files:
             schema_names, channels, footer = {}, {}, None
             for record in self._records(path):
                 if isinstance(record, Message):
                     topic = channels[record.channel_id]
                     counts[topic] += 1
+                    if kept is not None:
+                        kept.append(BagMessage(topic, types[topic], record.log_time, record.publish_time, record.data))
                     t = record.log_time
                     self.start_ns = t if self.start_ns is None else min(self.start_ns, t)
                     self.end_ns = t if self.end_ns is None else max(self.end_ns, t)
@@ -423,7 +442,9 @@ class Bag:
             if footer is None or footer.summary_start == 0:
                 self.complete = False
         for topic, count in counts.items():
-            self.topics[topic] = TopicInfo(types[topic], count, (yaml.safe_load(qos[topic]) if qos[topic] else None) or [])
+            self.topics[topic] = TopicInfo(types[topic], count,
+                                           (yaml.load(qos[topic], Loader=_LOADER) if qos[topic] else None) or [])
+        self._kept = kept
         status = [t for t, info in self.topics.items() if info.type == "robotarium_msgs/msg/TestbedStatus"]
         self.namespace = status[0].rsplit("/", 1)[0] if status else "/robotarium"
 
@@ -445,6 +466,9 @@ class Bag:
     def messages(self, topics=None):
         """Every message (BagMessage, raw CDR bytes) in file order, optionally only of `topics`."""
         wanted = None if topics is None else set(topics)
+        if self._kept is not None:
+            yield from (m for m in self._kept if wanted is None or m.topic in wanted)
+            return
         for path in self.files:
             schemas, channels = {}, {}
             for record in self._records(path):
@@ -498,6 +522,7 @@ class Bag:
         wanted = self.own_keys().get(suffix)
         return wanted is None or _sha256(key) == wanted
 
+    @_once
     def poses(self):
         """The run's poses, one row per poses message: PoseTrack(steps, sim_time, stamp_ns, log_ns,
         ids, x, y, theta) with x, y, theta of shape (messages, N). Messages with another set of ids
@@ -537,6 +562,7 @@ class Bag:
                                bool(getattr(msg, "requested_exceeds_limits", False))))
         return out
 
+    @_once
     def config(self):
         """The TestbedConfig the run was made with (the simulator's `config` topic); the packaged
         default for a bag recorded before the configuration travelled with runs."""
@@ -562,6 +588,7 @@ class Bag:
                 continue   # not ours: anything may publish on a topic
         return out
 
+    @_once
     def experiment(self):
         """The experiment's settings (the simulator's `experiment` topic: api, obstacles, drive-on
         goals) as a dict; {} for a bag recorded before they travelled with runs."""
@@ -570,8 +597,9 @@ class Bag:
         if name not in self.topics:
             return {}
         texts = [msg.data for _, msg in self.decoded([name])]
-        return (yaml.safe_load(texts[-1]) or {}) if texts else {}
+        return (yaml.load(texts[-1], Loader=_LOADER) or {}) if texts else {}
 
+    @_once
     def statuses(self):
         """Decoded TestbedStatus messages in recorded order."""
         name = self.topic("status", required=False)
