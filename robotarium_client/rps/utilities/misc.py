@@ -1,7 +1,9 @@
 """Initial conditions, "close enough" tests and plot sizes (guide section 4.7).
 
-Like rps, this module imports matplotlib.pyplot as plt, and `from rps.utilities.misc import *`
-brings `np` and `plt` into a script (the guide's plotting examples rely on it).
+Like rps, this module carries matplotlib.pyplot as plt, and `from rps.utilities.misc import *`
+brings `np` and `plt` into a script (the guide's plotting examples rely on it). pyplot is imported
+when `plt` is first asked for (the star import asks), not by `import rps.robotarium`, which
+loads this module too: a script that never plots saves pyplot's import (about 0.3 s).
 
 Differences from rps 0.0.0, each marked "Fix:" in the code:
 * at_position compared against an undefined name (poses) and always raised NameError.
@@ -9,15 +11,22 @@ Differences from rps 0.0.0, each marked "Fix:" in the code:
 * determine_marker_size / determine_font_size failed with an AttributeError on a Robotarium
   made with show_figure=False (its axes is an empty list); they now say what is wrong.
 """
-import matplotlib.pyplot as plt
 import numpy as np
 
 from robotarium_core.model import MAX_ROBOTS, MIN_ROBOTS
 from rps.utilities import RobotariumError, _check_array, _check_number, _describe
 
+def __getattr__(name):
+    if name == "plt":   # (PEP 562) imported on first use, then a plain attribute
+        import matplotlib.pyplot as plt
+        globals()["plt"] = plt
+        return plt
+    raise AttributeError("module %r has no attribute %r" % (__name__, name))
+
+
 __all__ = [
     "np",
-    "plt",
+    "plt",   # noqa: F822 - made by __getattr__ on first use
     "generate_initial_conditions",
     "at_pose",
     "at_position",
