@@ -182,7 +182,24 @@ def _tee(stream, sinks):
                 sinks.remove(sink)
 
 
-def wait_until_recorded(run_dir, timeout=15.0):
+def _import_results(video):
+    """Import what making the results needs (matplotlib, the bag reader's message types, Pillow,
+    ffmpeg's path): done in a thread while the script runs, where the lockstep chain leaves a core
+    mostly idle, rather than after it (about 0.7 s on a quiet machine)."""
+    try:
+        import matplotlib.figure  # noqa: F401
+        from matplotlib.backends import backend_agg  # noqa: F401
+        from rosbags.typesys.stores import ros2_jazzy  # noqa: F401
+
+        from robotarium_recording import page, pictures, results  # noqa: F401
+        if video:
+            import PIL.ImageDraw  # noqa: F401
+            pictures.ffmpeg_path()
+    except Exception:   # noqa: BLE001 - only a head start: the results import for themselves
+        pass
+
+
+def wait_until_recorded(run_dir, timeout=15.0, quiet=False):
     """The recorder closes a run's bag shortly after the run ended (it keeps late messages for a
     moment); results made before that would miss the last chunk. Wait for metadata.yaml to say
     the bag is complete."""
@@ -197,8 +214,9 @@ def wait_until_recorded(run_dir, timeout=15.0):
                 return True
         except (OSError, KeyError, TypeError, yaml.YAMLError):
             pass  # not written yet, or being replaced
-        time.sleep(0.1)
-    say("the recorder has not closed %s yet; results are made from what is recorded so far" % run_dir)
+        time.sleep(0.02)
+    if not quiet:
+        say("the recorder has not closed %s yet; results are made from what is recorded so far" % run_dir)
     return False
 
 
@@ -394,11 +412,12 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
         interruption.restore()
 
 
-# Seconds a testbed elsewhere on the domain has to answer before `run` starts one here. DDS discovery
-# takes tens of milliseconds on a network (a new participant's announcement is answered at once);
-# the nodes started behind the start gate import meanwhile, so the search costs little.
-PROBE_WAIT = 1.0
-# ... and one seen running on this machine (in the process table) has the time it had before.
+# Seconds a testbed elsewhere on the domain has to answer before `run` starts one here: discovery
+# usually takes tens of milliseconds, but now and then waits for Fast DDS's next periodic
+# announcement (3 s; docs/benchmarks.md). The nodes started behind the start gate import meanwhile.
+# Where discovery reaches this machine only, the process table knows every testbed: no wait.
+PROBE_WAIT = 3.0
+# ... and one seen running on this machine (in the process table) has as long.
 LOCAL_PROBE_WAIT = 3.0
 
 
@@ -475,6 +494,8 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
     before = _snapshot(cwd)
     started = time.time()
     code = None
+    if results and record:   # made while the script runs: the results' imports
+        threading.Thread(target=_import_results, args=(video,), daemon=True).start()
     try:
         if interruption.signum is None:
             with open(log_path, "wb") as log:
@@ -487,8 +508,19 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
                 code = process.wait()
     finally:
         if testbed is not None:
-            testbed.stop()  # the simulator ends an experiment still running; the recorder closes the bag
+            testbed.begin_stop()  # the simulator ends an experiment still running; the recorder closes the bag
         interruption.restore()   # from here on (results, video) a signal acts as usual
+    try:   # the results are made as soon as the bag is closed, while the nodes exit
+        return _collect_run(script, code, testbed, interruption, work, info_path, log_path, started, started_at,
+                            before, cwd, bags_dir, results, results_dir, name, video)
+    finally:
+        if testbed is not None:
+            testbed.stop()
+
+
+def _collect_run(script, code, testbed, interruption, work, info_path, log_path, started, started_at, before, cwd,
+                 bags_dir, results, results_dir, name, video):
+    """What run_script does after the script's process ended: the run folder and the results."""
     if code is None:
         say("interrupted (%s) before the script started%s" % (
             interruption.name, "; the testbed this run started was stopped" if testbed is not None else ""))
@@ -537,12 +569,19 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
         if info.get("recording_stopped_at_step") is not None:
             # The recorder is gone: nothing will close the bag. Make its metadata agree with its file.
             from robotarium_recording.bag import recover_bag
+            if testbed is not None:
+                testbed.stop()
             recover_bag(run_dir)
             say("the recorder was lost at step %d: %s holds the run up to there (recovered)"
                 % (info["recording_stopped_at_step"], run_dir))
         else:
             # A lost testbed may never close the bag: then take what is on disk after a short wait.
-            wait_until_recorded(run_dir, timeout=15.0 if info.get("ended") else 3.0)
+            timeout = 15.0 if info.get("ended") else 3.0
+            if testbed is None:
+                wait_until_recorded(run_dir, timeout)
+            elif not wait_until_recorded(run_dir, timeout, quiet=True):
+                testbed.stop()   # its recorder closes the bag as it stops (or is gone)
+                wait_until_recorded(run_dir, timeout=1.0)
         from robotarium_recording.results import write_results
         try:
             write_results(run_dir, progress=True, video=video, run=run)

@@ -101,6 +101,7 @@ class LocalTestbed:
     def __init__(self, log_dir=None, record=True, ns=None, bags_dir=None, quiet=True, config_file=None,
                  hardware=False):
         self.gate = None
+        self._stop_deadline = None   # set by begin_stop()
         self.ns = ns or namespace()
         self.config_file = config_file
         self.log_dir = log_dir   # None: log/testbed/<namespace>_<domain>_<pid>/, chosen at start
@@ -159,16 +160,25 @@ class LocalTestbed:
         """Names of nodes that exited, with their exit codes."""
         return {name: p.returncode for name, (p, _) in self.processes.items() if p.poll() is not None}
 
-    def stop(self, grace=5.0):
+    def begin_stop(self, grace=5.0):
         """SIGINT everyone (the simulator ends a running experiment, the recorder closes its bag:
-        node_tools.run_node's wind-down, at most 2 s), then SIGKILL what is left after `grace`."""
-        if self.gate is not None:   # never let through: nothing to wind down
-            self.cancel()
+        node_tools.run_node's wind-down, at most 2 s); stop() then waits for them. Between the two
+        the caller may do other work (./robotarium run makes the results once the bag is closed,
+        while the nodes exit)."""
+        if self.gate is not None or self._stop_deadline is not None:
             return
         for process, _ in self.processes.values():
             if process.poll() is None:
                 os.killpg(process.pid, signal.SIGINT)
-        deadline = time.monotonic() + grace
+        self._stop_deadline = time.monotonic() + grace
+
+    def stop(self, grace=5.0):
+        """begin_stop() (if not done yet), then SIGKILL what is left `grace` seconds after it."""
+        if self.gate is not None:   # never let through: nothing to wind down
+            self.cancel()
+            return
+        self.begin_stop(grace)
+        deadline, self._stop_deadline = self._stop_deadline, None
         for process, log in self.processes.values():
             try:
                 process.wait(timeout=max(0.1, deadline - time.monotonic()))
