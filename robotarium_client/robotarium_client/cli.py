@@ -205,12 +205,30 @@ def wait_until_recorded(run_dir, timeout=15.0):
 # -- before a testbed is started: can the script run at all? ---------------------------------------
 
 def _close_module_name(name):
-    """An installed top-level module whose name is close to `name` (an import typo), or None."""
+    """An importable module whose dotted name is close to `name` (an import typo: `nump` -> `numpy`,
+    `rps.utilities.misk` -> `rps.utilities.misc`), or None. The first part that is missing is
+    compared with its siblings: the top-level modules, or the submodules of the package above it."""
     import difflib
+    import importlib.util
     import pkgutil
-    names = set(sys.builtin_module_names) | {m.name for m in pkgutil.iter_modules()}
-    match = difflib.get_close_matches(name, sorted(names), n=1, cutoff=0.75)
-    return match[0] if match else None
+    parts = name.split(".")
+    for depth in range(len(parts)):
+        try:
+            if importlib.util.find_spec(".".join(parts[:depth + 1])) is not None:
+                continue
+        except (ImportError, ValueError):
+            pass
+        if depth == 0:
+            siblings = set(sys.builtin_module_names) | {m.name for m in pkgutil.iter_modules()}
+        else:
+            parent = importlib.util.find_spec(".".join(parts[:depth]))
+            locations = parent.submodule_search_locations if parent is not None else None
+            if not locations:
+                return None   # the part above is a module, not a package: nothing to compare with
+            siblings = {m.name for m in pkgutil.iter_modules(locations)}
+        match = difflib.get_close_matches(parts[depth], sorted(siblings), n=1, cutoff=0.75)
+        return ".".join(parts[:depth] + [match[0]] + parts[depth + 1:]) if match else None
+    return None
 
 
 def check_script(script):
@@ -254,9 +272,8 @@ def check_script(script):
                 except Exception as failed:   # noqa: BLE001 - a parent package that fails to import
                     found, error = False, session.describe_exception(failed)
                 if not found:
-                    top = name.split(".")[0]
-                    close = _close_module_name(top) if "No module named" in error else None
-                    hint = "Did you mean %r?" % close if close and close != top else ""
+                    close = _close_module_name(name) if "No module named" in error else None
+                    hint = "Did you mean %r?" % close if close and close != name else ""
                     text = '  File "%s", line %d\n    %s\nModuleNotFoundError: %s%s\n' % (
                         script, node.lineno, lines[node.lineno - 1].strip(), error, " " + hint if hint else "")
                     return ("could not import %s: ModuleNotFoundError: %s (line %d of %s%s)"
