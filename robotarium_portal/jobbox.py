@@ -37,6 +37,7 @@ import struct
 import subprocess
 import sys
 import time
+import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -121,30 +122,72 @@ def _status(pid):
         with open("/proc/%s/status" % pid) as f:
             for line in f:
                 key, _, value = line.partition(":")
-                if key in ("Uid", "PPid"):
+                if key in ("Uid", "PPid", "Threads"):
                     fields[key] = int(value.split()[0])
+                elif key == "State":
+                    fields[key] = value.split()[0]
     except (OSError, ValueError, IndexError):
         return None
     return fields
 
 
-def processes_of(uid):
-    """{pid: parent pid} of every live process whose real uid is uid."""
-    found = {}
+def processes_of(uid, tasks=None):
+    """{pid: parent pid} of every live process whose real uid is uid. tasks (a list): gets the number of
+    tasks the kernel's process limit counts for uid (threads, and zombies not yet reaped)."""
+    found, count = {}, 0
     for entry in os.listdir("/proc"):
         if entry.isdigit():
             status = _status(entry)
             if status and status.get("Uid") == uid:
-                found[int(entry)] = status["PPid"]
+                count += status.get("Threads", 1)
+                if status.get("State") != "Z":   # a zombie is gone already
+                    found[int(entry)] = status["PPid"]
+    if tasks is not None:
+        tasks.append(count)
     return found
 
 
 def kill_account(uid):
-    """SIGKILL every process of uid until none is left (a fork bomb's children included); returns how
-    many were killed. Each is taken by a pidfd first, so a recycled pid is never signalled."""
-    killed = 0
-    for _ in range(200):
-        pids = processes_of(uid)
+    """SIGKILL every process of uid (a fork bomb's children included); returns how many there were.
+    kill(-1) from a child that became uid reaches all of them in one go, so none forks a new one meanwhile;
+    the child never execs, so the account's process limit cannot stop it."""
+    before = len(processes_of(uid))
+    for _ in range(50):
+        if not processes_of(uid):
+            break
+        with warnings.catch_warnings():   # "fork in a threaded process": the child makes two system calls only
+            warnings.simplefilter("ignore", DeprecationWarning)
+            child = os.fork()
+        if child == 0:   # pragma: no cover - the child: only system calls, then out
+            try:
+                os.setresuid(uid, uid, uid)
+                os.kill(-1, signal.SIGKILL)
+            finally:
+                os._exit(0)
+        os.waitpid(child, 0)
+        time.sleep(0.05)   # the killed are reaped by their parents (or init)
+    return before
+
+
+def in_namespace(netns):
+    """The pids of the processes in the network namespace netns (its /proc/PID/ns/net link)."""
+    found = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                if os.readlink("/proc/%s/ns/net" % entry) == netns:
+                    found.append(int(entry))
+            except OSError:
+                continue
+    return found
+
+
+def kill_namespace(netns):
+    """SIGKILL whatever still runs in a job's network namespace once its command ended (a testbed node
+    whose command line was killed): every process of the job is in it. How many there were."""
+    before = len(in_namespace(netns))
+    for _ in range(50):
+        pids = in_namespace(netns)
         if not pids:
             break
         for pid in pids:
@@ -153,16 +196,14 @@ def kill_account(uid):
             except OSError:
                 continue
             try:
-                status = _status(pid)
-                if status and status.get("Uid") == uid:
+                if os.readlink("/proc/%d/ns/net" % pid) == netns:
                     signal.pidfd_send_signal(fd, signal.SIGKILL)
-                    killed += 1
             except OSError:
                 pass
             finally:
                 os.close(fd)
         time.sleep(0.05)
-    return killed
+    return before
 
 
 def folder_bytes(path):
@@ -287,12 +328,19 @@ class JobBox:
             if started:
                 started(process.pid)
             deadline = time.monotonic() + timeout
+            own_netns, netns = os.readlink("/proc/self/ns/net"), None
             while True:
                 try:
                     code = process.wait(timeout=WATCH_PERIOD)
                     break
                 except subprocess.TimeoutExpired:
                     pass
+                if netns is None:   # the door has made the job's namespace (then exec'd the command)
+                    try:
+                        netns = os.readlink("/proc/%d/ns/net" % process.pid)
+                    except OSError:
+                        pass
+                    netns = None if netns == own_netns else netns
                 if time.monotonic() > deadline:
                     notes.append("the job did not end within its %d s; it was stopped" % timeout)
                     timed_out = True
@@ -304,16 +352,23 @@ class JobBox:
                     self._stop_script()
                     # What the script wrote goes (it would be copied to the results otherwise).
                     for path in sorted(set(self.folder.rglob("*")) - given, reverse=True):
-                        if path.is_file() or path.is_symlink():
-                            path.unlink(missing_ok=True)
+                        try:
+                            if path.lstat().st_uid == self.uid and not path.is_dir():
+                                path.unlink()
+                        except OSError:
+                            continue
                     notes.append("the script's folder grew past the job's disk quota (%s); the script was stopped "
                                  "and the files it wrote were removed" % _mb(self.limits.disk_bytes))
-                left = self._leftovers(process.pid)
-                if left:
-                    notes.append("the script's process ended leaving %d processes behind; they were stopped" % left)
+                stopped = self._leftovers(process.pid)
+                if stopped:
+                    notes.append(stopped)
             killed = self._stop_script()
             if killed:
                 notes.append("%d processes the script left behind were stopped at the job's end" % killed)
+            left = kill_namespace(netns) if netns else 0
+            if left:
+                notes.append("%d processes of the job still ran when its command had ended; they were stopped"
+                             % left)
         log = Path(output_path).read_text(errors="replace")
         notes += [n for n in explain(log, self.limits, network=True) if n not in notes]
         with open(output_path, "a") as output:
@@ -324,20 +379,25 @@ class JobBox:
         return kill_account(self.uid) if isolated() else 0
 
     def _leftovers(self, job_pid):
-        """Processes of the job's account whose leader (the script's process, a child of the job's command)
-        has ended: stopped, and how many. 0 while the leader lives."""
+        """The script's processes, when they reached the job's process limit (a fork bomb: with processes
+        dying and forking in turn it would go on) or when their leader (the script's process, a child of
+        the job's command) has ended: stopped, and a note saying why. None otherwise."""
         if not isolated():
-            return 0
-        pids = processes_of(self.uid)
+            return None
+        tasks = []
+        pids = processes_of(self.uid, tasks)
         if not pids:
-            return 0
+            return None
+        if tasks[0] >= self.limits.processes:
+            return ("the script reached the job's limit of %d processes and threads; all %d of its processes "
+                    "were stopped" % (self.limits.processes, kill_account(self.uid)))
         for pid, parent in pids.items():
             try:
                 if parent not in pids and os.getpgid(parent) == job_pid:
-                    return 0   # the leader still runs
+                    return None   # the leader still runs
             except OSError:
                 continue
-        return kill_account(self.uid)
+        return "the script's process ended leaving %d processes behind; they were stopped" % kill_account(self.uid)
 
     def _wait_quietly(self, process, timeout):
         try:
