@@ -197,7 +197,8 @@ def test_the_network_and_the_database_are_out_of_reach(place):
     assert "the script tried to reach the network; a job has none beyond its own testbed (refused)" in output
 
 
-def test_through_the_portal_a_hostile_run_fails_with_its_message_and_the_next_one_completes(place, settings_dir):
+def test_through_the_portal_a_hostile_run_fails_with_its_message_and_the_next_one_completes(place, settings_dir,
+                                                                                             monkeypatch):
     from django.contrib.auth import get_user_model
     from django.test import override_settings
 
@@ -214,7 +215,7 @@ def test_through_the_portal_a_hostile_run_fails_with_its_message_and_the_next_on
         experiments.append(experiment)
     made.append(jobbox.account_name(tasks.RUN_CLUSTER))   # the portal's run slot's account (removed after)
     domain = unique_domain_id()
-    os.environ["ROBOTARIUM_PORTAL_RUN_DOMAIN"] = str(domain)
+    monkeypatch.setenv("ROBOTARIUM_PORTAL_RUN_DOMAIN", str(domain))
     with override_settings(JOB_BOXES_DIR=root / "portal-boxes", JOB_LIMITS=dict(LIMITS.__dict__, cpu_seconds=30)):
         tasks.run_next()
         tasks.run_next()
