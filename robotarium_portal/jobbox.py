@@ -73,7 +73,7 @@ class Outcome:
 
 
 def _mb(n):
-    return "%g MB" % round(n / 1e6, 1)
+    return "%g MiB" % round(n / 1024 ** 2, 1)
 
 
 def isolated():

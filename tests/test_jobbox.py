@@ -66,13 +66,16 @@ def new_box(place, name):
     return box
 
 
-def run_script(place, name, script, timeout=120, prepare=None):
+def run_script(place, name, script, timeout=120, prepare=None, extra_files=None):
     """./robotarium run SCRIPT in its own box: (outcome, run.json, output, the box's uid)."""
     root, _ = place
     box = new_box(place, name)
     files = root / ("files-" + name)
     files.mkdir()
     (files / "main.py").write_text(script)
+    for path, text in (extra_files or {}).items():
+        (files / path).parent.mkdir(parents=True, exist_ok=True)
+        (files / path).write_text(text)
     box.prepare(files)
     if prepare:
         prepare(box)
@@ -109,6 +112,24 @@ def test_a_fork_bomb_meets_the_process_limit_and_nothing_of_it_is_left(place):
     assert run["outcome"] in ("script_error", "interrupted") and outcome.code is not None   # not the wall time
 
 
+def test_children_the_script_leaves_behind_are_stopped(place):
+    script = "import os, time\nif os.fork() == 0:\n    time.sleep(600)\nprint('parent done')\n"
+    outcome, run, output, _ = run_script(place, "orphan", script)
+    assert "parent done" in output and outcome.code is not None   # it did not wait for the child's 600 s
+    assert "the script's process ended leaving 1 processes behind; they were stopped" in output
+
+
+def test_the_scripts_own_package_never_runs_as_the_service(place):
+    """./robotarium's pre-check looks for the modules a script imports: for `import evil.sub` that would
+    import evil (the user's code) as the service, before the script is demoted; boxed, it does not."""
+    mark = place[0] / "written-by-evil"
+    evil = "import os\nopen(%r, 'w').write(str(os.getuid()))\n" % str(mark)
+    outcome, run, output, uid = run_script(place, "evil", "import evil.sub\n",
+                                           extra_files={"evil/__init__.py": evil, "evil/sub.py": ""})
+    assert not mark.exists(), "the user's package ran as uid %s" % mark.read_text()
+    assert "PermissionError" in run["detail"]   # it ran, as the script's account, and was refused
+
+
 def test_filling_the_disk_meets_the_file_size_limit_then_the_disk_quota(place):
     script = """\
 import time
@@ -125,8 +146,8 @@ time.sleep(60)
 """
     outcome, run, output, _ = run_script(place, "disk", script)
     assert "one file: [Errno 27] File too large" in output
-    assert "wrote a file larger than the job's file size limit (21 MB)" in output
-    assert "the script's folder grew past the job's disk quota (62.9 MB); the script was stopped" in output
+    assert "wrote a file larger than the job's file size limit (20 MiB)" in output
+    assert "the script's folder grew past the job's disk quota (60 MiB); the script was stopped" in output
     assert run["outcome"] == "interrupted" and "killed by SIGKILL" in run["detail"]
     assert not list(Path(place[0]).glob("results-disk/*/data/part*.bin"))   # what it wrote went
 
@@ -134,7 +155,7 @@ time.sleep(60)
 def test_allocating_20_gb_is_refused_by_the_memory_limit(place):
     outcome, run, output, _ = run_script(place, "memory", "import numpy as np\nx = np.ones(20 * 10 ** 9, np.uint8)\n")
     assert run["outcome"] == "script_error" and "MemoryError" in run["detail"] and "20" in run["detail"]
-    assert "more memory than the job's 3221.2 MB limit" in output
+    assert "more memory than the job's 3072 MiB limit" in output
 
 
 def test_a_script_spinning_forever_is_stopped_at_its_cpu_time(place):
@@ -224,7 +245,7 @@ def test_through_the_portal_a_hostile_run_fails_with_its_message_and_the_next_on
     fine.refresh_from_db()
     assert hog.state == Experiment.FAILED, hog.detail
     assert "MemoryError" in hog.detail
-    assert "The job's box: the script asked for more memory than the job's 3221.2 MB limit" in hog.detail
+    assert "The job's box: the script asked for more memory than the job's 3072 MiB limit" in hog.detail
     assert fine.state == Experiment.COMPLETED, fine.detail
     assert (fine.folder / fine.results / "data" / "saved.npy").exists()
     assert not processes_on_domain(domain)
@@ -239,6 +260,10 @@ def settings_dir():
     django.setup()
     from django.conf import settings
     from django.core.management import call_command
+    from django.db import connections
+    if not settings.DATA_DIR.exists():   # test_portal's, removed when its module ended: a fresh one
+        connections.close_all()
+        settings.DATA_DIR.mkdir(mode=0o700, parents=True)
     call_command("migrate", interactive=False, verbosity=0)
     assert oct(settings.DATA_DIR.stat().st_mode & 0o777) == "0o700"   # no job may read the service's data
     yield settings.DATA_DIR

@@ -245,6 +245,9 @@ def check_script(script):
                 continue   # the docstring
             else:
                 break
+            if script_box.VARIABLE in os.environ:
+                # Boxed (the portal): find_spec("pkg.mod") would import pkg, the user's code, as the service.
+                names = [name.split(".")[0] for name in names]
             for name in names:
                 try:
                     found = importlib.util.find_spec(name) is not None
