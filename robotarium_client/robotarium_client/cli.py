@@ -21,7 +21,7 @@ import time
 
 from robotarium_client import session
 from robotarium_client.testbed import LocalTestbed, namespace, repository_root, testbed_answers
-from robotarium_core import lifeline, model
+from robotarium_core import lifeline, model, script_box
 
 DEMO_SCRIPT = os.path.join("examples", "barrier_certificates.py")  # 8 robots swap places through the middle
 # Folders never searched for data files a script saved.
@@ -263,6 +263,9 @@ def check_script(script):
                 continue   # the docstring
             else:
                 break
+            if script_box.VARIABLE in os.environ:
+                # Boxed (the portal): find_spec("pkg.mod") would import pkg, the user's code, as the service.
+                names = [name.split(".")[0] for name in names]
             for name in names:
                 try:
                     found = importlib.util.find_spec(name) is not None
@@ -446,6 +449,8 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
         env.setdefault("MPLBACKEND", "Agg")
     # The script's lifeline: should this command be killed outright, the script stops too.
     env, pass_fds = lifeline.for_child(env)
+    # In the portal's job box only the script is demoted (its account, its limits); the testbed stays the service's.
+    box_options, env = script_box.popen_options(env, writable=[work])
     command = [sys.executable, "-m", "robotarium_client.runner", options.to_json(), info_path, script, *script_args]
 
     cwd = os.getcwd()
@@ -458,7 +463,7 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
                 # A process group of its own: a terminal's Ctrl-C reaches only this command, which forwards it
                 # once (a second SIGINT would cut short the script's exit handler ending its experiment).
                 process = subprocess.Popen(command, cwd=cwd, env=env, pass_fds=pass_fds, process_group=0,
-                                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+                                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, **box_options)
                 interruption.watch(process)
                 _tee(process.stdout, [sys.stdout.buffer, log])
                 code = process.wait()
