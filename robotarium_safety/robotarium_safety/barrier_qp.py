@@ -25,7 +25,6 @@ import time
 import numpy as np
 import osqp
 import scipy.sparse as sparse
-from scipy.spatial import cKDTree
 
 # OSQP settings: a moderate tolerance, then polishing (see QPSolver._run), which makes the answer
 # exact to round-off whenever it succeeds. Tests may change these (for example max_iter=1 to force
@@ -89,6 +88,7 @@ def pairs_within(points, radius):
         pairs = all_pairs(n)
         diff = points[pairs[:, 0]] - points[pairs[:, 1]]
         return pairs[np.einsum("ij,ij->i", diff, diff) <= radius * radius]
+    from scipy.spatial import cKDTree   # here, not at import: scipy.spatial takes ~0.5 s to import
     pairs = cKDTree(points).query_pairs(radius, output_type="ndarray").astype(np.intp)
     # query_pairs gives no order; sort so the same set always gives the same matrix pattern.
     return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
@@ -245,6 +245,15 @@ class Rows:
         return np.concatenate([self.coef_pair.ravel(), self.coef_robot.ravel()])
 
 
+def _member(keys, sorted_keys):
+    """keys (any order) that are in sorted_keys, as a bool array: a binary search, no table as
+    large as the largest key (np.isin's "table" kind allocates max - min, O(N^2) for pair keys)."""
+    if len(sorted_keys) == 0:
+        return np.zeros(len(keys), dtype=bool)
+    at = np.minimum(np.searchsorted(sorted_keys, keys), len(sorted_keys) - 1)
+    return sorted_keys[at] == keys
+
+
 def _magnitude(z):
     """max(1, |z|_inf): tolerances are absolute for ordinary answers, relative for huge ones (a
     pair already overlapping under unsafe_barrier_gain = 1e6 can ask for hundreds of m/s)."""
@@ -309,6 +318,7 @@ class QPSolver:
             # One OSQP object, set up again for each new pattern: constructing one costs more
             # than setting up a small problem (it probes which linear-algebra backends exist).
             self._solver = osqp.OSQP()
+            self._infinity = self._solver.constant("OSQP_INFTY")
         settings = OSQP_SETTINGS if self._last_rho is None else dict(OSQP_SETTINGS, rho=self._last_rho)
         self._solver.setup(_block_diagonal_upper(p_blocks), q, a, rows.lower, rows.upper, **settings)
         if self._last_x is not None and len(self._last_x) == len(q):
@@ -316,6 +326,16 @@ class QPSolver:
         self._order = order
         self._structure = (n_robots, rows.keys.copy())
         self.info["setup"] = True
+
+    def _update(self, q, rows):
+        """New values in the pattern OSQP holds. The extension's own update calls, not
+        OSQP.update: that wrapper also keeps copies for OSQP's derivatives (unused here), which
+        cost more than the update itself at small N (osqp 1.1.3, pinned in requirements.txt).
+        Bounds beyond +-OSQP_INFTY are clipped as the wrapper does."""
+        infinity = self._infinity
+        solver = self._solver._solver
+        solver.update_data_vec(q=q, l=np.maximum(rows.lower, -infinity), u=np.minimum(rows.upper, infinity))
+        solver.update_data_mat(P_x=None, P_i=None, A_x=rows.values()[self._order], A_i=None)
 
     def _duals_for(self, keys):
         """The previous answer's dual of each row named by `keys` (0 for rows it did not have)."""
@@ -344,7 +364,7 @@ class QPSolver:
         """
         slack = rows.slack(z0) if slack0 is None else slack0
         if CONSTRAINT_GENERATION:
-            working = (slack < ENTRY_SLACK) | np.isin(rows.keys, self._sticky_keys, kind="table")
+            working = (slack < ENTRY_SLACK) | _member(rows.keys, self._sticky_keys)
         else:
             working = np.ones(len(rows), dtype=bool)
         while True:
@@ -361,7 +381,7 @@ class QPSolver:
             working |= broken
         self.info["working_rows"] = int(working.sum())
         # Rows close to binding now are likely to bind next tick: start from them then.
-        self._sticky_keys = rows.keys[working & (slack < STICKY_SLACK)]
+        self._sticky_keys = np.sort(rows.keys[working & (slack < STICKY_SLACK)])
         self.info["max_violation"] = max(0.0, -float(slack.min()))
         return z
 
@@ -372,7 +392,7 @@ class QPSolver:
             if fresh:
                 self._setup(p_blocks, q, rows, n_robots)
             else:
-                self._solver.update(q=q, l=rows.lower, u=rows.upper, Ax=rows.values()[self._order])
+                self._update(q, rows)
             z, reason = self._run(rows)
             if z is None and not fresh:
                 # A warm start can stall where a cold start does not: try once from scratch.
