@@ -168,19 +168,23 @@ class UnfilteredReplay:
         self.time_step = time_step
         self.limits = limits or {}
         self.count = count
+        self._counts = None   # count(self.poses), kept: lockstep asks violations() and then advance() on the same poses
 
     def violations(self):
         """What the next step would count (on the poses before its move)."""
-        return self.count(self.poses)
+        if self._counts is None:
+            self._counts = self.count(self.poses)
+        return self._counts
 
     def advance(self, commands, to_step):
         """Move on to `to_step` with `commands` (2 x N) in force; returns the counts of the steps
         passed (each counted on its poses before the move)."""
         collisions = outside = 0
         while self.step < to_step:
-            c, b = self.count(self.poses)
+            c, b = self.violations()
             collisions, outside = collisions + c, outside + b
             self.poses = lookahead_poses(self.poses, commands, self.time_step, **self.limits)
+            self._counts = None
             self.step += 1
         return collisions, outside
 
