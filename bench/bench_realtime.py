@@ -35,14 +35,27 @@ from bench_scaling import ROBOTS_IN_PACKAGED_ARENA, arena_for, cpu_seconds, grid
 BUSY = "while True: pass"
 
 
+def spaced_points(n, spacing, arena, rng, margin=0.2):
+    """n points at least `spacing` apart, drawn uniformly over the arena less `margin` on each side."""
+    x_min, x_max, y_min, y_max = arena
+    points = np.empty((0, 2))
+    while len(points) < n:
+        p = rng.uniform([x_min + margin, y_min + margin], [x_max - margin, y_max - margin])
+        if not len(points) or np.min(np.hypot(*(points - p).T)) >= spacing:
+            points = np.vstack([points, p])
+    return points.T
+
+
 def drive(n, seconds):
     import rps.robotarium
     from rps.utilities.controllers import create_clf_unicycle_position_controller
     from rps.utilities.misc import generate_initial_conditions
 
     np.random.seed(7)
-    scale = arena_for(n)[1] / arena_for(ROBOTS_IN_PACKAGED_ARENA)[1]
-    goals = generate_initial_conditions(n, spacing=0.2, width=2.5 * scale, height=1.5 * scale)[:2]
+    if n <= ROBOTS_IN_PACKAGED_ARENA:
+        goals = generate_initial_conditions(n, spacing=0.2, width=2.5, height=1.5)[:2]
+    else:   # rps draws at most 50: points 0.15 m apart over the larger arena (0.2 m cannot be drawn at random for 200)
+        goals = spaced_points(n, 0.15, arena_for(n), np.random.default_rng(7))
     controller = create_clf_unicycle_position_controller(linear_velocity_gain=0.5)
     start = grid(n) if n > ROBOTS_IN_PACKAGED_ARENA else np.array([])   # rps draws them in the packaged arena
     r = rps.robotarium.Robotarium(number_of_robots=n, show_figure=False, sim_in_real_time=True,
