@@ -176,6 +176,8 @@ def main(argv=None):
     print("[robotarium] data (database, experiments, worker logs) in %s; mail goes to %s" % (data, mail), flush=True)
     print("[robotarium] runs on ROS_DOMAIN_ID %s, verification on %s; Ctrl-C stops it (nothing is lost)"
           % (env["ROBOTARIUM_PORTAL_RUN_DOMAIN"], env["ROBOTARIUM_PORTAL_VERIFY_DOMAIN"]), flush=True)
+    from robotarium_portal.jobbox import isolation
+    print("[robotarium] %s" % isolation(), flush=True)   # what holds, and (not root) what does not
     from django.contrib.auth import get_user_model
     if not get_user_model().objects.filter(is_staff=True).exists():
         print("[robotarium] no administrator yet: ./robotarium serve --create-admin you@example.org%s"
