@@ -8,7 +8,7 @@ from geometry_msgs.msg import Pose, PoseArray, Twist
 from rclpy.serialization import deserialize_message, serialize_message
 
 from robotarium_core import cdr
-from robotarium_msgs.msg import RobotPoses, TwistArray
+from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, TwistArray
 
 RNG = np.random.default_rng(13)
 SIZES = [0, 1, 3, 20, 50]
@@ -103,14 +103,33 @@ def test_robot_poses_and_pose_array_are_rclpys_messages(n):
 
 
 @pytest.mark.parametrize("layout, message", [(cdr.TWIST_ARRAY, TwistArray), (cdr.ROBOT_POSES, RobotPoses),
-                                             (cdr.POSE_ARRAY, PoseArray)])
+                                             (cdr.POSE_ARRAY, PoseArray), (cdr.SAFETY_REPORT, SafetyReport)])
 def test_layouts_follow_the_message_definitions(layout, message):
     """A field added to a .msg file must be added to its layout too (or every parse is off)."""
     fields = []
     for name, kind in message.get_fields_and_field_types().items():
+        if kind == "robotarium_msgs/DropCounts":
+            fields += list(DropCounts.get_fields_and_field_types())
+            continue
         fields += ["sec", "nanosec", "frame_id"] if kind == "std_msgs/Header" else [name]
     assert list(layout.Message._fields) == fields
     assert layout.type_name == "%s/msg/%s" % (message.__module__.split(".")[0], message.__name__)
+
+
+@pytest.mark.parametrize("solver_status", ["", "solved", "primal infeasible"])
+def test_safety_report_is_rclpys_message_byte_for_byte(solver_status):
+    drops = {name: int(k) * 3 + 1 for k, name in enumerate(DropCounts.get_fields_and_field_types())}
+    values = dict(sec=5, nanosec=7, frame_id="arena", step=2**33, status=SafetyReport.STATUS_SATURATED,
+                  number_of_robots=20, max_change=0.125, robots_changed=3, solve_time=1.5e-4,
+                  solver_status=solver_status, pose_age=-1.0, audit=True, unfiltered_collisions=4,
+                  unfiltered_boundary_violations=9, **drops)
+    msg = SafetyReport(step=2**33, status=SafetyReport.STATUS_SATURATED, number_of_robots=20, max_change=0.125,
+                       robots_changed=3, solve_time=1.5e-4, solver_status=solver_status, pose_age=-1.0, audit=True,
+                       unfiltered_collisions=4, unfiltered_boundary_violations=9, dropped=DropCounts(**drops))
+    msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id = 5, 7, "arena"
+    ours = cdr.SAFETY_REPORT.build(**values)
+    assert same_bytes(ours, cdr.SAFETY_REPORT, values, serialize_message(msg))
+    assert deserialize_message(ours, SafetyReport) == msg
 
 
 def test_bad_bytes_are_a_cdr_error_never_a_crash():

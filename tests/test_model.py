@@ -108,6 +108,22 @@ def test_collision_counting_per_pair_and_step():
     assert model.count_collisions(np.array([[0.0, 0.1101], [0.0, 0.0], [0.0, 0.0]])) == 0
 
 
+def test_large_crowds_count_collisions_as_every_pair_would():
+    # Beyond SWEEP_MIN_ROBOTS only pairs from a sweep along x are tested: the count must be the
+    # all-pairs count exactly, borderline distances (exactly one diameter, in x and diagonally) included.
+    rng = np.random.default_rng(3)
+    n = model.SWEEP_MIN_ROBOTS + 50
+    for trial in range(30):
+        poses = rng.uniform(-1, 1, (3, n)) * np.array([[3.0], [2.0], [3.0]]) * rng.uniform(0.05, 1.0)
+        poses[:, 1] = poses[:, 0] + [0.11, 0.0, 0.0]                          # exactly a diameter apart in x
+        poses[:, 3] = poses[:, 2] + [0.11 / np.sqrt(2), 0.11 / np.sqrt(2), 0.0]   # and on a diagonal
+        i, j = model.robot_pairs(n)
+        dx, dy = poses[0, i] - poses[0, j], poses[1, i] - poses[1, j]
+        every_pair = int(np.count_nonzero(np.sqrt(dx * dx + dy * dy) <= 0.11))
+        assert model.count_collisions(poses, 0.11) == every_pair
+    assert every_pair > 0
+
+
 def test_boundary_counting_and_collisions_accumulate_per_step():
     tb = model.Testbed(np.array([[1.55, -0.5], [0.0, 0.0], [0.0, 0.0]]))
     tb.set_commands([0], [0.2], [0.0])

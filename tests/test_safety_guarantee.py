@@ -292,6 +292,37 @@ def test_a_robot_already_closer_than_the_margin_never_gets_closer():
     assert closest == pytest.approx(0.112, abs=1e-12)
 
 
+def test_a_pair_the_centre_rows_leave_out_cannot_break_its_barrier_in_one_step():
+    # _CentreGuard poses no rows for a pair farther apart than cutoff(S). The bound: a step at
+    # forward speed <= S moves each centre at most S T, so |e| shrinks by at most 2 S T and
+    # h' >= (d - 2 S T)^2 - D^2 >= h - 4 S T d >= (1 - rate) h, the discrete barrier the rows keep.
+    # Checked here on the simulator's own motion, at the cutoff and just beyond it, full speed.
+    c = DEFAULT
+    distance = c.robot_diameter + c.collision_margin
+    guard = bc._CentreGuard(c.barrier_gain, np.array(c.arena), c.boundary_margin, distance,
+                            c.collision_barrier_rate, c.time_step, 2 * c.magnitude_limit)
+    rng = np.random.default_rng(26)
+    limits = dict(c.limits, max_linear=10.0, max_wheel=1e3)   # no thresholding: the speed is S itself
+    for speed in (c.max_linear_velocity, guard.speed_bound, 1.0):
+        cutoff = guard.cutoff(speed)
+        for trial in range(400):
+            d = cutoff * (1 + rng.uniform(0, 1e-3) * (trial % 2))
+            angle = rng.uniform(-np.pi, np.pi)
+            poses = np.array([[0.0, d * np.cos(angle)], [0.0, d * np.sin(angle)], rng.uniform(-np.pi, np.pi, 2)])
+            if trial < 100:   # head-on: each centre drives straight at the other
+                poses[2] = [angle, angle + np.pi]
+            commands = np.array([speed * rng.choice([-1.0, 1.0], 2), rng.uniform(-3, 3, 2) * (trial >= 100)])
+            after = model.lookahead_poses(poses, commands, c.time_step, **limits)
+            h = d * d - distance ** 2
+            h_after = np.sum((after[:2, 0] - after[:2, 1]) ** 2) - distance ** 2
+            assert h_after >= (1 - c.collision_barrier_rate) * h - 1e-12
+            # ... and the pair's rows (posed here: the neighbour set reaches NEIGHBOUR_MARGIN further)
+            # hold at that speed whatever the sign of v: leaving them out changes nothing.
+            robot, _, coef, bound = guard.rows(poses, np.cos(poses[2]), np.sin(poses[2]), speed)
+            assert len(coef) == 4 * 2 + 2
+            assert np.all(np.abs(coef[-2:]) * speed <= bound[-2:] * (1 + 1e-9))
+
+
 def test_the_guard_changes_nothing_where_nothing_is_at_risk():
     f = node_certificate()
     request = np.array([[0.1, 0.1, 0.1], [0.5, -0.5, 0.0]])

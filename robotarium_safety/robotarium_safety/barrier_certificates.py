@@ -375,7 +375,10 @@ class _CentreGuard:
     Pairs too far apart to need a row: with |v| <= S, the rows of pair (i, j) hold whenever
     gamma h / T >= 4 S d (d = |e|; their left side is at most 2 d S, their bound gamma h / (2 T)),
     that is for d >= d* = a + sqrt(a^2 + D^2) with a = 2 S T / gamma. The QP's rows assume
-    S = speed_bound; the clamp uses the answer's own S.
+    S = speed_bound; the clamp uses the answer's own S. Why leaving such a pair out is safe in one
+    step, directly: each centre moves at most S T, so h' >= (d - 2 S T)^2 - D^2 >= h - 4 S T d
+    >= (1 - gamma) h, the discrete barrier the rows keep (tests/test_safety_guarantee.py checks it
+    on the simulator's motion, head-on at the cutoff).
     """
 
     def __init__(self, gain, boundary, boundary_margin, distance, rate, time_step, speed_bound):

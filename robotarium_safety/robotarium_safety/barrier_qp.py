@@ -25,7 +25,6 @@ import time
 import numpy as np
 import osqp
 import scipy.sparse as sparse
-from scipy.spatial import cKDTree
 
 # OSQP settings: a moderate tolerance, then polishing (see QPSolver._run), which makes the answer
 # exact to round-off whenever it succeeds. Tests may change these (for example max_iter=1 to force
@@ -89,6 +88,7 @@ def pairs_within(points, radius):
         pairs = all_pairs(n)
         diff = points[pairs[:, 0]] - points[pairs[:, 1]]
         return pairs[np.einsum("ij,ij->i", diff, diff) <= radius * radius]
+    from scipy.spatial import cKDTree   # here, not at import: scipy.spatial takes ~0.5 s to import
     pairs = cKDTree(points).query_pairs(radius, output_type="ndarray").astype(np.intp)
     # query_pairs gives no order; sort so the same set always gives the same matrix pattern.
     return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
@@ -245,6 +245,15 @@ class Rows:
         return np.concatenate([self.coef_pair.ravel(), self.coef_robot.ravel()])
 
 
+def _member(keys, sorted_keys):
+    """keys (any order) that are in sorted_keys, as a bool array: a binary search, no table as
+    large as the largest key (np.isin's "table" kind allocates max - min, O(N^2) for pair keys)."""
+    if len(sorted_keys) == 0:
+        return np.zeros(len(keys), dtype=bool)
+    at = np.minimum(np.searchsorted(sorted_keys, keys), len(sorted_keys) - 1)
+    return sorted_keys[at] == keys
+
+
 def _magnitude(z):
     """max(1, |z|_inf): tolerances are absolute for ordinary answers, relative for huge ones (a
     pair already overlapping under unsafe_barrier_gain = 1e6 can ask for hundreds of m/s)."""
@@ -292,6 +301,12 @@ class QPSolver:
         self._structure = None   # (n_robots, row keys) of the problem OSQP holds
         self._order = None       # permutation from Rows.values() to CSC data order
         self._last_x = None
+        # The previous answer's duals by row key (sorted keys, their y) and OSQP's last step size:
+        # a new set-up (another working set) starts from them, so ADMM resumes near the answer
+        # instead of from y = 0 and the default rho (at 100 robots in a jam: ~1000 iterations a
+        # call from cold duals).
+        self._last_duals = None
+        self._last_rho = None
         self._sticky_keys = np.empty(0, dtype=np.int64)
 
     def _setup(self, p_blocks, q, rows, n_robots):
@@ -303,12 +318,34 @@ class QPSolver:
             # One OSQP object, set up again for each new pattern: constructing one costs more
             # than setting up a small problem (it probes which linear-algebra backends exist).
             self._solver = osqp.OSQP()
-        self._solver.setup(_block_diagonal_upper(p_blocks), q, a, rows.lower, rows.upper, **OSQP_SETTINGS)
+            self._infinity = self._solver.constant("OSQP_INFTY")
+        settings = OSQP_SETTINGS if self._last_rho is None else dict(OSQP_SETTINGS, rho=self._last_rho)
+        self._solver.setup(_block_diagonal_upper(p_blocks), q, a, rows.lower, rows.upper, **settings)
         if self._last_x is not None and len(self._last_x) == len(q):
-            self._solver.warm_start(x=self._last_x)
+            self._solver.warm_start(x=self._last_x, y=self._duals_for(rows.keys))
         self._order = order
         self._structure = (n_robots, rows.keys.copy())
         self.info["setup"] = True
+
+    def _update(self, q, rows):
+        """New values in the pattern OSQP holds. The extension's own update calls, not
+        OSQP.update: that wrapper also keeps copies for OSQP's derivatives (unused here), which
+        cost more than the update itself at small N (osqp 1.1.3, pinned in requirements.txt).
+        Bounds beyond +-OSQP_INFTY are clipped as the wrapper does."""
+        infinity = self._infinity
+        solver = self._solver._solver
+        solver.update_data_vec(q=q, l=np.maximum(rows.lower, -infinity), u=np.minimum(rows.upper, infinity))
+        solver.update_data_mat(P_x=None, P_i=None, A_x=rows.values()[self._order], A_i=None)
+
+    def _duals_for(self, keys):
+        """The previous answer's dual of each row named by `keys` (0 for rows it did not have)."""
+        y = np.zeros(len(keys))
+        if self._last_duals is not None and len(self._last_duals[0]) and len(keys):
+            old_keys, old_y = self._last_duals
+            at = np.minimum(np.searchsorted(old_keys, keys), len(old_keys) - 1)
+            found = old_keys[at] == keys
+            y[found] = old_y[at[found]]
+        return y
 
     def _same_structure(self, rows, n_robots):
         if self._structure is None:
@@ -327,7 +364,7 @@ class QPSolver:
         """
         slack = rows.slack(z0) if slack0 is None else slack0
         if CONSTRAINT_GENERATION:
-            working = (slack < ENTRY_SLACK) | np.isin(rows.keys, self._sticky_keys, kind="table")
+            working = (slack < ENTRY_SLACK) | _member(rows.keys, self._sticky_keys)
         else:
             working = np.ones(len(rows), dtype=bool)
         while True:
@@ -344,7 +381,7 @@ class QPSolver:
             working |= broken
         self.info["working_rows"] = int(working.sum())
         # Rows close to binding now are likely to bind next tick: start from them then.
-        self._sticky_keys = rows.keys[working & (slack < STICKY_SLACK)]
+        self._sticky_keys = np.sort(rows.keys[working & (slack < STICKY_SLACK)])
         self.info["max_violation"] = max(0.0, -float(slack.min()))
         return z
 
@@ -355,7 +392,7 @@ class QPSolver:
             if fresh:
                 self._setup(p_blocks, q, rows, n_robots)
             else:
-                self._solver.update(q=q, l=rows.lower, u=rows.upper, Ax=rows.values()[self._order])
+                self._update(q, rows)
             z, reason = self._run(rows)
             if z is None and not fresh:
                 # A warm start can stall where a cold start does not: try once from scratch.
@@ -366,6 +403,8 @@ class QPSolver:
             z, reason = None, f"OSQP error: {error}"
         self.info["reason"] = reason
         self._last_x = None if z is None else z.ravel().copy()
+        if z is None:
+            self._last_duals = self._last_rho = None
         return z
 
     def _run(self, rows):
@@ -389,6 +428,9 @@ class QPSolver:
         if info.status_val != osqp.SolverStatus.OSQP_SOLVED:
             return None, str(info.status)
         z = np.array(result.x, dtype=float).reshape(-1, 2)
+        order = np.argsort(rows.keys)
+        self._last_duals = (rows.keys[order], np.array(result.y, dtype=float)[order])
+        self._last_rho = float(info.rho_estimate) if np.isfinite(info.rho_estimate) and info.rho_estimate > 0 else None
         if not np.all(np.isfinite(z)):
             return None, "non-finite solution"
         violation = rows.violation(z)

@@ -51,8 +51,9 @@ in whatever order and with whatever step numbers, each array forwarded is filter
 of the step it will move the robots from, at most one per lockstep step, and marked with the
 step it produces (robotarium_safety.guard; the simulator applies nothing else: model.StepGate).
 
-Poses come in and cmd_safe goes out as CDR bytes read and written with numpy (robotarium_core.cdr):
-rclpy's message objects, one per robot for a Twist[], cost more than the barrier QP.
+Poses come in and cmd_safe and safety_report go out as CDR bytes read and written with numpy
+(robotarium_core.cdr): rclpy's message objects, one per robot for a Twist[], cost more than the
+barrier QP.
 
 Newest poses: before filtering a real-time command it takes every poses message its reader holds
 (node_tools.take_waiting), so a loaded node never filters with poses queued behind newer ones. A
@@ -73,7 +74,7 @@ import yaml
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, TwistArray
+from robotarium_msgs.msg import RobotPoses, SafetyReport, TwistArray
 from robotarium_msgs.srv import ArmSafety
 from robotarium_safety.barrier_certificates import create_unicycle_barrier_certificate_with_centre_boundary
 from robotarium_safety.guard import Guard, filter_commands
@@ -160,12 +161,11 @@ class SafetyNode(Node):
     def report_drops(self):
         """Drops with no array filtered since: say so at most once a second (the simulator puts them in status)."""
         if self.dropped != self._dropped_reported:
-            report = SafetyReport(status=SafetyReport.STATUS_COUNTS_ONLY, step=self.last_step)
-            report.header.stamp = self.get_clock().now().to_msg()
-            report.header.frame_id = "arena"
-            report.dropped = DropCounts(**self.dropped)
+            sec, nanosec = self.get_clock().now().seconds_nanoseconds()
             self._dropped_reported = dict(self.dropped)
-            self.report_pub.publish(report)
+            self.report_pub.publish(cdr.SAFETY_REPORT.build(
+                sec=sec, nanosec=nanosec, frame_id="arena", status=SafetyReport.STATUS_COUNTS_ONLY,
+                step=self.last_step, **self.dropped))
 
     def warn_once(self, kind, text):
         if kind not in self._logged:
@@ -300,14 +300,14 @@ class SafetyNode(Node):
         the guard forwards an array only when the newest poses are those of step - 1 in lockstep)."""
         started = time.perf_counter()
         ids, v, w = request.ids, request.v, request.omega
-        report = SafetyReport(step=step)
+        report = {"step": step}   # the SafetyReport's fields (published with cdr.SAFETY_REPORT)
         self.last_step = max(self.last_step, step)
 
         # In lockstep time stands still between steps: only real-time poses age.
         now = time.monotonic()
-        report.pose_age = now - self.poses_time if self.poses is not None else -1.0
-        if self.poses is None or (self.armed.real_time and report.pose_age > self.config.pose_timeout):
-            self.note_stale_stop(now, report.pose_age)
+        report["pose_age"] = pose_age = now - self.poses_time if self.poses is not None else -1.0
+        if self.poses is None or (self.armed.real_time and pose_age > self.config.pose_timeout):
+            self.note_stale_stop(now, pose_age)
             return self.send_stop(request, report, SafetyReport.STATUS_STOP_NO_POSES, started)
         if self._stale_spell is not None:
             first, stops, _ = self._stale_spell
@@ -327,7 +327,7 @@ class SafetyNode(Node):
             counts = self.replay.violations() if self.replay is not None else (0, 0)
         else:   # real time: the steps the replay passed since the last report
             counts, self.replay_counts = self.replay_counts, (0, 0)
-        report.unfiltered_collisions, report.unfiltered_boundary_violations = counts
+        report["unfiltered_collisions"], report["unfiltered_boundary_violations"] = counts
         # The debug report's actuator count judges the script's own commands (over_limits), never
         # our interventions.
         safe, requested, over_limits, fell_back = filter_commands(self.certificate, self.commands, self.poses,
@@ -341,12 +341,12 @@ class SafetyNode(Node):
                       SafetyReport.STATUS_SATURATED if np.any(requested != self.commands) else
                       SafetyReport.STATUS_PASSTHROUGH)
         change = np.abs(safe - requested)   # scaling to the limits alone is no change
-        report.status = status
-        report.solver_status = info["status"]
-        report.max_change = float(change.max()) if n else 0.0
-        report.robots_changed = int(np.count_nonzero(change.max(axis=0) > self.config.intervention_tolerance))
+        report["status"] = status
+        report["solver_status"] = info["status"]
+        report["max_change"] = float(change.max()) if n else 0.0
+        report["robots_changed"] = int(np.count_nonzero(change.max(axis=0) > self.config.intervention_tolerance))
         if self.armed.audit:   # verification: what the certificate would do is reported, the script's commands go
-            report.audit = True
+            report["audit"] = True
             safe = requested
         self.publish(step, np.arange(n), safe[0], safe[1], report, started, over_limits)
 
@@ -391,16 +391,15 @@ class SafetyNode(Node):
         # How far the stop is from what was asked: the largest finite requested speed.
         requested = np.abs(np.concatenate((np.asarray(request.v, dtype=float), np.asarray(request.omega, dtype=float))))
         requested = requested[np.isfinite(requested)]
-        report.max_change = float(requested.max()) if requested.size else 0.0
-        report.robots_changed = len(request.v)
+        report["max_change"] = float(requested.max()) if requested.size else 0.0
+        report["robots_changed"] = len(request.v)
         if self.poses is not None:
             ids = np.arange(self.poses.shape[1])  # stop every robot we know of
             self.commands[:] = 0.0
         else:
             ids = np.arange(self.armed.number_of_robots)
-        report.status = status
-        report.solver_status = ""
-        self.publish(report.step, ids, np.zeros(len(ids)), np.zeros(len(ids)), report, started)
+        report["status"] = status
+        self.publish(report["step"], ids, np.zeros(len(ids)), np.zeros(len(ids)), report, started)
 
     def publish(self, step, ids, v, w, report, started, requested_exceeds_limits=False):
         now = self.get_clock().now()
@@ -408,13 +407,10 @@ class SafetyNode(Node):
         self.safe_pub.publish(cdr.TWIST_ARRAY.build(
             sec=sec, nanosec=nanosec, frame_id="arena", token=self.armed.safety_key, step=step, ids=ids,
             twists=cdr.twists(v, w), requested_exceeds_limits=bool(requested_exceeds_limits)))
-        report.header.stamp = now.to_msg()
-        report.header.frame_id = "arena"
-        report.number_of_robots = len(ids)
-        report.solve_time = time.perf_counter() - started
-        report.dropped = DropCounts(**self.dropped)
         self._dropped_reported = dict(self.dropped)
-        self.report_pub.publish(report)
+        self.report_pub.publish(cdr.SAFETY_REPORT.build(
+            sec=sec, nanosec=nanosec, frame_id="arena", number_of_robots=len(ids),
+            solve_time=time.perf_counter() - started, **self.dropped, **report))
 
 
 def main(args=None):

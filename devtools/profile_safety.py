@@ -1,0 +1,62 @@
+"""cProfile of the safety node in a lockstep run (bench_scaling's scene): where its per-step time goes.
+
+Starts the simulator (and the recorder) as `./robotarium run` does, and the safety node under
+cProfile; drives N robots for --steps lockstep steps with the real client, stops the node (SIGINT,
+so cProfile writes its numbers) and prints the top functions by cumulative and by own time.
+Run: ./robotarium shell -c "python devtools/profile_safety.py --robots 5 --steps 2000"
+"""
+import argparse
+import os
+import pstats
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path[:0] = [ROOT, os.path.join(ROOT, "bench")]
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--robots", type=int, default=5)
+    parser.add_argument("--steps", type=int, default=2000)
+    parser.add_argument("--top", type=int, default=35)
+    args = parser.parse_args()
+    from devtools.rosutil import unique_domain_id
+    os.environ["ROS_DOMAIN_ID"] = str(unique_domain_id())
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    os.environ["ROBOTARIUM_RPS"] = "guide"
+    os.environ["ROBOTARIUM_NAMESPACE"] = "/profile"
+    import bench_scaling
+    from robotarium_core import lifeline
+    from robotarium_client.testbed import LocalTestbed, node_command
+
+    work = tempfile.mkdtemp(prefix="robotarium-profile-")
+    config = bench_scaling.write_config(work, robots=args.robots)
+    testbed = LocalTestbed(log_dir=work, bags_dir=os.path.join(work, "bags"), ns="/profile", config_file=config)
+    testbed.names = [name for name in testbed.names if name != "safety"]
+    stats = os.path.join(work, "safety.prof")
+    command = node_command("safety", "/profile", (), config)
+    command[1:1] = ["-m", "cProfile", "-o", stats]
+    env, pass_fds = lifeline.for_child(os.environ)
+    safety = subprocess.Popen(command, env=env, pass_fds=pass_fds, start_new_session=True,
+                              stdout=open(os.path.join(work, "safety.log"), "wb"), stderr=subprocess.STDOUT)
+    try:
+        testbed.start()
+        processes = {name: process.pid for name, (process, _) in testbed.processes.items()}
+        processes["safety"] = safety.pid
+        rate, cpu, _ = bench_scaling.run(args.robots, args.steps, config, processes)
+        print("N = %d: %.0f steps/s; CPU ms/step %s" % (args.robots, rate, {k: round(v, 3) for k, v in cpu.items()}))
+    finally:
+        testbed.stop()
+        os.killpg(safety.pid, signal.SIGINT)
+        safety.wait(timeout=30)
+    time.sleep(0.2)
+    for key in ("cumulative", "tottime"):
+        pstats.Stats(stats).sort_stats(key).print_stats(args.top)
+
+
+if __name__ == "__main__":
+    main()
