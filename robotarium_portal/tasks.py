@@ -14,14 +14,16 @@ import subprocess
 import time
 
 from django.conf import settings
-from django.db.models import F
+from django.db import transaction
+from django.db.models import F, Q
 from django.utils import timezone
 from django_q.models import OrmQ
 from django_q.tasks import async_task
 
 from robotarium_portal import mail
 from robotarium_portal.files import copy_files
-from robotarium_portal.models import Experiment
+from robotarium_portal.models import Experiment, Worker
+from robotarium_portal.workers import database_retry, me
 
 logger = logging.getLogger("robotarium_portal")
 VERIFY_CLUSTER, RUN_CLUSTER = "verify", "runs"
@@ -51,15 +53,19 @@ def enqueue_run():
 
 
 def reconcile():
-    """At the service's start, before any worker: every job from the experiments' states. A run that a stop
-    cut short goes back to the head of the queue (its queued_at is kept) and runs again."""
+    """At the service's start, before its own workers: every job from the experiments' states. A run that a
+    stop cut short goes back to the head of the queue (its queued_at is kept) and runs again. What a live
+    worker (on another machine) holds stays its own."""
+    from robotarium_portal.workers import forget_dead_local_workers
+    forget_dead_local_workers()
     OrmQ.objects.filter(key__in=[VERIFY_CLUSTER, RUN_CLUSTER]).delete()
-    for experiment in Experiment.objects.filter(state=Experiment.RUNNING):
-        experiment.state = Experiment.QUEUED
+    unheld = Q(worker__isnull=True) | ~Q(worker__state=Worker.ALIVE)
+    for experiment in Experiment.objects.filter(unheld, state=Experiment.RUNNING):
+        experiment.state, experiment.worker = Experiment.QUEUED, None
         experiment.detail = ("The service stopped during run %d (at %s); the experiment runs again from the start."
                              % (experiment.attempts, timezone.now().strftime("%Y-%m-%d %H:%M UTC")))
-        experiment.save(update_fields=["state", "detail"])
-    Experiment.objects.filter(state=Experiment.VERIFYING).update(state=Experiment.SUBMITTED)
+        experiment.save(update_fields=["state", "detail", "worker"])
+    Experiment.objects.filter(unheld, state=Experiment.VERIFYING).update(state=Experiment.SUBMITTED, worker=None)
     for experiment in Experiment.objects.filter(state=Experiment.SUBMITTED).order_by("submitted_at", "pk"):
         enqueue_verification(experiment)
     for _ in range(Experiment.objects.filter(state=Experiment.QUEUED).count()):
@@ -76,9 +82,10 @@ def job_env(domain_variable):
     return env
 
 
-def jobs_dir():
-    path = settings.DATA_DIR / "jobs"
-    path.mkdir(exist_ok=True)
+def jobs_dir(worker=None):
+    """The running jobs' process groups of one worker slot (this process's unless named)."""
+    path = settings.DATA_DIR / "jobs" / str(worker or me() or "local")
+    path.mkdir(parents=True, exist_ok=True)
     return path
 
 
@@ -106,11 +113,11 @@ def run_command(command, cwd, env, output_path, timeout, job):
             pgid_file.unlink(missing_ok=True)
 
 
-def stop_jobs():
-    """The service stops: mark it (a job cut short now is not its experiment's failure) and stop every
+def stop_jobs(worker=None):
+    """The worker stops: mark it (a job cut short now is not its experiment's failure) and stop every
     running job's ./robotarium."""
-    (jobs_dir() / "stopping").touch()
-    for pgid_file in jobs_dir().glob("*.pgid"):
+    (jobs_dir(worker) / "stopping").touch()
+    for pgid_file in jobs_dir(worker).glob("*.pgid"):
         try:
             stop_group(int(pgid_file.read_text()))
         except (ValueError, OSError):
@@ -166,9 +173,23 @@ def failing_truthfully(job):
 
 def verify_experiment(pk):
     """./robotarium verify on a copy of the experiment's files: accepted -> queued, else rejected or failed."""
-    if not Experiment.objects.filter(pk=pk, state=Experiment.SUBMITTED).update(state=Experiment.VERIFYING):
+    if not database_retry(lambda: Experiment.objects.filter(pk=pk, state=Experiment.SUBMITTED).update(
+            state=Experiment.VERIFYING, worker=me()), "claiming a verification"):
         return "experiment %d is not waiting for verification" % pk
-    return _verify(Experiment.objects.get(pk=pk))
+    return _working_on("verify #%d" % pk, lambda: _verify(Experiment.objects.get(pk=pk)))
+
+
+def _working_on(job, work):
+    """The worker's current job while work() runs, and one more job done after it."""
+    worker = me()
+    if worker is not None:
+        database_retry(lambda: Worker.objects.filter(pk=worker).update(current_job=job), "noting the job")
+    try:
+        return work()
+    finally:
+        if worker is not None:
+            database_retry(lambda: Worker.objects.filter(pk=worker).update(current_job="", jobs_done=F("jobs_done") + 1),
+                           "counting the job")
 
 
 @failing_truthfully
@@ -211,19 +232,38 @@ def _verify(experiment):
 
 
 def _queue(experiment, verdict, detail):
-    Experiment.objects.filter(pk=experiment.pk, state=Experiment.VERIFYING).update(
-        state=Experiment.QUEUED, queued_at=timezone.now(), verification=verdict, detail=detail,
-        timings=experiment.timings)
-    enqueue_run()
+    def queue():
+        with transaction.atomic():
+            if not Experiment.objects.filter(pk=experiment.pk, state=Experiment.VERIFYING, worker=me()).update(
+                    state=Experiment.QUEUED, queued_at=timezone.now(), verification=verdict, detail=detail,
+                    timings=experiment.timings, worker=None):
+                return False
+            enqueue_run()   # in the same transaction: queued and its job, or neither
+            return True
+    if not database_retry(queue, "queueing experiment %d" % experiment.pk):
+        return "experiment %d was decided elsewhere meanwhile (cancelled, or its worker found lost)" % experiment.pk
     return "experiment %d queued" % experiment.pk
 
 
 def _finish(experiment, state, detail, **fields):
+    """The job's outcome, unless the experiment was decided elsewhere meanwhile (an administrator cancelled
+    it, or this worker was found lost): that stays, and a cancelled run keeps what it recorded."""
+    def write():
+        with transaction.atomic():
+            current = Experiment.objects.select_for_update().get(pk=experiment.pk)
+            if current.state not in (Experiment.VERIFYING, Experiment.RUNNING) or current.worker_id != me():
+                if current.state == Experiment.CANCELLED and fields.get("results"):
+                    Experiment.objects.filter(pk=current.pk).update(
+                        **{k: v for k, v in fields.items() if k in ("results", "run_outcome", "timings")})
+                return False
+            current.state, current.detail, current.finished_at, current.worker = state, detail, timezone.now(), None
+            for name, value in fields.items():
+                setattr(current, name, value)
+            current.save()
+            return True
+    if not database_retry(write, "writing the outcome of experiment %d" % experiment.pk):
+        return "experiment %d was decided elsewhere meanwhile (cancelled, or its worker found lost)" % experiment.pk
     experiment.refresh_from_db()
-    experiment.state, experiment.detail, experiment.finished_at = state, detail, timezone.now()
-    for name, value in fields.items():
-        setattr(experiment, name, value)
-    experiment.save()
     try:
         if state == Experiment.COMPLETED:
             mail.send_completed(experiment)
@@ -236,15 +276,17 @@ def _finish(experiment, state, detail, **fields):
 
 def run_next():
     """Claim the oldest queued experiment (first come, first served) and run it."""
-    while True:
-        experiment = Experiment.objects.filter(state=Experiment.QUEUED).order_by("queued_at", "pk").first()
-        if experiment is None:
-            return "the queue is empty"
-        if Experiment.objects.filter(pk=experiment.pk, state=Experiment.QUEUED).update(
-                state=Experiment.RUNNING, started_at=timezone.now(), attempts=F("attempts") + 1):
-            break   # else another worker took it first: try the next
+    def claim():
+        while True:
+            experiment = Experiment.objects.filter(state=Experiment.QUEUED).order_by("queued_at", "pk").first()
+            if experiment is None or Experiment.objects.filter(pk=experiment.pk, state=Experiment.QUEUED).update(
+                    state=Experiment.RUNNING, started_at=timezone.now(), attempts=F("attempts") + 1, worker=me()):
+                return experiment   # else another worker took it first: try the next
+    experiment = database_retry(claim, "claiming a run")
+    if experiment is None:
+        return "the queue is empty"
     experiment.refresh_from_db()
-    return run_experiment(experiment)
+    return _working_on("run #%d" % experiment.pk, lambda: run_experiment(experiment))
 
 
 def run_folder(experiment, attempt=None):
