@@ -23,7 +23,8 @@ def parse(argv):
                     "experiments, mail) is in the data folder.",
         epilog="First administrator: ./robotarium serve --create-admin you@example.org (asks for a password). "
                "Mail goes to DATA/mail/ (one file per message) unless ROBOTARIUM_SMTP_HOST (and "
-               "ROBOTARIUM_SMTP_PORT, _USER, _PASSWORD, _TLS=1, ROBOTARIUM_MAIL_FROM) name an SMTP server.")
+               "ROBOTARIUM_SMTP_PORT, _USER, _PASSWORD, _TLS=1, ROBOTARIUM_MAIL_FROM) name an SMTP server. "
+               "Workers on other machines: serve --database postgresql://..., then ./robotarium worker --help.")
     parser.add_argument("--data", default=str(REPOSITORY / "service"),
                         help="the service's folder (default: service/ in the repository); workers on other "
                              "machines need it too, on a shared path")

@@ -1,0 +1,143 @@
+"""Benchmark: the Robotarium service on PostgreSQL with its workers (./robotarium bench service).
+
+    ./robotarium bench service [--submissions 3] [--robots 5 20 50]
+
+A PostgreSQL server of its own (initdb into a temporary folder), the portal (./robotarium serve
+--database ... --jobs 0) and 1, then 2 workers (./robotarium worker: each one verification and one run at
+a time) on this machine. Printed:
+- verified submissions per hour: for each robot count, --submissions 300-step scripts (the robots turn in
+  place: accepted) submitted at once; the wall time from the submission to the last one completed (verified,
+  run in real time at 30 Hz, its results and video made), and the mean time of ./robotarium verify and
+  ./robotarium run (their timings on the experiment);
+- the queue's claim latency: a one-step-script submitted to idle workers, the time until a worker holds its
+  verification (the database's state polled every 10 ms), and from queued to running (the database's own
+  timestamps); median of 5;
+- the time to notice a lost worker: a worker killed outright (kill -9 of every process it started) while it
+  runs an experiment, until the experiment says "failed: the testbed was lost" (heartbeat 1 s here, lost
+  after 5 missed beats; the default is 2 s and 10 s).
+"""
+import argparse
+import os
+import shutil
+import statistics
+import sys
+import tempfile
+import time
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, REPO)
+
+from devtools.postgres import PostgreSQL, server_binaries  # noqa: E402
+from devtools.service import HOLD, HEARTBEAT, Service  # noqa: E402
+
+# 300 steps, the robots on a grid turning in place (no collision, nobody leaves the arena).
+TURNING = """import numpy as np
+import rps.robotarium as robotarium
+N = {robots}
+columns = 10
+x = -1.35 + 0.3 * (np.arange(N) % columns)
+y = -0.75 + 0.3 * (np.arange(N) // columns)
+r = robotarium.Robotarium(number_of_robots=N, show_figure=False, sim_in_real_time=False,
+                          initial_conditions=np.array([x, y, np.zeros(N)]))
+for k in range({steps}):
+    r.get_poses()
+    r.set_velocities(np.arange(N), np.vstack([np.zeros(N), 0.5 * np.ones(N)]))
+    r.step()
+r.call_at_scripts_end()
+"""
+
+
+def wait_all(service, pks):
+    for pk in pks:
+        row = service.wait_for(pk, ("completed", "failed", "rejected"))
+        if row["state"] != "completed":
+            raise SystemExit("experiment %d %s: %s" % (pk, row["state"], row["detail"]))
+
+
+def timings(service, pks):
+    rows = service.query("SELECT timings FROM robotarium_portal_experiment WHERE id = ANY(%s)", pks)
+    verify = [t["verify_command"] for (t,) in rows if "verify_command" in t]
+    run = [t["run_command"] for (t,) in rows if "run_command" in t]
+    return statistics.mean(verify), statistics.mean(run)
+
+
+def throughput(service, robots, submissions):
+    script = TURNING.format(robots=robots, steps=300)
+    began = time.monotonic()
+    pks = service.submit([{"title": "%d robots %d" % (robots, k), "robots": robots, "script": script}
+                          for k in range(submissions)])
+    wait_all(service, pks)
+    wall = time.monotonic() - began
+    verify, run = timings(service, pks)
+    return submissions / wall * 3600.0, wall, verify, run
+
+
+def claim_latency(service, samples=5):
+    to_verifying, to_running = [], []
+    script = TURNING.format(robots=2, steps=1)
+    for k in range(samples):
+        (pk,) = service.submit([{"title": "claim %d" % k, "robots": 2, "script": script}])
+        submitted = service.query("SELECT submitted_at FROM robotarium_portal_experiment WHERE id = %s", pk)[0][0]
+        while True:
+            state, now = service.query("SELECT state, now() FROM robotarium_portal_experiment WHERE id = %s", pk)[0]
+            if state != "submitted":
+                break
+            time.sleep(0.01)
+        to_verifying.append((now - submitted).total_seconds())
+        wait_all(service, [pk])
+        queued, started = service.query("SELECT queued_at, started_at FROM robotarium_portal_experiment "
+                                        "WHERE id = %s", pk)[0]
+        to_running.append((started - queued).total_seconds())
+    return statistics.median(to_verifying), statistics.median(to_running)
+
+
+def time_to_notice(service, folder):
+    release = os.path.join(folder, "release-never")
+    (pk,) = service.submit([{"title": "lost", "robots": 2, "script": HOLD.format(release=release, hold_in="work")}])
+    service.wait_for(pk, ("running",))
+    while not os.path.exists(os.path.join(service.data, "experiments", str(pk), "run-1", "output.txt")):
+        time.sleep(0.1)
+    name = service.worker_of(pk)
+    killed = time.monotonic()
+    service.workers.pop(name).kill()
+    row = service.wait_for(pk, ("failed",))
+    noticed = time.monotonic() - killed
+    assert "the testbed was lost" in row["detail"], row
+    return noticed
+
+
+def main():
+    parser = argparse.ArgumentParser(prog="./robotarium bench service", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--submissions", type=int, default=3, help="submissions per robot count (default 3)")
+    parser.add_argument("--robots", type=int, nargs="+", default=[5, 20, 50], help="robot counts (default 5 20 50)")
+    args = parser.parse_args()
+    if server_binaries() is None:
+        raise SystemExit("no PostgreSQL server here: apt-get install postgresql")
+    folder = tempfile.mkdtemp(prefix="robotarium-bench-service-")
+    service = Service(folder)
+    try:
+        service.postgres = PostgreSQL()
+        service.start_portal()
+        print("service benchmark: PostgreSQL %s, heartbeat %s s, %d CPU cores, %d submissions per robot count"
+              % (os.path.basename(os.path.dirname(server_binaries())), HEARTBEAT, os.cpu_count(), args.submissions),
+              flush=True)
+        print("%-8s %-7s %14s %9s %11s %9s" % ("workers", "robots", "verified/hour", "wall s", "verify s",
+                                               "run s"), flush=True)
+        for workers in (1, 2):
+            while len(service.workers) < workers:
+                service.start_worker("worker-%d" % (len(service.workers) + 1))
+            for robots in args.robots:
+                per_hour, wall, verify, run = throughput(service, robots, args.submissions)
+                print("%-8d %-7d %14.0f %9.1f %11.1f %9.1f" % (workers, robots, per_hour, wall, verify, run), flush=True)
+        to_verifying, to_running = claim_latency(service)
+        print("claim latency (median of 5, idle workers): submitted -> verifying %.3f s, queued -> running %.3f s"
+              % (to_verifying, to_running), flush=True)
+        print("time to notice a worker killed outright mid-run (until its page says failed: the testbed was lost): "
+              "%.1f s" % time_to_notice(service, folder), flush=True)
+    finally:
+        service.close()
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
