@@ -52,9 +52,6 @@ def offsets(times):
     return times - times[0]
 
 
-@pytest.mark.xfail(strict=True, reason="known regression, open: TestbedStatus gained fields on 2026-11-26 and the "
-                   "committed sample bag holds the old layout; its replay delivers none of its 135 statuses. "
-                   "The replay must convert old layouts (or the sample be re-recorded)")
 def test_replay_republishes_the_same_messages_in_order_with_the_original_timing(tmp_path, sample):
     bag, original = recorded(sample)
     probe, process, received, statuses = replay(tmp_path, sample, "--figure", "--figure-file", str(tmp_path / "fig.mp4"))

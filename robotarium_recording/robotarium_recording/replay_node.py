@@ -27,6 +27,7 @@ import numpy as np
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 from rclpy.utilities import remove_ros_args
 from std_srvs.srv import SetBool
 
@@ -103,9 +104,33 @@ class ReplayNode(Node):
         times = [m.log_time for m in messages]
         if timing == "experiment":
             times = experiment_times(bag, times)
-        self.messages = [(t, m.topic, m.data, m.type) for t, m in zip(times, messages)]
+        convert = self.layout_converters()
+        self.messages = [(t, m.topic, convert[m.type](m) if m.type in convert else m.data, m.type)
+                         for t, m in zip(times, messages)]
         self.drawing_topic = bag.topic("drawing", required=False)
         self.create_service(SetBool, "replay/pause", self.on_pause)
+
+    def layout_converters(self):
+        """{type: bytes of a recorded message in today's layout} for the types this bag recorded with
+        another definition than the one installed (a message gained fields since): republishing the
+        recorded bytes as they are would reach no subscriber (they fail to deserialize). Fields that are
+        gone are dropped, new ones keep their defaults."""
+        from robotarium_recording.bag import message_definition
+        converters = {}
+        for type_name in {self.bag.topics[t].type for t in self.publishers_by_topic}:
+            recorded = self.bag.schemas.get(type_name)
+            try:
+                installed = message_definition(type_name)
+            except (OSError, ValueError):
+                continue   # no .msg text to compare with (not one of ours): trust the recording
+            if recorded is None or _layout(recorded) == _layout(installed):
+                continue
+            cls = message_class(type_name)
+            self.get_logger().warning(
+                "%s was recorded with an older definition: converting it to today's (new fields keep "
+                "their defaults)" % type_name)
+            converters[type_name] = lambda m, cls=cls: serialize_message(to_installed(self.bag.decode(m), cls()))
+        return converters
 
     def rename(self, topic):
         """A topic of the recorded namespace, moved to this replay's namespace."""
@@ -215,6 +240,33 @@ class Figure:
                                    name=os.path.splitext(name)[0], obstacles=self.bag.experiment().get("obstacles") or ())
             if written:
                 print("[replay] no display: the replay is the video %s" % written, file=sys.stderr)
+
+
+def _layout(definition):
+    """A ros2msg definition without its comments and blank lines: what decides the bytes."""
+    lines = (line.split("#", 1)[0].strip() for line in definition.splitlines())
+    return [" ".join(line.split()) for line in lines if line]
+
+
+def to_installed(decoded, msg):
+    """Copy a message decoded with a recorded definition (rosbags) into an installed rclpy message,
+    field by field by name; nested messages and arrays of them recursively."""
+    for name in msg.get_fields_and_field_types():
+        if not hasattr(decoded, name):
+            continue
+        value, current = getattr(decoded, name), getattr(msg, name)
+        if hasattr(current, "get_fields_and_field_types"):
+            to_installed(value, current)
+        elif isinstance(current, list) and value is not None and len(value) and hasattr(
+                value[0], "__dataclass_fields__"):
+            cls = message_class(type(value[0]).__msgtype__) if hasattr(type(value[0]), "__msgtype__") else None
+            if cls is None:
+                continue
+            setattr(msg, name, [to_installed(v, cls()) for v in value])
+        else:
+            setattr(msg, name, value.tolist() if isinstance(value, np.ndarray) and isinstance(current, list)
+                    else value)
+    return msg
 
 
 def experiment_times(bag, log_times):
