@@ -251,8 +251,8 @@ class Service:
                                    " ON e.worker_id = w.id WHERE e.id = %s", pk)[0][0]
         return SECOND_HOST if host == SECOND_HOST else "here"
 
-    def wait_for(self, pk, states, what=""):
-        deadline = time.monotonic() + TIMEOUT
+    def wait_for(self, pk, states, what="", timeout=TIMEOUT):
+        deadline = time.monotonic() + timeout
         while True:
             row = self.experiment(pk)
             if row["state"] in states:
