@@ -33,7 +33,8 @@ VERIFY_TIMEOUT = 540      # s; under the verify cluster's job timeout (settings.
 RESULTS_GRACE = 600       # s after the time limit for the start, the end and the results' video
 STEP_LINE = re.compile(rb"\[robotarium\] step (\d+)")
 # What a user's script must not see of the service (the environment is passed on to its run).
-SECRET_VARIABLES = ("ROBOTARIUM_SMTP_PASSWORD", "ROBOTARIUM_SMTP_USER", "DJANGO_SETTINGS_MODULE")
+SECRET_VARIABLES = ("ROBOTARIUM_SMTP_PASSWORD", "ROBOTARIUM_SMTP_USER", "DJANGO_SETTINGS_MODULE",
+                    "ROBOTARIUM_PORTAL_DATABASE")   # its URL may carry the database password
 
 
 @functools.cache

@@ -359,6 +359,13 @@ def test_an_administrator_cancels_a_queued_or_running_experiment_and_its_page_sa
     assert "Cancelled by an administrator" in running.detail
 
 
+def test_a_jobs_environment_carries_no_database_url(monkeypatch):
+    from robotarium_portal import tasks
+    monkeypatch.setenv("ROBOTARIUM_PORTAL_DATABASE", "postgresql://robotarium:s3cret-pw@db.example.org/robotarium")
+    env = tasks.job_env("ROBOTARIUM_PORTAL_RUN_DOMAIN")
+    assert not any("s3cret-pw" in value for value in env.values())
+
+
 def timezone_now():
     from django.utils import timezone
     return timezone.now()
