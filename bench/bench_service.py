@@ -114,6 +114,8 @@ def main():
     parser.add_argument("--submissions", type=int, default=1,
                         help="submissions of each robot count in a batch (default 1)")
     parser.add_argument("--robots", type=int, nargs="+", default=[5, 20, 50], help="robot counts (default 5 20 50)")
+    parser.add_argument("--parts", nargs="+", default=["throughput", "claim", "lost"],
+                        choices=["throughput", "claim", "lost"], help="what to measure (default: all three)")
     args = parser.parse_args()
     if server_binaries() is None:
         raise SystemExit("no PostgreSQL server here: apt-get install postgresql")
@@ -126,7 +128,7 @@ def main():
               "%s robots, 300 steps" % (os.path.basename(os.path.dirname(server_binaries())), HEARTBEAT,
                                         os.cpu_count(), args.submissions, ", ".join(map(str, args.robots))),
               flush=True)
-        for workers in (1, 2):
+        for workers in (1, 2) if "throughput" in args.parts else ():
             while len(service.workers) < workers:
                 service.start_worker("worker-%d" % (len(service.workers) + 1))
             per_hour, wall, per_count = throughput(service, args.robots, args.submissions)
@@ -134,11 +136,15 @@ def main():
                   "verify / run: %s" % (workers, per_hour, len(args.robots) * args.submissions, wall, ", ".join(
                       "%d robots %.1f s / %.1f s" % (robots, v, r) for robots, (v, r) in per_count.items())),
                   flush=True)
-        to_verifying, to_running = claim_latency(service)
-        print("claim latency (median of 5, idle workers): submitted -> verifying %.3f s, queued -> running %.3f s"
-              % (to_verifying, to_running), flush=True)
-        print("time to notice a worker killed outright mid-run (until its page says failed: the testbed was lost): "
-              "%.1f s" % time_to_notice(service, folder), flush=True)
+        if not service.workers:
+            service.start_worker("worker-1")
+        to_verifying, to_running = claim_latency(service) if "claim" in args.parts else (None, None)
+        if "claim" in args.parts:
+            print("claim latency (median of 5, idle workers): submitted -> verifying %.3f s, queued -> running %.3f s"
+                  % (to_verifying, to_running), flush=True)
+        if "lost" in args.parts:
+            print("time to notice a worker killed outright mid-run (until its page says failed: the testbed was lost): "
+                  "%.1f s" % time_to_notice(service, folder), flush=True)
     finally:
         service.close()
         shutil.rmtree(folder, ignore_errors=True)

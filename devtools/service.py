@@ -247,8 +247,11 @@ class Service:
 
     def worker_of(self, pk):
         """The name (host) of the worker that holds the experiment."""
-        host = self.postgres.query("SELECT w.host FROM robotarium_portal_worker w JOIN robotarium_portal_experiment e"
-                                   " ON e.worker_id = w.id WHERE e.id = %s", pk)[0][0]
+        host, pid = self.query("SELECT w.host, w.pid FROM robotarium_portal_worker w JOIN "
+                               "robotarium_portal_experiment e ON e.worker_id = w.id WHERE e.id = %s", pk)[0]
+        for name, worker in self.workers.items():
+            if worker.process.pid == pid:   # ./robotarium execs the worker: the same process
+                return name
         return SECOND_HOST if host == SECOND_HOST else "here"
 
     def wait_for(self, pk, states, what="", timeout=TIMEOUT):
