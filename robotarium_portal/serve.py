@@ -137,6 +137,8 @@ def main(argv=None):
     slots = ", ".join("%s on ROS_DOMAIN_ID %d" % (w.kind, w.domain) for w, _ in workers.slots)
     print("[robotarium] database: %s; here: %s; Ctrl-C stops it (nothing is lost)"
           % (database, slots or "no worker (./robotarium worker runs them elsewhere)"), flush=True)
+    from robotarium_portal.jobbox import isolation
+    print("[robotarium] %s" % isolation(), flush=True)   # what holds, and (not root) what does not
     from django.contrib.auth import get_user_model
     if not get_user_model().objects.filter(is_staff=True).exists():
         print("[robotarium] no administrator yet: ./robotarium serve --create-admin you@example.org%s"

@@ -8,6 +8,7 @@ from pathlib import Path
 REPOSITORY = Path(os.environ.get("ROBOTARIUM_ROOT") or Path(__file__).resolve().parent.parent)
 DATA_DIR = Path(os.environ.get("ROBOTARIUM_PORTAL_DATA") or REPOSITORY / "service").resolve()
 DATA_DIR.mkdir(parents=True, exist_ok=True)
+DATA_DIR.chmod(0o700)   # the service's alone: no job's script may read it (jobbox)
 EXPERIMENTS_DIR = DATA_DIR / "experiments"
 MAIL_DIR = DATA_DIR / "mail"
 
@@ -152,4 +153,16 @@ LOGGING = {
     "handlers": {"console": {"class": "logging.StreamHandler"}},
     "loggers": {name: {"handlers": ["console"], "level": os.environ.get("ROBOTARIUM_PORTAL_LOG", "WARNING")}
                 for name in ("django_q", "robotarium_portal")},
+}
+
+# Each job in its own box (robotarium_portal/jobbox.py, docs/portal.md): its folder under JOB_BOXES_DIR
+# (outside the data folder, which no job may read), its script's limits.
+JOB_BOXES_DIR = Path(os.environ.get("ROBOTARIUM_PORTAL_BOXES") or str(DATA_DIR) + "-boxes")
+JOB_LIMITS = {
+    "cpu_seconds": 1200,            # of the script's process: a 900 s run computing all the time, and then some
+    "memory_bytes": 8 * 1024 ** 3,  # address space (rclpy, numpy and the DDS threads take ~1.5 GB of it)
+    "file_bytes": 1024 ** 3,        # the largest file the script may write
+    "processes": 512,               # processes and threads of the script's account (DDS makes ~20 a participant)
+    "open_files": 1024,
+    "disk_bytes": 2 * 1024 ** 3,    # the job's folder in all (watched), and each of its private tmpfs
 }

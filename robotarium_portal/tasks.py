@@ -9,8 +9,6 @@ import logging
 import os
 import re
 import shutil
-import signal
-import subprocess
 import time
 
 from django.conf import settings
@@ -20,8 +18,9 @@ from django.utils import timezone
 from django_q.models import OrmQ
 from django_q.tasks import async_task
 
-from robotarium_portal import mail
+from robotarium_portal import jobbox, mail
 from robotarium_portal.files import copy_files
+from robotarium_portal.jobbox import stop_group
 from robotarium_portal.models import Experiment, Worker
 from robotarium_portal.workers import database_retry, me
 
@@ -97,21 +96,26 @@ def stopping():
 
 
 def run_command(command, cwd, env, output_path, timeout, job):
-    """Run command in its own process group (so nothing of it is left behind), its output in a file.
-    The group's id is in jobs/<job>.pgid while it runs (serve stops it there). The exit code, or None
-    when it ran past timeout (then the whole group is killed)."""
+    """Run command in the job's own box (jobbox: its namespaces, folder, account and limits; cwd's files are
+    copied into the box's folder, where it runs), its output in a file. The box's process group is in
+    jobs/<job>.pgid while it runs (serve stops it there). The exit code, or None when it ran past timeout
+    (then the whole group is killed); what the box stopped or refused ends the output ('[job box]' lines)."""
     pgid_file = jobs_dir() / ("%s.pgid" % job)
-    with open(output_path, "wb") as output:
-        process = subprocess.Popen(command, cwd=cwd, env=env, stdout=output, stderr=subprocess.STDOUT,
-                                   stdin=subprocess.DEVNULL, process_group=0)
-        pgid_file.write_text(str(process.pid))
-        try:
-            return process.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            stop_group(process.pid)
-            return None
-        finally:
-            pgid_file.unlink(missing_ok=True)
+    # a box per worker slot: the slots on one machine differ in their ROS_DOMAIN_ID (a bounded set of accounts)
+    box = jobbox.JobBox(settings.JOB_BOXES_DIR, "%s-%s" % (job, env.get("ROS_DOMAIN_ID", "0")),
+                        jobbox.Limits(**settings.JOB_LIMITS), keep=[settings.DATA_DIR])
+    try:
+        box.prepare(cwd)
+        return box.run(command, env, output_path, timeout, started=lambda pid: pgid_file.write_text(str(pid))).code
+    finally:
+        pgid_file.unlink(missing_ok=True)
+        box.clean()
+
+
+def box_notes(output_path):
+    """What the job's box stopped or refused, for the experiment's page ('' when nothing)."""
+    notes = jobbox.notes_in(output_path)
+    return "".join("\nThe job's box: %s." % note for note in notes)
 
 
 def stop_jobs(worker=None):
@@ -123,22 +127,6 @@ def stop_jobs(worker=None):
             stop_group(int(pgid_file.read_text()))
         except (ValueError, OSError):
             pass
-
-
-def stop_group(pgid, grace=30.0):
-    """SIGTERM to the group (./robotarium stops its testbed and writes its results), SIGKILL after grace."""
-    for sig, wait in ((signal.SIGTERM, grace), (signal.SIGKILL, 0.0)):
-        try:
-            os.killpg(pgid, sig)
-        except ProcessLookupError:
-            return
-        deadline = time.monotonic() + wait
-        while time.monotonic() < deadline:
-            try:
-                os.killpg(pgid, 0)
-            except ProcessLookupError:
-                return
-            time.sleep(0.2)
 
 
 def _tail(path, lines=15):
@@ -220,7 +208,8 @@ def _verify(experiment):
     if code == VERIFY_ACCEPTED and verdict and verdict.get("verdict") == "accepted":
         return _queue(experiment, verdict, "")
     if code == VERIFY_REJECTED and verdict:
-        return _finish(experiment, Experiment.REJECTED, "Rejected by the verification:\n" + rejection_text(verdict),
+        return _finish(experiment, Experiment.REJECTED, "Rejected by the verification:\n" + rejection_text(verdict)
+                       + box_notes(output),
                        verification=verdict, timings=experiment.timings)
     if code is None:
         why = "the verification did not end within %d s" % VERIFY_TIMEOUT
@@ -228,8 +217,8 @@ def _verify(experiment):
         why = "the verification's testbed had a problem (exit code 4)"
     else:
         why = "the verification could not run (exit code %s)" % code
-    return _finish(experiment, Experiment.FAILED, "Failed: %s; a person may submit it again.\n%s"
-                   % (why, _tail(output)), verification=verdict, timings=experiment.timings)
+    return _finish(experiment, Experiment.FAILED, "Failed: %s; a person may submit it again.%s\n%s"
+                   % (why, box_notes(output), _tail(output)), verification=verdict, timings=experiment.timings)
 
 
 def _queue(experiment, verdict, detail):
@@ -341,5 +330,6 @@ def run_experiment(experiment):
         why = run["detail"]
     else:
         why = "./robotarium run ended with exit code %s and no results:\n%s" % (code, _tail(root / "output.txt"))
-    return _finish(experiment, Experiment.FAILED, "Failed: " + why + earlier, results=experiment.results,
+    return _finish(experiment, Experiment.FAILED, "Failed: " + why + box_notes(root / "output.txt") + earlier,
+                   results=experiment.results,
                    run_outcome=outcome, timings=experiment.timings)

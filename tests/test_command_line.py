@@ -58,3 +58,26 @@ def test_what_report_and_replay_write_beside_the_committed_sample_is_ignored_by_
                 if name == "metadata.yaml" or name.endswith(".mcap")]
     kept = subprocess.run(["git", "check-ignore", *recorded], cwd=REPO, stdout=subprocess.PIPE, text=True)
     assert recorded and kept.stdout == ""   # the recording itself stays tracked
+
+
+@pytest.mark.parametrize("line, hint", [
+    ("import nump", "did you mean 'numpy'?"),
+    ("from rps.utilities.misk import *", "did you mean 'rps.utilities.misc'?"),
+    ("import rps.utilities.barrier_certificate", "did you mean 'rps.utilities.barrier_certificates'?"),
+])
+def test_an_import_typo_is_named_with_what_was_meant_before_anything_runs(tmp_path, line, hint):
+    """run's pre-check (cli.check_script) names a typo in a top-level module and in an rps submodule
+    alike (the README promises a "did you mean" for import typos; submodules once got none)."""
+    from robotarium_client import cli
+    script = tmp_path / "typo.py"
+    script.write_text("import numpy as np\n%s\nprint('never runs')\n" % line)
+    detail, message = cli.check_script(str(script))
+    assert detail.startswith("could not import ") and detail.endswith("(line 2 of typo.py; %s)" % hint), detail
+    assert "ModuleNotFoundError" in message and line in message
+
+
+def test_an_import_of_something_real_passes_the_pre_check(tmp_path):
+    from robotarium_client import cli
+    script = tmp_path / "fine.py"
+    script.write_text("import rps.robotarium as robotarium\nfrom rps.utilities.misc import *\nimport numpy\n")
+    assert cli.check_script(str(script)) is None

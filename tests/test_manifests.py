@@ -106,3 +106,19 @@ def test_one_version_for_every_package():
     for package in packages():
         with open(os.path.join(REPO, package, "CHANGELOG.rst")) as f:
             assert "\n%s (" % versions[package + "/package.xml"] in f.read(), package
+
+
+def test_the_ros_route_of_the_readme_works_from_a_plain_shell():
+    """`source .venv/bin/activate && source install/setup.bash` in a shell with nothing set gives the
+    workspace as a ROS user expects it: our packages on the ament index (what `ros2 run`/`ros2 launch`
+    look up), our messages and nodes importable. install/setup.bash once did not exist (only setup.sh)."""
+    import subprocess
+    assert os.path.isfile(os.path.join(REPO, "install", "setup.bash")), "./robotarium setup makes install/setup.bash"
+    probe = ("import rclpy, robotarium_msgs.msg, robotarium_sim.simulator_node; "
+             "from ament_index_python.packages import get_package_share_directory as share; "
+             "print(share('robotarium_client'))")
+    out = subprocess.run(["bash", "-c", "source .venv/bin/activate && source install/setup.bash && python -c \"%s\""
+                          % probe], cwd=REPO, env={"HOME": os.environ.get("HOME", "/tmp"), "PATH": "/usr/bin:/bin"},
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == os.path.join(REPO, "install", "share", "robotarium_client")

@@ -21,7 +21,7 @@ import time
 
 from robotarium_client import session
 from robotarium_client.testbed import LocalTestbed, namespace, repository_root, testbed_answers
-from robotarium_core import lifeline, model
+from robotarium_core import lifeline, model, script_box
 
 DEMO_SCRIPT = os.path.join("examples", "barrier_certificates.py")  # 8 robots swap places through the middle
 # Folders never searched for data files a script saved.
@@ -205,12 +205,30 @@ def wait_until_recorded(run_dir, timeout=15.0):
 # -- before a testbed is started: can the script run at all? ---------------------------------------
 
 def _close_module_name(name):
-    """An installed top-level module whose name is close to `name` (an import typo), or None."""
+    """An importable module whose dotted name is close to `name` (an import typo: `nump` -> `numpy`,
+    `rps.utilities.misk` -> `rps.utilities.misc`), or None. The first part that is missing is
+    compared with its siblings: the top-level modules, or the submodules of the package above it."""
     import difflib
+    import importlib.util
     import pkgutil
-    names = set(sys.builtin_module_names) | {m.name for m in pkgutil.iter_modules()}
-    match = difflib.get_close_matches(name, sorted(names), n=1, cutoff=0.75)
-    return match[0] if match else None
+    parts = name.split(".")
+    for depth in range(len(parts)):
+        try:
+            if importlib.util.find_spec(".".join(parts[:depth + 1])) is not None:
+                continue
+        except (ImportError, ValueError):
+            pass
+        if depth == 0:
+            siblings = set(sys.builtin_module_names) | {m.name for m in pkgutil.iter_modules()}
+        else:
+            parent = importlib.util.find_spec(".".join(parts[:depth]))
+            locations = parent.submodule_search_locations if parent is not None else None
+            if not locations:
+                return None   # the part above is a module, not a package: nothing to compare with
+            siblings = {m.name for m in pkgutil.iter_modules(locations)}
+        match = difflib.get_close_matches(parts[depth], sorted(siblings), n=1, cutoff=0.75)
+        return ".".join(parts[:depth] + [match[0]] + parts[depth + 1:]) if match else None
+    return None
 
 
 def check_script(script):
@@ -245,6 +263,9 @@ def check_script(script):
                 continue   # the docstring
             else:
                 break
+            if script_box.VARIABLE in os.environ:
+                # Boxed (the portal): find_spec("pkg.mod") would import pkg, the user's code, as the service.
+                names = [name.split(".")[0] for name in names]
             for name in names:
                 try:
                     found = importlib.util.find_spec(name) is not None
@@ -254,9 +275,8 @@ def check_script(script):
                 except Exception as failed:   # noqa: BLE001 - a parent package that fails to import
                     found, error = False, session.describe_exception(failed)
                 if not found:
-                    top = name.split(".")[0]
-                    close = _close_module_name(top) if "No module named" in error else None
-                    hint = "Did you mean %r?" % close if close and close != top else ""
+                    close = _close_module_name(name) if "No module named" in error else None
+                    hint = "Did you mean %r?" % close if close and close != name else ""
                     text = '  File "%s", line %d\n    %s\nModuleNotFoundError: %s%s\n' % (
                         script, node.lineno, lines[node.lineno - 1].strip(), error, " " + hint if hint else "")
                     return ("could not import %s: ModuleNotFoundError: %s (line %d of %s%s)"
@@ -429,6 +449,8 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
         env.setdefault("MPLBACKEND", "Agg")
     # The script's lifeline: should this command be killed outright, the script stops too.
     env, pass_fds = lifeline.for_child(env)
+    # In the portal's job box only the script is demoted (its account, its limits); the testbed stays the service's.
+    box_options, env = script_box.popen_options(env, writable=[work])
     command = [sys.executable, "-m", "robotarium_client.runner", options.to_json(), info_path, script, *script_args]
 
     cwd = os.getcwd()
@@ -441,7 +463,7 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
                 # A process group of its own: a terminal's Ctrl-C reaches only this command, which forwards it
                 # once (a second SIGINT would cut short the script's exit handler ending its experiment).
                 process = subprocess.Popen(command, cwd=cwd, env=env, pass_fds=pass_fds, process_group=0,
-                                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+                                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, **box_options)
                 interruption.watch(process)
                 _tee(process.stdout, [sys.stdout.buffer, log])
                 code = process.wait()

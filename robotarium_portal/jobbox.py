@@ -1,0 +1,489 @@
+"""Each job in its own box: one verification or run, isolated from the service and from other jobs.
+
+Plain Python (no Django): the portal's run_command uses it; tests use it alone.
+
+What a box is, when the service runs as root:
+- **Its own network namespace** with only its loopback up: the job's testbed (localhost-only DDS
+  discovery, a ROS_DOMAIN_ID of its own as well) and its script see each other and nothing else;
+  no other job on this machine or LAN sees them; the script reaches no network, database or mail
+  server. (A Unix socket on the file system, e.g. PostgreSQL's, is not a network: the account's
+  lack of a database role refuses it.)
+- **Its own mount namespace**: the service's home and /tmp, /var/tmp, /dev/shm are empty tmpfs
+  of its own (the size of its disk quota), with only what the job needs bound back (the Python
+  installation, the repository, the data and box folders).
+- **Its own folder** `<boxes>/<name>/` (work/, home/, tmp/), 0700, owned by its own account
+  `robotarium-job-<name>` (made with useradd when missing), inside a boxes folder 0711 of the service's.
+- **The user's script alone is demoted** (robotarium_core.script_box, honoured by
+  `./robotarium run`/`verify` where they start the script): that account, resource limits on CPU
+  time, address space, file size, processes and open files; the testbed's nodes stay the service's.
+- **An environment of named variables only** (ENVIRONMENT): no database URL, secret key or mail password.
+- **A watch** while it runs: the box folder's size against the disk quota, the wall-time limit,
+  and processes the script leaves behind (a fork bomb's children) are stopped.
+
+A service that is not root cannot make accounts or namespaces: it says so (isolation()), tries a user
+namespace for the network (where the kernel allows unprivileged ones), and runs the script as
+itself with its resource limits (no process limit) and the scrubbed environment; nothing else.
+"""
+import ctypes
+import fcntl
+import json
+import os
+import pwd
+import re
+import shutil
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import time
+import warnings
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+ACCOUNT_PREFIX = "robotarium-job-"
+# What a job's environment keeps of the service's: the run's own needs, nothing else.
+ENVIRONMENT = ("PATH", "HOME", "LANG", "LC_ALL", "LC_CTYPE", "TZ", "TERM", "PYTHONPATH", "PYTHONUNBUFFERED",
+               "LD_LIBRARY_PATH", "VIRTUAL_ENV", "AMENT_PREFIX_PATH", "CMAKE_PREFIX_PATH", "RMW_IMPLEMENTATION",
+               "MPLBACKEND", "ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS",
+               "ROBOTARIUM_ROOT", "ROBOTARIUM_PROGRESS", "ROBOTARIUM_RPS", "ROBOTARIUM_PYTHON")
+SHARED_TMP = ("/tmp", "/var/tmp", "/dev/shm")
+WATCH_PERIOD = 0.5   # s between two looks at the folder's size and the script's processes
+NOTE = "[job box] "
+
+
+@dataclass(frozen=True)
+class Limits:
+    """A job's limits (the portal's settings hold the values, once)."""
+    cpu_seconds: int    # of the script's process (RLIMIT_CPU; SIGXCPU, then SIGKILL)
+    memory_bytes: int   # of the script's address space (RLIMIT_AS): a larger allocation fails
+    file_bytes: int     # the largest file the script may write (RLIMIT_FSIZE)
+    processes: int      # processes and threads of the job's account (RLIMIT_NPROC)
+    open_files: int     # (RLIMIT_NOFILE)
+    disk_bytes: int     # the box folder's size (watched), and each private tmpfs's
+
+    def script_limits(self):
+        return {k: v for k, v in asdict(self).items() if k != "disk_bytes"}
+
+
+@dataclass
+class Outcome:
+    code: int | None   # the command's exit code; None when the box stopped it at its wall-time limit
+    notes: list        # sentences for the experiment's page: what the box stopped or refused, and why
+
+
+def _mb(n):
+    return "%g MiB" % round(n / 1024 ** 2, 1)
+
+
+def isolated():
+    return os.geteuid() == 0
+
+
+def isolation():
+    """One line on what this service's boxes hold (the worker says it on start)."""
+    if isolated():
+        return ("job boxes: each job in its own network and mount namespace, its script as an account of its own "
+                "with resource limits, a scrubbed environment")
+    return ("job boxes: the service is not root (uid %d): no accounts, so each job's script runs AS THE SERVICE "
+            "(it can read what the service can); resource limits (no process limit) and a scrubbed environment "
+            "hold; a network namespace only where the kernel lets a user namespace make one" % os.geteuid())
+
+
+def account_name(name):
+    name = re.sub(r"[^a-z0-9-]", "-", name.lower())
+    return (ACCOUNT_PREFIX + name)[:32]
+
+
+def ensure_account(user):
+    """(uid, gid) of the job account, made when missing (a system account: no home, no log-in)."""
+    try:
+        entry = pwd.getpwnam(user)
+    except KeyError:
+        subprocess.run(["useradd", "--system", "--user-group", "--no-create-home", "--home-dir", "/nonexistent",
+                        "--shell", "/usr/sbin/nologin", user], check=True, capture_output=True)
+        entry = pwd.getpwnam(user)
+    return entry.pw_uid, entry.pw_gid
+
+
+def remove_account(user):
+    subprocess.run(["userdel", user], capture_output=True)
+
+
+def scrubbed(env):
+    return {k: v for k, v in env.items() if k in ENVIRONMENT}
+
+
+# -- the processes of an account ----------------------------------------------------------------------
+
+def _status(pid):
+    fields = {}
+    try:
+        with open("/proc/%s/status" % pid) as f:
+            for line in f:
+                key, _, value = line.partition(":")
+                if key in ("Uid", "PPid", "Threads"):
+                    fields[key] = int(value.split()[0])
+                elif key == "State":
+                    fields[key] = value.split()[0]
+    except (OSError, ValueError, IndexError):
+        return None
+    return fields
+
+
+def processes_of(uid, tasks=None):
+    """{pid: parent pid} of every live process whose real uid is uid. tasks (a list): gets the number of
+    tasks the kernel's process limit counts for uid (threads, and zombies not yet reaped)."""
+    found, count = {}, 0
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            status = _status(entry)
+            if status and status.get("Uid") == uid:
+                count += status.get("Threads", 1)
+                if status.get("State") != "Z":   # a zombie is gone already
+                    found[int(entry)] = status["PPid"]
+    if tasks is not None:
+        tasks.append(count)
+    return found
+
+
+def kill_account(uid):
+    """SIGKILL every process of uid (a fork bomb's children included); returns how many there were.
+    kill(-1) from a child that became uid reaches all of them in one go, so none forks a new one meanwhile;
+    the child never execs, so the account's process limit cannot stop it."""
+    before = len(processes_of(uid))
+    for _ in range(50):
+        if not processes_of(uid):
+            break
+        with warnings.catch_warnings():   # "fork in a threaded process": the child makes two system calls only
+            warnings.simplefilter("ignore", DeprecationWarning)
+            child = os.fork()
+        if child == 0:   # pragma: no cover - the child: only system calls, then out
+            try:
+                os.setresuid(uid, uid, uid)
+                os.kill(-1, signal.SIGKILL)
+            finally:
+                os._exit(0)
+        os.waitpid(child, 0)
+        time.sleep(0.05)   # the killed are reaped by their parents (or init)
+    return before
+
+
+def in_namespace(netns):
+    """The pids of the processes in the network namespace netns (its /proc/PID/ns/net link)."""
+    found = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                if os.readlink("/proc/%s/ns/net" % entry) == netns:
+                    found.append(int(entry))
+            except OSError:
+                continue
+    return found
+
+
+def kill_namespace(netns):
+    """SIGKILL whatever still runs in a job's network namespace once its command ended (a testbed node
+    whose command line was killed): every process of the job is in it. How many there were."""
+    before = len(in_namespace(netns))
+    for _ in range(50):
+        pids = in_namespace(netns)
+        if not pids:
+            break
+        for pid in pids:
+            try:
+                fd = os.pidfd_open(pid)
+            except OSError:
+                continue
+            try:
+                if os.readlink("/proc/%d/ns/net" % pid) == netns:
+                    signal.pidfd_send_signal(fd, signal.SIGKILL)
+            except OSError:
+                pass
+            finally:
+                os.close(fd)
+        time.sleep(0.05)
+    return before
+
+
+def folder_bytes(path):
+    total = 0
+    for root, dirs, files in os.walk(path):
+        for name in files + dirs:
+            try:
+                total += os.lstat(os.path.join(root, name)).st_blocks * 512
+            except OSError:
+                pass
+    return total
+
+
+# -- what stopped the script: its limits as the log shows them ------------------------------------------
+
+def explain(log, limits, network):
+    """The sentences that name the limit or refusal the script met, from what it printed (its log)."""
+    notes = []
+    checks = [
+        (r"SIGXCPU|CPU time limit", "the script used up its %d s of CPU time (the job's CPU limit) and was stopped"
+         % limits.cpu_seconds),
+        (r"MemoryError|Cannot allocate memory|bad_alloc", "the script asked for more memory than the job's %s "
+         "limit (address space); the allocation was refused" % _mb(limits.memory_bytes)),
+        (r"File too large|SIGXFSZ", "the script wrote a file larger than the job's file size limit (%s); the write "
+         "was refused" % _mb(limits.file_bytes)),
+        (r"BlockingIOError: \[Errno 11\]|Resource temporarily unavailable|can't start new thread",
+         "the script made more processes than the job's limit (%d processes and threads); the next were refused"
+         % limits.processes),
+        (r"Too many open files", "the script opened more files than the job's limit (%d); the next were refused"
+         % limits.open_files),
+        (r"PermissionError|Permission denied", "the script tried to read or write outside its own folder; "
+         "the job's account may not (refused)"),
+    ]
+    if network:
+        checks.append((r"Network is unreachable|Connection refused|Name or service not known|"
+                       r"Temporary failure in name resolution|No address associated",
+                       "the script tried to reach the network; a job has none beyond its own testbed (refused)"))
+    for pattern, sentence in checks:
+        if re.search(pattern, log):
+            notes.append(sentence)
+    return notes
+
+
+def notes_in(output_path):
+    """The box's notes in a job's output (what run_command wrote after it), one per line."""
+    try:
+        with open(output_path, encoding="utf-8", errors="replace") as f:
+            return [line[len(NOTE):].strip() for line in f if line.startswith(NOTE)]
+    except OSError:
+        return []
+
+
+# -- the box -------------------------------------------------------------------------------------------
+
+class JobBox:
+    """The box of one job slot (a worker runs one job a slot at a time): `<root>/<name>/`, its account."""
+
+    def __init__(self, root, name, limits, keep=()):
+        self.root = Path(root).resolve()
+        self.folder = self.root / name
+        self.work, self.home, self.tmp = self.folder / "work", self.folder / "home", self.folder / "tmp"
+        self.limits = limits
+        self.keep = [Path(p) for p in keep]   # more folders the job's command needs (the data folder)
+        self.user = account_name(name) if isolated() else pwd.getpwuid(os.geteuid()).pw_name
+        self.uid = self.gid = None
+
+    def prepare(self, files_from=None):
+        """A fresh folder (files_from's files in work/), owned by the job's account; returns work/."""
+        self.root.mkdir(parents=True, exist_ok=True)
+        if isolated():
+            os.chown(self.root, 0, 0)
+            self.root.chmod(0o711)   # its boxes reachable by their own accounts, not listable
+            self.uid, self.gid = ensure_account(self.user)
+            kill_account(self.uid)   # anything a job before it left (a worker killed outright)
+        else:
+            self.uid, self.gid = os.geteuid(), os.getegid()
+        shutil.rmtree(self.folder, ignore_errors=True)
+        if files_from is not None:
+            shutil.copytree(files_from, self.work, symlinks=False)
+        for path in (self.folder, self.work, self.home, self.tmp):
+            path.mkdir(exist_ok=True)
+        for root, dirs, files in os.walk(self.folder):
+            for name in [".", *dirs, *files]:
+                path = os.path.join(root, name)
+                os.chown(path, self.uid, self.gid)
+                os.chmod(path, 0o700 if os.path.isdir(path) else 0o600)
+        return self.work
+
+    def environment(self, env):
+        from robotarium_core import script_box
+        env = scrubbed(env)
+        env["TMPDIR"] = str(self.tmp)
+        if isolated():
+            # Fast DDS's shared memory: the testbed's segments are the service's, the script's account may not
+            # write them (localhost-only discovery adds that transport whatever FASTDDS_BUILTIN_TRANSPORTS says).
+            # So UDP only, and discovery on the "subnet": in the box's namespace that is its own loopback.
+            env["FASTDDS_BUILTIN_TRANSPORTS"] = "UDPv4"
+            env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
+        env[script_box.VARIABLE] = script_box.describe(self.user, self.uid, self.gid, self.home,
+                                                       self.limits.script_limits())
+        return env
+
+    def entry(self, command):
+        """The command behind the box's door: namespaces made, then the command exec'd (enter())."""
+        home = pwd.getpwuid(os.geteuid()).pw_dir
+        repository = os.environ.get("ROBOTARIUM_ROOT") or str(Path(__file__).resolve().parent.parent)
+        keep = {os.path.realpath(p) for p in (sys.base_prefix, sys.prefix, repository, self.root, *self.keep)}
+        hide = [p for p in (home, *SHARED_TMP) if os.path.isdir(p) and os.path.realpath(p) != "/"]
+        spec = {"user_namespace": not isolated(), "hide": hide, "keep": sorted(keep),
+                "tmpfs_bytes": self.limits.disk_bytes}
+        return [sys.executable, os.path.abspath(__file__), "enter", json.dumps(spec), "--", *command]
+
+    def run(self, command, env, output_path, timeout, started=None):
+        """Run command (in work/) in the box, its output in output_path; started(pid) once it runs.
+        Returns an Outcome; the notes are also written at the end of the output, one '[job box]' line each."""
+        notes, timed_out, over_quota = [], False, False
+        given = {p for p in self.work.rglob("*")}   # the experiment's own files
+        with open(output_path, "wb") as output:
+            process = subprocess.Popen(self.entry(command), cwd=self.work, env=self.environment(env),
+                                       stdout=output, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                       process_group=0)
+            if started:
+                started(process.pid)
+            deadline = time.monotonic() + timeout
+            own_netns, netns = os.readlink("/proc/self/ns/net"), None
+            while True:
+                try:
+                    code = process.wait(timeout=WATCH_PERIOD)
+                    break
+                except subprocess.TimeoutExpired:
+                    pass
+                if netns is None:   # the door has made the job's namespace (then exec'd the command)
+                    try:
+                        netns = os.readlink("/proc/%d/ns/net" % process.pid)
+                    except OSError:
+                        pass
+                    netns = None if netns == own_netns else netns
+                if time.monotonic() > deadline:
+                    notes.append("the job did not end within its %d s; it was stopped" % timeout)
+                    timed_out = True
+                    stop_group(process.pid)
+                    code = process.wait()
+                    break
+                if not over_quota and folder_bytes(self.folder) > self.limits.disk_bytes:
+                    over_quota = True
+                    self._stop_script()
+                    # What the script wrote goes (it would be copied to the results otherwise).
+                    for path in sorted(set(self.folder.rglob("*")) - given, reverse=True):
+                        try:
+                            if path.lstat().st_uid == self.uid and not path.is_dir():
+                                path.unlink()
+                        except OSError:
+                            continue
+                    notes.append("the script's folder grew past the job's disk quota (%s); the script was stopped "
+                                 "and the files it wrote were removed" % _mb(self.limits.disk_bytes))
+                stopped = self._leftovers(process.pid)
+                if stopped:
+                    notes.append(stopped)
+            killed = self._stop_script()
+            if killed:
+                notes.append("%d processes the script left behind were stopped at the job's end" % killed)
+            left = kill_namespace(netns) if netns else 0
+            if left:
+                notes.append("%d processes of the job still ran when its command had ended; they were stopped"
+                             % left)
+        log = Path(output_path).read_text(errors="replace")
+        notes += [n for n in explain(log, self.limits, network=True) if n not in notes]
+        with open(output_path, "a") as output:
+            output.writelines(NOTE + note + "\n" for note in notes)
+        return Outcome(None if timed_out else code, notes)
+
+    def _stop_script(self):
+        return kill_account(self.uid) if isolated() else 0
+
+    def _leftovers(self, job_pid):
+        """The script's processes, when they reached the job's process limit (a fork bomb: with processes
+        dying and forking in turn it would go on) or when their leader (the script's process, a child of
+        the job's command) has ended: stopped, and a note saying why. None otherwise."""
+        if not isolated():
+            return None
+        tasks = []
+        pids = processes_of(self.uid, tasks)
+        if not pids:
+            return None
+        if tasks[0] >= self.limits.processes:
+            return ("the script reached the job's limit of %d processes and threads; all %d of its processes "
+                    "were stopped" % (self.limits.processes, kill_account(self.uid)))
+        for pid, parent in pids.items():
+            try:
+                if parent not in pids and os.getpgid(parent) == job_pid:
+                    return None   # the leader still runs
+            except OSError:
+                continue
+        return "the script's process ended leaving %d processes behind; they were stopped" % kill_account(self.uid)
+
+    def _wait_quietly(self, process, timeout):
+        try:
+            process.wait(timeout=max(0.1, timeout))
+        except subprocess.TimeoutExpired:
+            pass
+
+    def clean(self):
+        """The folder goes; the account's processes too."""
+        if self.uid is not None:
+            self._stop_script()
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def stop_group(pgid, grace=30.0):
+    """SIGTERM to the group (./robotarium stops its testbed and writes its results), SIGKILL after grace."""
+    for sig, wait in ((signal.SIGTERM, grace), (signal.SIGKILL, 0.0)):
+        try:
+            os.killpg(pgid, sig)
+        except ProcessLookupError:
+            return
+        deadline = time.monotonic() + wait
+        while time.monotonic() < deadline:
+            try:
+                os.killpg(pgid, 0)
+            except ProcessLookupError:
+                return
+            time.sleep(0.2)
+
+
+# -- the door: run as `python jobbox.py enter SPEC -- COMMAND...` (a fresh process, one thread) ----------
+
+MS_NOSUID, MS_NODEV, MS_BIND, MS_REC, MS_PRIVATE = 0x2, 0x4, 0x1000, 0x4000, 0x40000
+SIOCGIFFLAGS, SIOCSIFFLAGS, IFF_UP = 0x8913, 0x8914, 0x1
+
+
+def _mount(libc, source, target, fstype, flags, data=None):
+    if libc.mount(source and source.encode(), target.encode(), fstype and fstype.encode(), flags,
+                  data and data.encode()) != 0:
+        error = ctypes.get_errno()
+        raise OSError(error, "mount %s on %s: %s" % (source or fstype, target, os.strerror(error)))
+
+
+def loopback_up():
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        request = struct.pack("16sH14x", b"lo", 0)
+        flags = struct.unpack("16sH14x", fcntl.ioctl(s, SIOCGIFFLAGS, request))[1]
+        fcntl.ioctl(s, SIOCSIFFLAGS, struct.pack("16sH14x", b"lo", flags | IFF_UP))
+
+
+def enter(spec, command):
+    uid, gid = os.geteuid(), os.getegid()
+    flags = os.CLONE_NEWNET | os.CLONE_NEWNS | (os.CLONE_NEWUSER if spec["user_namespace"] else 0)
+    try:
+        os.unshare(flags)
+    except OSError as error:
+        print(NOTE + "no namespaces for this job (%s): it shares this machine's network and files; the kernel "
+              "refuses unprivileged user namespaces, or the service lacks the right" % error, flush=True)
+        os.execvp(command[0], command)
+    if spec["user_namespace"]:   # the same uid inside: the script keeps the service's identity, no more
+        with open("/proc/self/setgroups", "w") as f:
+            f.write("deny")
+        with open("/proc/self/uid_map", "w") as f:
+            f.write("%d %d 1" % (uid, uid))
+        with open("/proc/self/gid_map", "w") as f:
+            f.write("%d %d 1" % (gid, gid))
+    libc = ctypes.CDLL(None, use_errno=True)
+    _mount(libc, None, "/", None, MS_REC | MS_PRIVATE)   # nothing done here reaches the machine's mounts
+    loopback_up()
+    hidden = [os.path.realpath(p) for p in spec["hide"]]
+    keep = [p for p in spec["keep"] if any(p.startswith(h + "/") for h in hidden) and os.path.isdir(p)]
+    kept = [(p, os.open(p, os.O_PATH | os.O_DIRECTORY)) for p in keep]   # reachable after the tmpfs covers them
+    for path in hidden:
+        mode = "0711" if path not in SHARED_TMP else "1777"
+        _mount(libc, "tmpfs", path, "tmpfs", MS_NOSUID | MS_NODEV, "size=%d,mode=%s" % (spec["tmpfs_bytes"], mode))
+    bound = []
+    for path, fd in kept:
+        if any(path.startswith(b + "/") for b in bound):
+            continue   # inside a folder already bound back
+        os.makedirs(path, mode=0o711, exist_ok=True)
+        _mount(libc, "/proc/self/fd/%d" % fd, path, None, MS_BIND | MS_REC)
+        bound.append(path)
+    os.execvp(command[0], command)
+
+
+if __name__ == "__main__":
+    if len(sys.argv) < 5 or sys.argv[1] != "enter" or sys.argv[3] != "--":
+        sys.exit("usage: python jobbox.py enter SPEC_JSON -- COMMAND... (the job box's door; see its docstring)")
+    enter(json.loads(sys.argv[2]), sys.argv[4:])

@@ -1,0 +1,269 @@
+"""Each job in its own box (robotarium_portal/jobbox.py): hostile scripts through the real `./robotarium run`
+in a real box (network and mount namespaces, a job account made with useradd, resource limits), each
+stopped or refused with its message, and a normal script that still runs and saves its results; one
+through the portal's own run path (tasks.run_next), after which the worker runs the next experiment.
+
+Needs root (accounts, namespaces): without it the box cannot isolate, and these tests skip saying so.
+Tight limits keep them short; every account, folder and process they make is removed."""
+import json
+import os
+import pwd
+import shutil
+import socket
+import tempfile
+import threading
+from pathlib import Path
+
+import pytest
+
+from devtools.rosutil import REPO, processes_on_domain, unique_domain_id
+from robotarium_portal import jobbox
+
+pytestmark = [pytest.mark.e2e,
+              pytest.mark.skipif(os.geteuid() != 0, reason="a job box isolates only when the service is root "
+                                 "(accounts, namespaces); run the tests as root")]
+
+LIMITS = jobbox.Limits(cpu_seconds=6, memory_bytes=3 * 1024 ** 3, file_bytes=20 * 1024 ** 2, processes=200,
+                       open_files=256, disk_bytes=60 * 1024 ** 2)
+SECRETS = {"ROBOTARIUM_SMTP_PASSWORD": "hunter2-smtp", "DATABASE_URL": "postgresql://svc:hunter2-db@db/portal",
+           "DJANGO_SECRET_KEY": "hunter2-django"}
+NORMAL = """\
+import os
+import numpy as np
+import rps.robotarium as robotarium
+r = robotarium.Robotarium(number_of_robots=2, show_figure=False)
+for _ in range(20):
+    r.get_poses()
+    r.set_velocities(np.arange(2), np.array([[0.05, 0.05], [0.0, 0.0]]))
+    r.step()
+np.save("saved.npy", np.arange(3))
+print("uid", os.getuid(), "secrets", sorted(k for k in os.environ if "hunter2" in os.environ[k]))
+r.call_at_scripts_end()
+"""
+TAG = "t%d" % (os.getpid() % 100000)
+
+
+@pytest.fixture(scope="module")
+def place():
+    root = Path(tempfile.mkdtemp(prefix="robotarium-jobbox-test-"))
+    root.chmod(0o711)
+    made = []
+    yield root, made
+    for user in made:
+        try:
+            jobbox.kill_account(pwd.getpwnam(user).pw_uid)
+        except KeyError:
+            continue
+        jobbox.remove_account(user)
+    shutil.rmtree(root, ignore_errors=True)
+
+
+def new_box(place, name):
+    root, made = place
+    box = jobbox.JobBox(root / "boxes", TAG + name, LIMITS, keep=[root])
+    if box.user not in made:
+        made.append(box.user)
+    return box
+
+
+def run_script(place, name, script, timeout=120, prepare=None, extra_files=None):
+    """./robotarium run SCRIPT in its own box: (outcome, run.json, output, the box's uid)."""
+    root, _ = place
+    box = new_box(place, name)
+    files = root / ("files-" + name)
+    files.mkdir()
+    (files / "main.py").write_text(script)
+    for path, text in (extra_files or {}).items():
+        (files / path).parent.mkdir(parents=True, exist_ok=True)
+        (files / path).write_text(text)
+    box.prepare(files)
+    if prepare:
+        prepare(box)
+    domain = unique_domain_id()
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", MPLBACKEND="Agg",
+               **SECRETS)
+    results, output = root / ("results-" + name), root / ("output-%s.txt" % name)
+    try:
+        outcome = box.run([os.path.join(REPO, "robotarium"), "run", "--lockstep", "--no-video", "--results-dir",
+                           str(results), "--bags-dir", str(results), "main.py"], env, output, timeout)
+    finally:
+        box.clean()
+    assert not jobbox.processes_of(box.uid), "the script's processes outlived its job"
+    assert not processes_on_domain(domain), "the job's processes outlived it"
+    assert not box.folder.exists()
+    (run_json,) = results.glob("*/run.json")
+    return outcome, json.loads(run_json.read_text()), output.read_text(), box.uid
+
+
+def test_a_normal_script_runs_in_its_box_as_its_own_account_and_saves_its_results(place):
+    outcome, run, output, uid = run_script(place, "ok", NORMAL)
+    assert run["outcome"] == "completed" and outcome.code == 0 and outcome.notes == [], output
+    assert "uid %d secrets []" % uid in output and uid != 0   # demoted, and no service secret in sight
+    assert list(Path(place[0]).glob("results-ok/*/data/saved.npy"))   # its data file reached the results
+
+
+def test_a_fork_bomb_meets_the_process_limit_and_nothing_of_it_is_left(place):
+    outcome, run, output, _ = run_script(place, "bomb", "import os\nwhile True:\n    os.fork()\n")
+    # Refused at the limit, then stopped: at the limit itself, or when its first process ended (whichever first)
+    assert "BlockingIOError: [Errno 11] Resource temporarily unavailable" in output
+    assert "the script made more processes than the job's limit (200 processes and threads)" in output
+    assert ("the script reached the job's limit of 200 processes and threads; all" in output
+            or "the script's process ended leaving" in output), output[-2000:]
+    assert run["outcome"] in ("script_error", "interrupted") and outcome.code is not None   # not the wall time
+
+
+def test_children_the_script_leaves_behind_are_stopped(place):
+    script = "import os, time\nif os.fork() == 0:\n    time.sleep(600)\nprint('parent done')\n"
+    outcome, run, output, _ = run_script(place, "orphan", script)
+    assert "parent done" in output and outcome.code is not None   # it did not wait for the child's 600 s
+    assert "the script's process ended leaving 1 processes behind; they were stopped" in output
+
+
+def test_the_scripts_own_package_never_runs_as_the_service(place):
+    """./robotarium's pre-check looks for the modules a script imports: for `import evil.sub` that would
+    import evil (the user's code) as the service, before the script is demoted; boxed, it does not."""
+    mark = place[0] / "written-by-evil"
+    evil = "import os\nopen(%r, 'w').write(str(os.getuid()))\n" % str(mark)
+    outcome, run, output, uid = run_script(place, "evil", "import evil.sub\n",
+                                           extra_files={"evil/__init__.py": evil, "evil/sub.py": ""})
+    assert not mark.exists(), "the user's package ran as uid %s" % mark.read_text()
+    assert "PermissionError" in run["detail"]   # it ran, as the script's account, and was refused
+
+
+def test_filling_the_disk_meets_the_file_size_limit_then_the_disk_quota(place):
+    script = """\
+import time
+try:
+    with open("big.bin", "wb") as f:
+        while True:
+            f.write(bytes(1024 ** 2))
+except OSError as error:
+    print("one file:", error)
+for i in range(30):   # 30 files of 10 MB, each under the file size limit: 300 MB, over the 60 MB quota
+    with open("part%d.bin" % i, "wb") as f:
+        f.write(bytes(10 * 1024 ** 2))
+time.sleep(60)
+"""
+    outcome, run, output, _ = run_script(place, "disk", script)
+    assert "one file: [Errno 27] File too large" in output
+    assert "wrote a file larger than the job's file size limit (20 MiB)" in output
+    assert "the script's folder grew past the job's disk quota (60 MiB); the script was stopped" in output
+    assert run["outcome"] == "interrupted" and "killed by SIGKILL" in run["detail"]
+    assert not list(Path(place[0]).glob("results-disk/*/data/part*.bin"))   # what it wrote went
+
+
+def test_allocating_20_gb_is_refused_by_the_memory_limit(place):
+    outcome, run, output, _ = run_script(place, "memory", "import numpy as np\nx = np.ones(20 * 10 ** 9, np.uint8)\n")
+    assert run["outcome"] == "script_error" and "MemoryError" in run["detail"] and "20" in run["detail"]
+    assert "more memory than the job's 3072 MiB limit" in output
+
+
+def test_a_script_spinning_forever_is_stopped_at_its_cpu_time(place):
+    outcome, run, output, _ = run_script(place, "spin", "while True:\n    pass\n")
+    assert "killed by SIGXCPU" in run["detail"]
+    assert "the script used up its 6 s of CPU time (the job's CPU limit) and was stopped" in output
+
+
+def test_reading_shadow_another_jobs_folder_or_the_service_data_is_refused(place):
+    root, _ = place
+    other = new_box(place, "other")
+    (root / "files-other").mkdir()
+    (root / "files-other" / "main.py").write_text("secret = 'the other job'\n")
+    other_work = other.prepare(root / "files-other")
+    data = root / "data"
+    data.mkdir(mode=0o700)
+    (data / "portal.sqlite3").write_text("the service's database")
+    targets = ["/etc/shadow", str(other_work / "main.py"), str(data / "portal.sqlite3")]
+    script = "import sys\nfor path in %r:\n    try:\n        print('READ', path, open(path).read()[:20])\n" \
+             "    except OSError as error:\n        print('REFUSED', path, error)\nopen(%r).read()\n" % (
+                 targets, targets[-1])
+    try:
+        outcome, run, output, _ = run_script(place, "reads", script)
+    finally:
+        other.clean()
+    assert "READ" not in output.replace("[robotarium]", "")
+    for path in targets:
+        assert "REFUSED %s [Errno 13] Permission denied" % path in output
+    assert run["outcome"] == "script_error" and "PermissionError" in run["detail"]
+    assert "tried to read or write outside its own folder" in output
+
+
+def test_the_network_and_the_database_are_out_of_reach(place):
+    with socket.socket() as database:   # stands for the database: a TCP server on this machine
+        database.bind(("127.0.0.1", 0))
+        database.listen()
+        database.settimeout(0.2)
+        port = database.getsockname()[1]
+        accepted, done = [], threading.Event()
+
+        def accept():
+            while not done.is_set():
+                try:
+                    accepted.append(database.accept())
+                except OSError:
+                    continue
+
+        threading.Thread(target=accept, daemon=True).start()
+        script = ("import socket\nfor where in [('127.0.0.1', %d), ('1.1.1.1', 53)]:\n    try:\n"
+                  "        socket.create_connection(where, timeout=5)\n        print('CONNECTED', where)\n"
+                  "    except OSError as error:\n        print('REFUSED', where, error)\n"
+                  "socket.create_connection(('1.1.1.1', 53), timeout=5)\n" % port)
+        try:
+            outcome, run, output, _ = run_script(place, "net", script)
+        finally:
+            done.set()
+    assert not accepted and "CONNECTED" not in output
+    assert "REFUSED ('127.0.0.1', %d) [Errno 111] Connection refused" % port in output
+    assert "REFUSED ('1.1.1.1', 53) [Errno 101] Network is unreachable" in output
+    assert "the script tried to reach the network; a job has none beyond its own testbed (refused)" in output
+
+
+def test_through_the_portal_a_hostile_run_fails_with_its_message_and_the_next_one_completes(place, settings_dir,
+                                                                                             monkeypatch):
+    from django.contrib.auth import get_user_model
+    from django.test import override_settings
+
+    from robotarium_portal import tasks
+    from robotarium_portal.models import Experiment
+    root, made = place
+    owner = get_user_model().objects.create_user(username="boxed-%s@example.org" % TAG, password="x")
+    experiments = []
+    for title, script in (("hog", "import numpy as np\nx = np.ones(20 * 10 ** 9, np.uint8)\n"), ("fine", NORMAL)):
+        experiment = Experiment.objects.create(owner=owner, title=title, estimated_duration=5, number_of_robots=2,
+                                               main_file="main.py", state=Experiment.QUEUED)
+        experiment.files_dir.mkdir(parents=True, exist_ok=True)
+        (experiment.files_dir / "main.py").write_text(script)
+        experiments.append(experiment)
+    made.append(jobbox.account_name(tasks.RUN_CLUSTER))   # the portal's run slot's account (removed after)
+    domain = unique_domain_id()
+    monkeypatch.setenv("ROBOTARIUM_PORTAL_RUN_DOMAIN", str(domain))
+    with override_settings(JOB_BOXES_DIR=root / "portal-boxes", JOB_LIMITS=dict(LIMITS.__dict__, cpu_seconds=30)):
+        tasks.run_next()
+        tasks.run_next()
+    hog, fine = experiments
+    hog.refresh_from_db()
+    fine.refresh_from_db()
+    assert hog.state == Experiment.FAILED, hog.detail
+    assert "MemoryError" in hog.detail
+    assert "The job's box: the script asked for more memory than the job's 3072 MiB limit" in hog.detail
+    assert fine.state == Experiment.COMPLETED, fine.detail
+    assert (fine.folder / fine.results / "data" / "saved.npy").exists()
+    assert not processes_on_domain(domain)
+
+
+@pytest.fixture
+def settings_dir():
+    """Django with a data folder of its own (or test_portal's, when both modules run in one session)."""
+    os.environ.setdefault("ROBOTARIUM_PORTAL_DATA", tempfile.mkdtemp(prefix="robotarium-jobbox-portal-"))
+    os.environ.setdefault("DJANGO_SETTINGS_MODULE", "robotarium_portal.settings")
+    import django
+    django.setup()
+    from django.conf import settings
+    from django.core.management import call_command
+    from django.db import connections
+    if not settings.DATA_DIR.exists():   # test_portal's, removed when its module ended: a fresh one
+        connections.close_all()
+        settings.DATA_DIR.mkdir(mode=0o700, parents=True)
+    call_command("migrate", interactive=False, verbosity=0)
+    assert oct(settings.DATA_DIR.stat().st_mode & 0o777) == "0o700"   # no job may read the service's data
+    yield settings.DATA_DIR
