@@ -1,8 +1,8 @@
-from django.contrib import admin
+from django.contrib import admin, messages
 from django.utils import timezone
 
-from robotarium_portal import mail
-from robotarium_portal.models import Experiment, ExperimentFile, Profile, ReturnMessage
+from robotarium_portal import mail, workers
+from robotarium_portal.models import Experiment, ExperimentFile, Profile, ReturnMessage, Worker
 
 
 @admin.register(Profile)
@@ -31,6 +31,33 @@ class ReturnMessageInline(admin.StackedInline):
 
 @admin.register(Experiment)
 class ExperimentAdmin(admin.ModelAdmin):
-    list_display = ("pk", "title", "owner", "state", "submitted_at", "finished_at")
+    """Every experiment; "state: queued" (or submitted, verifying, running) is the queue, and the selected ones
+    may be cancelled (a running one is stopped by its worker within a heartbeat)."""
+    list_display = ("pk", "title", "owner", "state", "worker", "submitted_at", "queued_at", "finished_at")
     list_filter = ("state",)
     inlines = [FileInline, ReturnMessageInline]
+    actions = ["cancel"]
+
+    @admin.action(description="Cancel the selected experiments (queued or running)")
+    def cancel(self, request, queryset):
+        done = [e for e in queryset if workers.cancel(e, request.user.email or request.user.username)]
+        for experiment in done:
+            experiment.refresh_from_db()
+            mail.try_sending(mail.send_issues_found, experiment)
+        if done:
+            self.message_user(request, "Cancelled %s." % ", ".join("#%d" % e.pk for e in done))
+        if len(done) < queryset.count():
+            self.message_user(request, "%d of the selected experiments were neither queued nor running: left as "
+                              "they were." % (queryset.count() - len(done)), messages.WARNING)
+
+
+@admin.register(Worker)
+class WorkerAdmin(admin.ModelAdmin):
+    """The workers' job slots: which host, since when, what they do, how many jobs, their last heartbeat."""
+    list_display = ("host", "pid", "kind", "domain", "state", "alive_since", "current_job", "jobs_done",
+                    "last_heartbeat")
+    list_filter = ("state", "kind", "host")
+    readonly_fields = [f.name for f in Worker._meta.fields]
+
+    def has_add_permission(self, request):
+        return False   # a worker registers itself when it starts

@@ -29,9 +29,10 @@ class Profile(models.Model):
 class Experiment(models.Model):
     SAVED, SUBMITTED, VERIFYING, REJECTED = "saved", "submitted", "verifying", "rejected"
     QUEUED, RUNNING, COMPLETED, FAILED = "queued", "running", "completed", "failed"
-    STATES = [(s, s) for s in (SAVED, SUBMITTED, VERIFYING, REJECTED, QUEUED, RUNNING, COMPLETED, FAILED)]
+    CANCELLED = "cancelled"   # by an administrator
+    STATES = [(s, s) for s in (SAVED, SUBMITTED, VERIFYING, REJECTED, QUEUED, RUNNING, COMPLETED, FAILED, CANCELLED)]
     PENDING = (SUBMITTED, VERIFYING, QUEUED, RUNNING)   # counted against the per-user cap
-    DONE = (REJECTED, COMPLETED, FAILED)                 # the "Completed Experiments" tab
+    DONE = (REJECTED, COMPLETED, FAILED, CANCELLED)      # the "Completed Experiments" tab
 
     owner = models.ForeignKey(settings.AUTH_USER_MODEL, on_delete=models.CASCADE, related_name="experiments")
     title = models.CharField(max_length=200)
@@ -51,6 +52,8 @@ class Experiment(models.Model):
     queued_at = models.DateTimeField(null=True, blank=True)
     started_at = models.DateTimeField(null=True, blank=True)
     finished_at = models.DateTimeField(null=True, blank=True)
+    # The worker that holds it while verifying or running (claimed together with the state).
+    worker = models.ForeignKey("Worker", null=True, blank=True, on_delete=models.SET_NULL, related_name="experiments")
 
     class Meta:
         ordering = ["-created"]
@@ -105,3 +108,28 @@ class ReturnMessage(models.Model):
 
     class Meta:
         ordering = ["created"]
+
+
+class Worker(models.Model):
+    """One job slot of a worker (./robotarium worker or serve's own): it verifies or runs one job at a time on a
+    testbed of its own (ROS_DOMAIN_ID `domain` on `host`). Its supervisor beats for it every
+    settings.WORKER_HEARTBEAT s; one whose beats stopped is found lost (robotarium_portal.workers.sweep)."""
+    VERIFY, RUNS = "verify", "runs"
+    ALIVE, STOPPED, LOST = "alive", "stopped", "lost"
+    host = models.CharField(max_length=200)
+    pid = models.PositiveIntegerField()           # its supervisor's process on host
+    kind = models.CharField(max_length=10, choices=[(VERIFY, "verification"), (RUNS, "runs")])
+    domain = models.PositiveIntegerField(null=True)
+    state = models.CharField(max_length=10, default=ALIVE, choices=[(s, s) for s in (ALIVE, STOPPED, LOST)])
+    alive_since = models.DateTimeField(default=timezone.now)
+    last_heartbeat = models.DateTimeField(default=timezone.now)
+    beats = models.PositiveBigIntegerField(default=0)   # what a watcher compares: no clock of two machines
+    current_job = models.CharField(max_length=200, blank=True)
+    jobs_done = models.PositiveIntegerField(default=0)
+    ended_at = models.DateTimeField(null=True, blank=True)
+
+    class Meta:
+        ordering = ["-alive_since"]
+
+    def __str__(self):
+        return "%s pid %d (%s, domain %s)" % (self.host, self.pid, self.kind, self.domain)

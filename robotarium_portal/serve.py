@@ -1,21 +1,18 @@
-"""./robotarium serve: the portal (waitress, a WSGI server) and its two workers (django-q2 clusters:
-"verify" and "runs") on this machine, everything kept in one data folder. Stop it (Ctrl-C) and start
-it again: the experiments' states are in the database, and the jobs are made again from them."""
+"""./robotarium serve: the portal (waitress, a WSGI server) and its own worker (django-q2 clusters:
+"verify" and "runs", robotarium_portal.workers) on this machine, everything kept in one data folder and
+its database (SQLite there, or PostgreSQL with --database, for workers on other machines). Stop it
+(Ctrl-C) and start it again: the experiments' states are in the database, the jobs are made again from them."""
 import argparse
 import fcntl
 import getpass
 import os
 import signal
-import subprocess
 import sys
 import threading
 import time
 from pathlib import Path
 
-from robotarium_core import lifeline
-
 REPOSITORY = Path(__file__).resolve().parent.parent
-STOP_GRACE = 60.0   # s a worker has to stop its job (a run ends its experiment and writes its results)
 
 
 def parse(argv):
@@ -26,9 +23,17 @@ def parse(argv):
                     "experiments, mail) is in the data folder.",
         epilog="First administrator: ./robotarium serve --create-admin you@example.org (asks for a password). "
                "Mail goes to DATA/mail/ (one file per message) unless ROBOTARIUM_SMTP_HOST (and "
-               "ROBOTARIUM_SMTP_PORT, _USER, _PASSWORD, _TLS=1, ROBOTARIUM_MAIL_FROM) name an SMTP server.")
+               "ROBOTARIUM_SMTP_PORT, _USER, _PASSWORD, _TLS=1, ROBOTARIUM_MAIL_FROM) name an SMTP server. "
+               "Workers on other machines: serve --database postgresql://..., then ./robotarium worker --help.")
     parser.add_argument("--data", default=str(REPOSITORY / "service"),
-                        help="the service's folder (default: service/ in the repository)")
+                        help="the service's folder (default: service/ in the repository); workers on other "
+                             "machines need it too, on a shared path")
+    parser.add_argument("--database", default="",
+                        help="PostgreSQL for the service's state, postgresql://USER[:PASSWORD]@HOST[:PORT]/NAME, "
+                             "for workers on other machines (./robotarium worker); default: SQLite in the data folder")
+    parser.add_argument("--jobs", type=int, default=1,
+                        help="verifications and runs at once on this machine (default 1 of each; 0: none here, "
+                             "the workers run elsewhere)")
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1; 0.0.0.0: "
                         "every interface, then name the host the users type with --allowed-host)")
     parser.add_argument("--port", type=int, default=8000, help="port (default 8000; 0: any free one)")
@@ -43,11 +48,9 @@ def parse(argv):
     return parser.parse_args(argv)
 
 
-def setup_django(data):
-    os.environ["ROBOTARIUM_PORTAL_DATA"] = str(Path(data).resolve())
-    os.environ.setdefault("DJANGO_SETTINGS_MODULE", "robotarium_portal.settings")
-    import django
-    django.setup()
+def setup_django(data, database=""):
+    from robotarium_portal.workers import setup_django as setup
+    setup(data, database)
 
 
 def create_admin(email):
@@ -76,55 +79,6 @@ def create_admin(email):
     print("[robotarium] %s is an administrator: log in at the portal; its admin pages are under /admin/" % email)
 
 
-def free_domain():
-    sys.path.insert(0, str(REPOSITORY))
-    from devtools.rosutil import unique_domain_id   # a file lock held while this process lives
-    return unique_domain_id()
-
-
-class Workers:
-    """The two django-q2 clusters, each in a process group of its own (its jobs' processes included)."""
-
-    def __init__(self, data, env, lock):
-        self.lock = lock   # held by the workers too: no second serve on this folder while one of them lives
-        self.processes = {}
-        self.logs = Path(data) / "logs"
-        self.logs.mkdir(exist_ok=True)
-        self.env = env
-
-    def start(self):
-        for name in ("verify", "runs"):
-            log = open(self.logs / ("worker-%s.txt" % name), "ab")
-            env, pass_fds = lifeline.for_child(self.env)
-            self.processes[name] = subprocess.Popen(
-                [sys.executable, "-m", "robotarium_portal.worker", name], env=env, pass_fds=pass_fds + (self.lock.fileno(),),
-                stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, process_group=0, cwd=REPOSITORY)
-
-    def dead(self):
-        return [name for name, p in self.processes.items() if p.poll() is not None]
-
-    def stop(self):
-        """Stop the jobs first (each ./robotarium ends its experiment and writes its results), then the
-        clusters (SIGTERM to each cluster's main process: it lets its worker finish and exits), and SIGKILL
-        what is left of a cluster after STOP_GRACE."""
-        from robotarium_portal import tasks
-        tasks.stop_jobs()
-        for process in self.processes.values():
-            if process.poll() is None:
-                process.send_signal(signal.SIGTERM)
-        deadline = time.monotonic() + STOP_GRACE
-        for process in self.processes.values():
-            try:
-                process.wait(timeout=max(0.1, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                pass
-            try:
-                os.killpg(process.pid, signal.SIGKILL)   # the cluster's own processes, whatever is left
-            except ProcessLookupError:
-                pass
-            process.wait()
-
-
 def main(argv=None):
     args = parse(argv)
     data = Path(args.data).resolve()
@@ -136,9 +90,16 @@ def main(argv=None):
         except BlockingIOError:
             sys.exit("[robotarium] error: another ./robotarium serve uses %s (or the workers of one that was "
                      "stopped are still ending their jobs); stop it first, or give this one its own --data folder" % data)
-    setup_django(data)
+    if args.jobs < 0:
+        sys.exit("[robotarium] error: --jobs must be 0 or more")
+    setup_django(data, args.database)
     from django.core.management import call_command
-    call_command("migrate", interactive=False, verbosity=0)
+    from django.db import DatabaseError
+    try:
+        call_command("migrate", interactive=False, verbosity=0)
+    except DatabaseError as error:
+        sys.exit("[robotarium] error: cannot use the database %s (%s); check --database"
+                 % (args.database.split("@")[-1] or "in " + str(data), str(error).strip()))
     if args.create_admin is not None:
         return create_admin(args.create_admin)
 
@@ -146,8 +107,7 @@ def main(argv=None):
 
     from robotarium_portal import tasks
     from robotarium_portal.wsgi import application
-    for stale in [tasks.jobs_dir() / "stopping", *tasks.jobs_dir().glob("*.pgid")]:   # of a previous life
-        stale.unlink(missing_ok=True)
+    from robotarium_portal.workers import Supervisor
     tasks.reconcile()   # before any worker: the jobs again from the experiments' states
     hosts = ["localhost", "127.0.0.1", "[::1]"] + args.allowed_host + (
         [args.host] if args.host not in ("0.0.0.0", "::") else [])
@@ -160,22 +120,23 @@ def main(argv=None):
                                                                  else args.host)
     url = "http://%s:%d/" % (shown_host, int(server.effective_port))
     env = dict(os.environ, ROBOTARIUM_PORTAL_URL=url.rstrip("/"), ROBOTARIUM_PORTAL_HOSTS=",".join(hosts),
-               ROBOTARIUM_PORTAL_RUN_DOMAIN=str(args.run_domain if args.run_domain is not None else free_domain()),
-               ROBOTARIUM_PORTAL_VERIFY_DOMAIN=str(args.verify_domain if args.verify_domain is not None
-                                                   else free_domain()),
                PYTHONPATH=os.pathsep.join([str(REPOSITORY), os.environ.get("PYTHONPATH", "")]))
     os.environ.update({k: env[k] for k in ("ROBOTARIUM_PORTAL_URL", "ROBOTARIUM_PORTAL_HOSTS")})
     from django.conf import settings
     settings.ALLOWED_HOSTS = hosts
-    workers = Workers(data, env, lock)
+    workers = Supervisor(data, ["verify", "runs"] if args.jobs else [], args.jobs, env, lock=lock,
+                         domains={"verify": args.verify_domain, "runs": args.run_domain})
     workers.start()
     mailer = settings.MAILERS["default"]
     mail = ("the SMTP server %s:%s" % (mailer["OPTIONS"]["host"], mailer["OPTIONS"]["port"])
             if mailer["BACKEND"].endswith("smtp.EmailBackend") else "%s (one file per message)" % settings.MAIL_DIR)
     print("[robotarium] the Robotarium portal is at %s" % url, flush=True)
     print("[robotarium] data (database, experiments, worker logs) in %s; mail goes to %s" % (data, mail), flush=True)
-    print("[robotarium] runs on ROS_DOMAIN_ID %s, verification on %s; Ctrl-C stops it (nothing is lost)"
-          % (env["ROBOTARIUM_PORTAL_RUN_DOMAIN"], env["ROBOTARIUM_PORTAL_VERIFY_DOMAIN"]), flush=True)
+    database = (("PostgreSQL at %s" % args.database.split("@")[-1]) if args.database
+                else "SQLite (%s)" % settings.DATABASES["default"]["NAME"])
+    slots = ", ".join("%s on ROS_DOMAIN_ID %d" % (w.kind, w.domain) for w, _ in workers.slots)
+    print("[robotarium] database: %s; here: %s; Ctrl-C stops it (nothing is lost)"
+          % (database, slots or "no worker (./robotarium worker runs them elsewhere)"), flush=True)
     from robotarium_portal.jobbox import isolation
     print("[robotarium] %s" % isolation(), flush=True)   # what holds, and (not root) what does not
     from django.contrib.auth import get_user_model
@@ -196,7 +157,7 @@ def main(argv=None):
         while True:
             time.sleep(2.0)
             if workers.dead():
-                print("[robotarium] error: the %s worker stopped (its log is in %s); stopping the service"
+                print("[robotarium] error: the worker %s stopped (its log is in %s); stopping the service"
                       % (", ".join(workers.dead()), workers.logs), flush=True)
                 os.kill(os.getpid(), signal.SIGTERM)
                 return

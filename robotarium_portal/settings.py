@@ -69,6 +69,22 @@ DATABASES = {"default": {
     "OPTIONS": {"timeout": 30, "transaction_mode": "IMMEDIATE",
                 "init_command": "PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL;"},
 }}
+# PostgreSQL instead (--database postgresql://user[:password]@host[:port]/name): workers on other machines.
+# CONN_MAX_AGE 0: a connection lives one request or one job step, so a database restart costs nothing but a
+# retry (robotarium_portal.workers.database_retry); the health check catches a connection a restart broke.
+DATABASE_URL = os.environ.get("ROBOTARIUM_PORTAL_DATABASE", "")
+if DATABASE_URL:
+    from urllib.parse import unquote, urlsplit
+    _url = urlsplit(DATABASE_URL)
+    if _url.scheme not in ("postgresql", "postgres") or not _url.path.strip("/"):
+        raise ValueError("--database %r: give postgresql://USER[:PASSWORD]@HOST[:PORT]/DATABASE" % DATABASE_URL)
+    DATABASES = {"default": {
+        "ENGINE": "django.db.backends.postgresql",
+        "NAME": unquote(_url.path.strip("/")), "USER": unquote(_url.username or ""),
+        "PASSWORD": unquote(_url.password or ""), "HOST": _url.hostname or "", "PORT": str(_url.port or ""),
+        "CONN_MAX_AGE": 0, "CONN_HEALTH_CHECKS": True,
+        "OPTIONS": {"connect_timeout": 10},
+    }}
 DEFAULT_AUTO_FIELD = "django.db.models.BigAutoField"
 
 AUTH_PASSWORD_VALIDATORS = [
@@ -127,6 +143,10 @@ Q_CLUSTER = {
     "save_limit": 200,
     "ALT_CLUSTERS": {"verify": {"timeout": 600, "retry": 720}},
 }
+# Each worker beats every WORKER_HEARTBEAT s; one that missed WORKER_LOST_AFTER s of beats, while the one
+# who watches saw the database all that time, is lost: its verification is handed out again, its run failed.
+WORKER_HEARTBEAT = float(os.environ.get("ROBOTARIUM_WORKER_HEARTBEAT", "2"))
+WORKER_LOST_AFTER = 5 * WORKER_HEARTBEAT
 LOGGING = {
     "version": 1,
     "disable_existing_loggers": False,

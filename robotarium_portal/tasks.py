@@ -12,7 +12,8 @@ import shutil
 import time
 
 from django.conf import settings
-from django.db.models import F
+from django.db import transaction
+from django.db.models import F, Q
 from django.utils import timezone
 from django_q.models import OrmQ
 from django_q.tasks import async_task
@@ -20,7 +21,8 @@ from django_q.tasks import async_task
 from robotarium_portal import jobbox, mail
 from robotarium_portal.files import copy_files
 from robotarium_portal.jobbox import stop_group
-from robotarium_portal.models import Experiment
+from robotarium_portal.models import Experiment, Worker
+from robotarium_portal.workers import database_retry, me
 
 logger = logging.getLogger("robotarium_portal")
 VERIFY_CLUSTER, RUN_CLUSTER = "verify", "runs"
@@ -30,7 +32,8 @@ VERIFY_TIMEOUT = 540      # s; under the verify cluster's job timeout (settings.
 RESULTS_GRACE = 600       # s after the time limit for the start, the end and the results' video
 STEP_LINE = re.compile(rb"\[robotarium\] step (\d+)")
 # What a user's script must not see of the service (the environment is passed on to its run).
-SECRET_VARIABLES = ("ROBOTARIUM_SMTP_PASSWORD", "ROBOTARIUM_SMTP_USER", "DJANGO_SETTINGS_MODULE")
+SECRET_VARIABLES = ("ROBOTARIUM_SMTP_PASSWORD", "ROBOTARIUM_SMTP_USER", "DJANGO_SETTINGS_MODULE",
+                    "ROBOTARIUM_PORTAL_DATABASE")   # its URL may carry the database password
 
 
 @functools.cache
@@ -50,15 +53,19 @@ def enqueue_run():
 
 
 def reconcile():
-    """At the service's start, before any worker: every job from the experiments' states. A run that a stop
-    cut short goes back to the head of the queue (its queued_at is kept) and runs again."""
+    """At the service's start, before its own workers: every job from the experiments' states. A run that a
+    stop cut short goes back to the head of the queue (its queued_at is kept) and runs again. What a live
+    worker (on another machine) holds stays its own."""
+    from robotarium_portal.workers import forget_dead_local_workers
+    forget_dead_local_workers()
     OrmQ.objects.filter(key__in=[VERIFY_CLUSTER, RUN_CLUSTER]).delete()
-    for experiment in Experiment.objects.filter(state=Experiment.RUNNING):
-        experiment.state = Experiment.QUEUED
+    unheld = Q(worker__isnull=True) | ~Q(worker__state=Worker.ALIVE)
+    for experiment in Experiment.objects.filter(unheld, state=Experiment.RUNNING):
+        experiment.state, experiment.worker = Experiment.QUEUED, None
         experiment.detail = ("The service stopped during run %d (at %s); the experiment runs again from the start."
                              % (experiment.attempts, timezone.now().strftime("%Y-%m-%d %H:%M UTC")))
-        experiment.save(update_fields=["state", "detail"])
-    Experiment.objects.filter(state=Experiment.VERIFYING).update(state=Experiment.SUBMITTED)
+        experiment.save(update_fields=["state", "detail", "worker"])
+    Experiment.objects.filter(unheld, state=Experiment.VERIFYING).update(state=Experiment.SUBMITTED, worker=None)
     for experiment in Experiment.objects.filter(state=Experiment.SUBMITTED).order_by("submitted_at", "pk"):
         enqueue_verification(experiment)
     for _ in range(Experiment.objects.filter(state=Experiment.QUEUED).count()):
@@ -75,9 +82,10 @@ def job_env(domain_variable):
     return env
 
 
-def jobs_dir():
-    path = settings.DATA_DIR / "jobs"
-    path.mkdir(exist_ok=True)
+def jobs_dir(worker=None):
+    """The running jobs' process groups of one worker slot (this process's unless named)."""
+    path = settings.DATA_DIR / "jobs" / str(worker or me() or "local")
+    path.mkdir(parents=True, exist_ok=True)
     return path
 
 
@@ -93,7 +101,9 @@ def run_command(command, cwd, env, output_path, timeout, job):
     jobs/<job>.pgid while it runs (serve stops it there). The exit code, or None when it ran past timeout
     (then the whole group is killed); what the box stopped or refused ends the output ('[job box]' lines)."""
     pgid_file = jobs_dir() / ("%s.pgid" % job)
-    box = jobbox.JobBox(settings.JOB_BOXES_DIR, job, jobbox.Limits(**settings.JOB_LIMITS), keep=[settings.DATA_DIR])
+    # a box per worker slot: the slots on one machine differ in their ROS_DOMAIN_ID (a bounded set of accounts)
+    box = jobbox.JobBox(settings.JOB_BOXES_DIR, "%s-%s" % (job, env.get("ROS_DOMAIN_ID", "0")),
+                        jobbox.Limits(**settings.JOB_LIMITS), keep=[settings.DATA_DIR])
     try:
         box.prepare(cwd)
         return box.run(command, env, output_path, timeout, started=lambda pid: pgid_file.write_text(str(pid))).code
@@ -108,11 +118,11 @@ def box_notes(output_path):
     return "".join("\nThe job's box: %s." % note for note in notes)
 
 
-def stop_jobs():
-    """The service stops: mark it (a job cut short now is not its experiment's failure) and stop every
+def stop_jobs(worker=None):
+    """The worker stops: mark it (a job cut short now is not its experiment's failure) and stop every
     running job's ./robotarium."""
-    (jobs_dir() / "stopping").touch()
-    for pgid_file in jobs_dir().glob("*.pgid"):
+    (jobs_dir(worker) / "stopping").touch()
+    for pgid_file in jobs_dir(worker).glob("*.pgid"):
         try:
             stop_group(int(pgid_file.read_text()))
         except (ValueError, OSError):
@@ -152,9 +162,23 @@ def failing_truthfully(job):
 
 def verify_experiment(pk):
     """./robotarium verify on a copy of the experiment's files: accepted -> queued, else rejected or failed."""
-    if not Experiment.objects.filter(pk=pk, state=Experiment.SUBMITTED).update(state=Experiment.VERIFYING):
+    if not database_retry(lambda: Experiment.objects.filter(pk=pk, state=Experiment.SUBMITTED).update(
+            state=Experiment.VERIFYING, worker=me()), "claiming a verification"):
         return "experiment %d is not waiting for verification" % pk
-    return _verify(Experiment.objects.get(pk=pk))
+    return _working_on("verify #%d" % pk, lambda: _verify(Experiment.objects.get(pk=pk)))
+
+
+def _working_on(job, work):
+    """The worker's current job while work() runs, and one more job done after it."""
+    worker = me()
+    if worker is not None:
+        database_retry(lambda: Worker.objects.filter(pk=worker).update(current_job=job), "noting the job")
+    try:
+        return work()
+    finally:
+        if worker is not None:
+            database_retry(lambda: Worker.objects.filter(pk=worker).update(current_job="", jobs_done=F("jobs_done") + 1),
+                           "counting the job")
 
 
 @failing_truthfully
@@ -198,19 +222,38 @@ def _verify(experiment):
 
 
 def _queue(experiment, verdict, detail):
-    Experiment.objects.filter(pk=experiment.pk, state=Experiment.VERIFYING).update(
-        state=Experiment.QUEUED, queued_at=timezone.now(), verification=verdict, detail=detail,
-        timings=experiment.timings)
-    enqueue_run()
+    def queue():
+        with transaction.atomic():
+            if not Experiment.objects.filter(pk=experiment.pk, state=Experiment.VERIFYING, worker=me()).update(
+                    state=Experiment.QUEUED, queued_at=timezone.now(), verification=verdict, detail=detail,
+                    timings=experiment.timings, worker=None):
+                return False
+            enqueue_run()   # in the same transaction: queued and its job, or neither
+            return True
+    if not database_retry(queue, "queueing experiment %d" % experiment.pk):
+        return "experiment %d was decided elsewhere meanwhile (cancelled, or its worker found lost)" % experiment.pk
     return "experiment %d queued" % experiment.pk
 
 
 def _finish(experiment, state, detail, **fields):
+    """The job's outcome, unless the experiment was decided elsewhere meanwhile (an administrator cancelled
+    it, or this worker was found lost): that stays, and a cancelled run keeps what it recorded."""
+    def write():
+        with transaction.atomic():
+            current = Experiment.objects.select_for_update().get(pk=experiment.pk)
+            if current.state not in (Experiment.VERIFYING, Experiment.RUNNING) or current.worker_id != me():
+                if current.state == Experiment.CANCELLED and fields.get("results"):
+                    Experiment.objects.filter(pk=current.pk).update(
+                        **{k: v for k, v in fields.items() if k in ("results", "run_outcome", "timings")})
+                return False
+            current.state, current.detail, current.finished_at, current.worker = state, detail, timezone.now(), None
+            for name, value in fields.items():
+                setattr(current, name, value)
+            current.save()
+            return True
+    if not database_retry(write, "writing the outcome of experiment %d" % experiment.pk):
+        return "experiment %d was decided elsewhere meanwhile (cancelled, or its worker found lost)" % experiment.pk
     experiment.refresh_from_db()
-    experiment.state, experiment.detail, experiment.finished_at = state, detail, timezone.now()
-    for name, value in fields.items():
-        setattr(experiment, name, value)
-    experiment.save()
     try:
         if state == Experiment.COMPLETED:
             mail.send_completed(experiment)
@@ -223,15 +266,17 @@ def _finish(experiment, state, detail, **fields):
 
 def run_next():
     """Claim the oldest queued experiment (first come, first served) and run it."""
-    while True:
-        experiment = Experiment.objects.filter(state=Experiment.QUEUED).order_by("queued_at", "pk").first()
-        if experiment is None:
-            return "the queue is empty"
-        if Experiment.objects.filter(pk=experiment.pk, state=Experiment.QUEUED).update(
-                state=Experiment.RUNNING, started_at=timezone.now(), attempts=F("attempts") + 1):
-            break   # else another worker took it first: try the next
+    def claim():
+        while True:
+            experiment = Experiment.objects.filter(state=Experiment.QUEUED).order_by("queued_at", "pk").first()
+            if experiment is None or Experiment.objects.filter(pk=experiment.pk, state=Experiment.QUEUED).update(
+                    state=Experiment.RUNNING, started_at=timezone.now(), attempts=F("attempts") + 1, worker=me()):
+                return experiment   # else another worker took it first: try the next
+    experiment = database_retry(claim, "claiming a run")
+    if experiment is None:
+        return "the queue is empty"
     experiment.refresh_from_db()
-    return run_experiment(experiment)
+    return _working_on("run #%d" % experiment.pk, lambda: run_experiment(experiment))
 
 
 def run_folder(experiment, attempt=None):

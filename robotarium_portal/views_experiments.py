@@ -16,7 +16,7 @@ from robotarium_portal import files, tasks
 from robotarium_portal.forms import ExperimentForm
 from robotarium_portal.models import Experiment, ExperimentFile, ReturnMessage
 
-EDITABLE = (Experiment.SAVED, Experiment.REJECTED, Experiment.FAILED)
+EDITABLE = (Experiment.SAVED, Experiment.REJECTED, Experiment.FAILED, Experiment.CANCELLED)
 
 
 def visible_experiment(request, pk):

@@ -1,8 +1,9 @@
-"""One worker of ./robotarium serve: a django-q2 cluster (python -m robotarium_portal.worker verify|runs).
+"""One job slot of a worker (robotarium_portal.workers.Supervisor): a django-q2 cluster
+(python -m robotarium_portal.worker verify|runs), one job at a time, on its slot's testbed.
 
-It holds serve's lifeline (robotarium_core.lifeline): should serve die, however it dies (kill -9
-included), the worker stops its job's ./robotarium (which ends its experiment and writes its results)
-and then itself, so no worker outlives its service; the experiment runs again at the next start."""
+It holds its supervisor's lifeline (robotarium_core.lifeline): should the supervisor die, however it dies
+(kill -9 included), the slot stops its job's ./robotarium (which ends its experiment and writes its
+results) and then itself, so no slot outlives its supervisor; the watchers decide the experiment's fate."""
 import os
 import signal
 import sys
@@ -19,11 +20,11 @@ def main():
     from robotarium_core import lifeline
     from robotarium_portal import tasks
 
-    def serve_is_gone():
+    def supervisor_is_gone():
         tasks.stop_jobs()
         os.kill(os.getpid(), signal.SIGTERM)   # the cluster's own stop: its worker ends, then the cluster
 
-    lifeline.watch(serve_is_gone, name="serve")
+    lifeline.watch(supervisor_is_gone, name="supervisor")
     call_command("qcluster")
 
 

@@ -299,6 +299,112 @@ def test_settings_json_has_the_guide_fields():
     assert "attachment" in response["Content-Disposition"]
 
 
+# --- the operator's view: workers, the queue, cancelling; a lost worker --------------------------------------
+
+def make_administrator():
+    """As ./robotarium serve --create-admin makes them: staff and superuser."""
+    user = make_user(staff=True)
+    user.is_superuser = True
+    user.save()
+    return user
+
+
+def make_worker(kind="runs", host="lab-pc-2"):
+    from robotarium_portal.models import Worker
+    return Worker.objects.create(host=host, pid=4242, kind=kind, domain=17, current_job="", jobs_done=3)
+
+
+def test_the_admin_pages_list_the_workers_and_the_queue():
+    admin_client = client_for(make_administrator())
+    worker = make_worker()
+    experiment = experiment_of(make_user(), title="Held")
+    experiment.state, experiment.worker = Experiment.RUNNING, worker
+    experiment.save()
+    worker.current_job = "run #%d" % experiment.pk
+    worker.save()
+    page = admin_client.get("/admin/robotarium_portal/worker/").content.decode()
+    for column in ("Host", "Alive since", "Current job", "Jobs done", "Last heartbeat"):
+        assert column in page, column
+    assert "lab-pc-2" in page and "run #%d" % experiment.pk in page
+    queue = admin_client.get("/admin/robotarium_portal/experiment/?state__exact=running").content.decode()
+    assert "Held" in queue and "lab-pc-2" in queue   # the experiment with the worker that holds it
+    assert client_for(make_user()).get("/admin/robotarium_portal/worker/").status_code == 302   # staff only
+
+
+def test_an_administrator_cancels_a_queued_or_running_experiment_and_its_page_says_so():
+    from robotarium_portal import tasks
+    admin_user = make_administrator()
+    owner = make_user()
+    queued, running, completed = (experiment_of(owner, title=t) for t in ("Waiting", "Going", "Done"))
+    Experiment.objects.filter(pk=queued.pk).update(state=Experiment.QUEUED, queued_at=timezone_now())
+    Experiment.objects.filter(pk=running.pk).update(state=Experiment.RUNNING, attempts=1)
+    Experiment.objects.filter(pk=completed.pk).update(state=Experiment.COMPLETED, detail="Run completed.")
+    url = "/admin/robotarium_portal/experiment/"
+    data = {"action": "cancel", "_selected_action": [queued.pk, running.pk, completed.pk]}
+    client_for(owner).post(url, data)   # not an administrator: nothing happens
+    assert Experiment.objects.get(pk=queued.pk).state == Experiment.QUEUED
+    response = client_for(admin_user).post(url, data, follow=True)
+    assert b"1 of the selected experiments were neither queued nor running" in response.content
+    for experiment in (queued, running):
+        experiment.refresh_from_db()
+        assert experiment.state == Experiment.CANCELLED and "Cancelled by an administrator" in experiment.detail
+        page = client_for(owner).get("/experiments/%d/" % experiment.pk).content.decode()
+        assert "Cancelled by an administrator" in page and 'id="state">cancelled<' in page
+    assert Experiment.objects.get(pk=completed.pk).state == Experiment.COMPLETED   # left as it was
+    # The stopped run's job ends later: its outcome does not overwrite the cancellation, its results are kept.
+    running.folder.mkdir(parents=True, exist_ok=True)
+    tasks._finish(running, Experiment.COMPLETED, "Run completed.", results="run-1/results/x", run_outcome="completed")
+    running.refresh_from_db()
+    assert running.state == Experiment.CANCELLED and running.results == "run-1/results/x"
+    assert "Cancelled by an administrator" in running.detail
+
+
+def test_a_jobs_environment_carries_no_database_url(monkeypatch):
+    from robotarium_portal import tasks
+    monkeypatch.setenv("ROBOTARIUM_PORTAL_DATABASE", "postgresql://robotarium:s3cret-pw@db.example.org/robotarium")
+    env = tasks.job_env("ROBOTARIUM_PORTAL_RUN_DOMAIN")
+    assert not any("s3cret-pw" in value for value in env.values())
+
+
+def timezone_now():
+    from django.utils import timezone
+    return timezone.now()
+
+
+def test_a_worker_whose_beats_stop_is_found_lost_its_verification_again_its_run_failed():
+    from robotarium_portal.models import Worker
+    from robotarium_portal.workers import Watcher
+    owner = make_user()
+    silent, beating = make_worker(kind="verify"), make_worker(kind="runs", host="lab-pc-3")
+    verifying, running = experiment_of(owner, title="V"), experiment_of(owner, title="R")
+    Experiment.objects.filter(pk=verifying.pk).update(state=Experiment.VERIFYING, worker=silent)
+    Experiment.objects.filter(pk=running.pk).update(state=Experiment.RUNNING, worker=silent, attempts=1)
+    recorded = running.folder / "run-1" / "results" / "2026-01-01-run"
+    recorded.mkdir(parents=True)
+    (recorded / "partial.mcap").write_text("so far")
+    watcher = Watcher()
+    verify_jobs = OrmQ.objects.filter(key="verify").count()
+    with override_settings(WORKER_LOST_AFTER=0.3):
+        watcher.sweep()
+        time.sleep(0.4)
+        Worker.objects.filter(pk=beating.pk).update(beats=beating.beats + 1)   # this one beats, that one not
+        watcher.sweep()
+    assert Worker.objects.get(pk=silent.pk).state == Worker.LOST
+    assert Worker.objects.get(pk=beating.pk).state == Worker.ALIVE
+    verifying.refresh_from_db()
+    assert verifying.state == Experiment.SUBMITTED and "was lost" in verifying.detail
+    assert OrmQ.objects.filter(key="verify").count() == verify_jobs + 1   # verified again
+    running.refresh_from_db()
+    assert running.state == Experiment.FAILED and "the testbed was lost" in running.detail
+    assert running.results == "run-1/results/2026-01-01-run"   # what was recorded so far, on its page
+    page = client_for(owner).get("/experiments/%d/" % running.pk).content.decode()
+    assert "the testbed was lost" in page and "partial.mcap" in page
+    watcher.forget()   # a watcher that lost the database starts its watch afresh: nobody is lost at once
+    with override_settings(WORKER_LOST_AFTER=0.3):
+        watcher.sweep()
+    assert Worker.objects.get(pk=beating.pk).state == Worker.ALIVE
+
+
 def test_password_reset_through_the_mailed_link():
     user = make_user()
     mail.outbox.clear()
@@ -570,7 +676,9 @@ def test_the_whole_flow_in_a_real_browser_with_a_restart_mid_run(tmp_path):
                 goto(page, base)
                 screenshot(page, os.path.join(shots, "portal_dashboard.png"))
             assert serve.stop() == 0, "\n".join(serve.lines)
-            assert experiment_row(data, pk)[:2] == ("running", 1)   # the truth: it was running, nothing else
+            # the truth: run 1 was cut short by the stop, and it waits at the head of the queue to run again
+            state, attempts, detail = experiment_row(data, pk)
+            assert (state, attempts) == ("queued", 1) and "The service stopped during run 1" in detail, detail
             assert processes_on_domain(run_domain) == {} and processes_on_domain(verify_domain) == {}
 
             serve = Serve(args, env)

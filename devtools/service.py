@@ -1,0 +1,284 @@
+"""The Robotarium service's stack for tests and benchmarks (tests/test_service.py, bench/bench_service.py):
+a PostgreSQL server of its own (devtools.postgres), the portal (./robotarium serve --database ... --jobs 0),
+workers (./robotarium worker), one of them optionally a second host in a network namespace of its own
+(a veth pair on a private test subnet, its own host name); submissions made as the portal's submit makes
+them, from a Django process pointed at the same database; the truth read straight from PostgreSQL."""
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+
+from devtools.postgres import free_port
+from devtools.rosutil import REPO, processes_with_env
+
+TIMEOUT = 180.0
+HEARTBEAT = "1"   # s: a lost worker is found after 5 s without a beat
+SUBNET = 250 + os.getpid() % 5       # 10.<SUBNET>.<x>.0/24: a private test subnet
+OCTET = os.getpid() % 250 + 1
+HOST_ADDRESS, SECOND_ADDRESS = "10.%d.%d.1" % (SUBNET, OCTET), "10.%d.%d.2" % (SUBNET, OCTET)
+SECOND_HOST = "second-host"
+PASSWORD = "a-long-Passphrase-7"
+
+# A few lockstep steps: the verification is quick, the run (real time, 30 steps a second) a second.
+SHORT = """import numpy as np
+import rps.robotarium as robotarium
+N = {robots}
+r = robotarium.Robotarium(number_of_robots=N, show_figure=False, sim_in_real_time=False,
+                          initial_conditions=np.array([np.linspace(-0.5, 0.5, N), np.zeros(N), np.zeros(N)]))
+for k in range({steps}):
+    r.get_poses()
+    r.set_velocities(np.arange(N), np.vstack([np.zeros(N), 0.5 * np.ones(N)]))
+    r.step()
+print("done {name}", flush=True)
+r.call_at_scripts_end()
+"""
+# Turns in place until its release file exists (at most 900 steps), while it runs ("work": the run's
+# folder) or while it is verified ("verify"): the test acts while it surely runs or is verified.
+HOLD = """import os
+import time
+import numpy as np
+import rps.robotarium as robotarium
+N = 2
+r = robotarium.Robotarium(number_of_robots=N, show_figure=False, sim_in_real_time=False,
+                          initial_conditions=np.array([[-0.4, 0.4], [0.0, 0.0], [0.0, 0.0]]))
+for k in range(900):
+    r.get_poses()
+    r.set_velocities(np.arange(N), np.vstack([np.zeros(N), 0.5 * np.ones(N)]))
+    r.step()
+    if os.path.basename(os.getcwd()) != {hold_in!r} or os.path.exists({release!r}):
+        break
+    time.sleep(0.02)
+print("released at step", k, flush=True)
+r.call_at_scripts_end()
+"""
+
+# Run by the test's own Python with Django on the service's database: what the portal's submit does.
+SUBMIT = """
+import json, os, sys
+import django
+django.setup()
+from django.contrib.auth import get_user_model
+from django.utils import timezone
+from robotarium_portal import tasks
+from robotarium_portal.models import Experiment, ExperimentFile, Profile
+user, made = get_user_model().objects.get_or_create(username="ada@example.org", email="ada@example.org")
+if made:
+    user.set_password(os.environ["PASSWORD"])
+    user.save()
+Profile.objects.get_or_create(user=user, defaults=dict(name="Ada", email_confirmed=True, approved=True))
+pks = []
+for item in json.loads(sys.stdin.read()):
+    e = Experiment.objects.create(owner=user, title=item["title"], estimated_duration=60,
+                                  number_of_robots=item["robots"], main_file="main.py")
+    e.files_dir.mkdir(parents=True, exist_ok=True)
+    (e.files_dir / "main.py").write_text(item["script"])
+    ExperimentFile.objects.create(experiment=e, name="main.py", size=len(item["script"]))
+    e.state, e.submitted_at = Experiment.SUBMITTED, timezone.now()
+    e.save()
+    tasks.enqueue_verification(e)
+    pks.append(e.pk)
+print(json.dumps(pks))
+"""
+
+
+def run_quietly(*command):
+    return subprocess.run(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+def session_processes(sid):
+    """Every live process of this session."""
+    found = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open("/proc/%s/stat" % entry) as f:
+                    fields = f.read().rsplit(")", 1)[1].split()
+                if int(fields[3]) == sid:
+                    found.append(int(entry))
+            except (OSError, IndexError, ValueError):
+                pass
+    return found
+
+
+class Process:
+    """A command in a session of its own, its output kept."""
+
+    def __init__(self, command, env, log):
+        self.log_path = log
+        self.log = open(log, "ab")
+        self.process = subprocess.Popen(command, env=env, cwd=REPO, stdout=self.log, stderr=subprocess.STDOUT,
+                                        stdin=subprocess.DEVNULL, start_new_session=True)
+
+    def output(self):
+        with open(self.log_path, errors="replace") as f:
+            return f.read()
+
+    def wait_for(self, text, what):
+        deadline = time.monotonic() + TIMEOUT
+        while text not in self.output():
+            assert self.process.poll() is None and time.monotonic() < deadline, "%s:\n%s" % (what, self.output())
+            time.sleep(0.2)
+
+    def stop(self):
+        """Ctrl-C, as an operator stops it."""
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGINT)
+            try:
+                self.process.wait(timeout=120)
+            except subprocess.TimeoutExpired:
+                self.kill()
+        self.log.close()
+
+    def kill(self):
+        """kill -9 of everything it started (its machine gone): its session, and its jobs' testbeds."""
+        for pid in session_processes(self.process.pid):
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        self.process.wait()
+
+
+class Service:
+    """PostgreSQL, the portal and the workers; the data folder; the network namespace of the second host."""
+
+    def __init__(self, folder):
+        self.folder = folder
+        self.data = os.path.join(folder, "service")
+        os.makedirs(self.data)
+        self.namespace = "robotarium-test-%d" % os.getpid()
+        self.workers = {}
+        self.portal = None
+        self.postgres = None
+
+    def make_second_host(self):
+        """A network namespace with a veth pair: this side HOST_ADDRESS, the second host SECOND_ADDRESS."""
+        here, there = "rbt%d" % os.getpid(), "rbs%d" % os.getpid()
+        for command in (["ip", "netns", "add", self.namespace],
+                        ["ip", "link", "add", here[:15], "type", "veth", "peer", "name", there[:15]],
+                        ["ip", "link", "set", there[:15], "netns", self.namespace],
+                        ["ip", "addr", "add", HOST_ADDRESS + "/24", "dev", here[:15]],
+                        ["ip", "link", "set", here[:15], "up"],
+                        ["ip", "-n", self.namespace, "addr", "add", SECOND_ADDRESS + "/24", "dev", there[:15]],
+                        ["ip", "-n", self.namespace, "link", "set", there[:15], "up"],
+                        ["ip", "-n", self.namespace, "link", "set", "lo", "up"]):
+            result = run_quietly(*command)
+            if result.returncode:
+                raise RuntimeError("%s: %s" % (" ".join(command), result.stdout))
+        self.veth = here[:15]
+
+    def env(self):
+        env = {k: v for k, v in os.environ.items() if not k.startswith(("ROBOTARIUM_PORTAL", "DJANGO_", "ROS_"))}
+        env.update(ROBOTARIUM_WORKER_HEARTBEAT=HEARTBEAT, ROBOTARIUM_PORTAL_MAX_PENDING="50",
+                   ROBOTARIUM_PORTAL_LOG="INFO")
+        return env
+
+    def start_portal(self):
+        self.portal = Process([os.path.join(REPO, "robotarium"), "serve", "--data", self.data, "--database",
+                               self.postgres.url(), "--port", str(free_port()), "--jobs", "0"], self.env(),
+                              os.path.join(self.folder, "portal.txt"))
+        self.portal.wait_for("portal is at", "the portal did not start")
+
+    def start_worker(self, name):
+        if name == SECOND_HOST:
+            command = ["ip", "netns", "exec", self.namespace, "unshare", "--uts", "sh", "-c",
+                       'hostname %s && exec "$0" "$@"' % SECOND_HOST, os.path.join(REPO, "robotarium"), "worker",
+                       "--database", self.postgres.url(HOST_ADDRESS), "--data", self.data]
+        else:
+            command = [os.path.join(REPO, "robotarium"), "worker", "--database", self.postgres.url(), "--data",
+                       self.data]
+        worker = Process(command, self.env(), os.path.join(self.folder, "worker-%s.txt" % name))
+        worker.wait_for("[robotarium] worker on", "the worker %s did not start" % name)
+        self.workers[name] = worker
+        return worker
+
+    def logs(self):
+        texts = []
+        for folder, _, names in os.walk(self.folder):
+            for name in names:
+                if name.endswith(".txt") and ("worker" in name or name in ("portal.txt", "output.txt",
+                                                                         "verification-output.txt")):
+                    with open(os.path.join(folder, name), errors="replace") as f:
+                        texts.append("--- %s\n%s" % (os.path.join(folder, name), f.read()[-2500:]))
+        return "\n".join(texts)
+
+    def submit(self, items):
+        env = dict(self.env(), PASSWORD=PASSWORD, ROBOTARIUM_PORTAL_DATA=self.data,
+                   ROBOTARIUM_PORTAL_DATABASE=self.postgres.url(), DJANGO_SETTINGS_MODULE="robotarium_portal.settings",
+                   PYTHONPATH=REPO)
+        result = subprocess.run([sys.executable, "-c", SUBMIT], input=json.dumps(items), env=env, cwd=REPO,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=TIMEOUT)
+        assert result.returncode == 0, result.stderr
+        return json.loads(result.stdout.strip().splitlines()[-1])
+
+    def experiment(self, pk):
+        row = self.query("SELECT state, attempts, detail, results, worker_id FROM "
+                                  "robotarium_portal_experiment WHERE id = %s", pk)[0]
+        return dict(zip(("state", "attempts", "detail", "results", "worker"), row))
+
+    def page(self, pk):
+        """The experiment's page as its owner sees it, through the portal (logged in over HTTP)."""
+        import http.cookiejar
+        import urllib.parse
+        import urllib.request
+        base = re.search(r"portal is at (http://\S+)", self.portal.output()).group(1)
+        jar = http.cookiejar.CookieJar()
+        opener = urllib.request.build_opener(urllib.request.HTTPCookieProcessor(jar))
+        form = opener.open(base + "login/", timeout=60).read().decode()
+        token = re.search(r'name="csrfmiddlewaretoken" value="([^"]+)"', form).group(1)
+        opener.open(urllib.request.Request(base + "login/", data=urllib.parse.urlencode(
+            {"csrfmiddlewaretoken": token, "username": "ada@example.org", "password": PASSWORD}).encode(),
+            headers={"Referer": base + "login/"}), timeout=60).read()
+        return opener.open(base + "experiments/%d/" % pk, timeout=60).read().decode()
+
+    def query(self, sql, *params):
+        """From PostgreSQL, waiting out a restart of it."""
+        import psycopg
+        deadline = time.monotonic() + TIMEOUT
+        while True:
+            try:
+                return self.postgres.query(sql, *params)
+            except psycopg.OperationalError:
+                assert time.monotonic() < deadline
+                time.sleep(0.3)
+
+    def worker_of(self, pk):
+        """The name (host) of the worker that holds the experiment."""
+        host, pid = self.query("SELECT w.host, w.pid FROM robotarium_portal_worker w JOIN "
+                               "robotarium_portal_experiment e ON e.worker_id = w.id WHERE e.id = %s", pk)[0]
+        for name, worker in self.workers.items():
+            if worker.process.pid == pid:   # ./robotarium execs the worker: the same process
+                return name
+        return SECOND_HOST if host == SECOND_HOST else "here"
+
+    def wait_for(self, pk, states, what="", timeout=TIMEOUT):
+        deadline = time.monotonic() + timeout
+        while True:
+            row = self.experiment(pk)
+            if row["state"] in states:
+                return row
+            assert time.monotonic() < deadline, "experiment %d %s, wanted %s %s\n%s" % (
+                pk, row, states, what, self.logs())
+            time.sleep(0.3)
+
+    def close(self):
+        for worker in self.workers.values():
+            worker.stop()
+        if self.portal is not None:
+            self.portal.stop()
+        # whatever a killed worker left (its testbed), by the worker environment they all carry
+        for pid in processes_with_env("ROBOTARIUM_PORTAL_DATA", self.data):
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        if self.postgres is not None:
+            self.postgres.close()
+        run_quietly("ip", "netns", "delete", self.namespace)
+        if getattr(self, "veth", None):
+            run_quietly("ip", "link", "delete", self.veth)
+
+

@@ -1,0 +1,409 @@
+"""The service's workers, on this machine or any other that reaches its database and its data folder.
+
+A supervisor (./robotarium worker, or ./robotarium serve for its own) starts one django-q2 cluster per job
+slot (python -m robotarium_portal.worker), each with a testbed of its own (a ROS_DOMAIN_ID), and beats for
+each slot in the database (Worker.beats, last_heartbeat) every settings.WORKER_HEARTBEAT s. Every
+supervisor, serve's included, also watches the others: a slot whose beats stood still for
+settings.WORKER_LOST_AFTER s of the watcher's own unbroken view of the database is lost (its machine gone,
+kill -9): its verification is handed out again, its run fails ("the testbed was lost") with what it recorded.
+Beats are counted, not timed, so two machines' clocks never need to agree, and a database restart (nobody
+can beat or watch) never makes a worker look lost.
+
+A supervisor stopped properly (Ctrl-C, SIGTERM) stops its jobs (each ./robotarium ends its experiment)
+and hands them back: the run to the head of the queue, the verification to be made again. Killed outright,
+its clusters notice (robotarium_core.lifeline), stop their jobs and exit; its watchers do the rest."""
+import argparse
+import logging
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+logger = logging.getLogger("robotarium_portal")
+REPOSITORY = Path(__file__).resolve().parent.parent
+STOP_GRACE = 60.0        # s a slot has to stop its job (a run ends its experiment and writes its results)
+DATABASE_PATIENCE = 600  # s a job keeps trying to write its outcome while the database does not answer
+
+
+def me():
+    """The Worker (slot) this process works for, or None outside a worker."""
+    value = os.environ.get("ROBOTARIUM_WORKER_ID")
+    return int(value) if value else None
+
+
+def database_retry(action, what):
+    """action() on a fresh connection; while the database does not answer (a restart), again every second
+    for DATABASE_PATIENCE s. What a job writes at its end is never lost to a database that was away."""
+    from django.db import InterfaceError, OperationalError, close_old_connections, connection
+    deadline = time.monotonic() + DATABASE_PATIENCE
+    while True:
+        close_old_connections()
+        try:
+            return action()
+        except (OperationalError, InterfaceError) as error:
+            connection.close()
+            if time.monotonic() > deadline:
+                raise
+            logger.warning("the database did not answer while %s (%s); trying again", what, error)
+            time.sleep(1.0)
+
+
+def _now_text():
+    from django.utils import timezone
+    return timezone.now().strftime("%Y-%m-%d %H:%M:%S UTC")
+
+
+def release(worker_pks):
+    """The slots stopped properly: their run goes back to the head of the queue (queued_at kept), their
+    verification is made again; the slots are marked stopped."""
+    from django.utils import timezone
+
+    from robotarium_portal import tasks
+    from robotarium_portal.models import Experiment, Worker
+    for experiment in Experiment.objects.filter(worker__in=worker_pks, state=Experiment.RUNNING):
+        detail = ("The service stopped during run %d (at %s); the experiment runs again from the start."
+                  % (experiment.attempts, _now_text()))
+        if Experiment.objects.filter(pk=experiment.pk, state=Experiment.RUNNING, worker=experiment.worker_id).update(
+                state=Experiment.QUEUED, worker=None, detail=detail):
+            tasks.enqueue_run()
+    for experiment in Experiment.objects.filter(worker__in=worker_pks, state=Experiment.VERIFYING):
+        if Experiment.objects.filter(pk=experiment.pk, state=Experiment.VERIFYING, worker=experiment.worker_id).update(
+                state=Experiment.SUBMITTED, worker=None):
+            tasks.enqueue_verification(experiment)
+    Worker.objects.filter(pk__in=worker_pks, state=Worker.ALIVE).update(
+        state=Worker.STOPPED, ended_at=timezone.now(), current_job="")
+
+
+def recorded_so_far(experiment):
+    """The folder of the run's results as far as they were written (relative to the experiment's folder):
+    the run folder ./robotarium made, else the job's own (its output.txt)."""
+    from robotarium_portal import tasks
+    root = tasks.run_folder(experiment)
+    made = sorted((p for p in (root / "results").glob("*") if p.is_dir()), key=lambda p: p.stat().st_mtime)
+    if made:
+        return str(made[-1].relative_to(experiment.folder))
+    return str(root.relative_to(experiment.folder)) if root.is_dir() else ""
+
+
+def lost(worker):
+    """A slot found lost: its verification again, its run failed with what was recorded so far."""
+    from robotarium_portal import mail, tasks
+    from robotarium_portal.models import Experiment
+    when = worker.last_heartbeat.strftime("%Y-%m-%d %H:%M:%S UTC")
+    for experiment in Experiment.objects.filter(worker=worker, state=Experiment.VERIFYING):
+        if Experiment.objects.filter(pk=experiment.pk, state=Experiment.VERIFYING, worker=worker).update(
+                state=Experiment.SUBMITTED, worker=None,
+                detail="The worker verifying it (%s) was lost (last heard of %s); it is verified again." % (
+                    worker, when)):
+            tasks.enqueue_verification(experiment)
+    for experiment in Experiment.objects.filter(worker=worker, state=Experiment.RUNNING):
+        from django.utils import timezone
+        detail = ("Failed: the testbed was lost: worker %s stopped answering during run %d (last heard of %s). "
+                  "What was recorded so far is attached; you may submit the experiment again."
+                  % (worker, experiment.attempts, when))
+        if Experiment.objects.filter(pk=experiment.pk, state=Experiment.RUNNING, worker=worker).update(
+                state=Experiment.FAILED, detail=detail, finished_at=timezone.now(),
+                results=recorded_so_far(experiment)):
+            experiment.refresh_from_db()
+            mail.try_sending(mail.send_issues_found, experiment)
+    logger.warning("worker %s was lost; its jobs were handed out again or failed", worker)
+
+
+class Watcher:
+    """Finds lost slots: beats that stood still for WORKER_LOST_AFTER s while this watcher saw the database
+    all that time (forget() after any database error starts the watch afresh)."""
+
+    def __init__(self, own=()):
+        self.own = set(own)
+        self.seen = {}   # worker pk -> (beats, monotonic time they were first seen so)
+
+    def forget(self):
+        self.seen = {}
+
+    def sweep(self):
+        from django.conf import settings
+        from django.utils import timezone
+
+        from robotarium_portal.models import Worker
+        now = time.monotonic()
+        beats = dict(Worker.objects.filter(state=Worker.ALIVE).exclude(pk__in=self.own).values_list("pk", "beats"))
+        self.seen = {pk: (b, self.seen[pk][1] if pk in self.seen and self.seen[pk][0] == b else now)
+                     for pk, b in beats.items()}
+        for pk, (b, since) in self.seen.items():
+            if now - since >= settings.WORKER_LOST_AFTER and Worker.objects.filter(
+                    pk=pk, state=Worker.ALIVE, beats=b).update(state=Worker.LOST, ended_at=timezone.now()):
+                lost(Worker.objects.get(pk=pk))
+
+
+def cancel(experiment, by):
+    """An administrator cancels a queued or running experiment (a running one is stopped by its worker
+    at its next beat); True when it was."""
+    from django.utils import timezone
+
+    from robotarium_portal.models import Experiment
+    detail = "Cancelled by an administrator (%s) at %s." % (by, _now_text())
+    return bool(Experiment.objects.filter(pk=experiment.pk, state__in=(Experiment.SUBMITTED, Experiment.QUEUED,
+                                                                      Experiment.RUNNING, Experiment.VERIFYING))
+                .update(state=Experiment.CANCELLED, detail=detail, finished_at=timezone.now()))
+
+
+def free_domain():
+    sys.path.insert(0, str(REPOSITORY))
+    from devtools.rosutil import unique_domain_id   # a file lock held while this process lives
+    return unique_domain_id()
+
+
+class Supervisor:
+    """The slots of one machine: a django-q2 cluster each (its own process group, its jobs' processes
+    included), their beats, and the watch over every other worker of the service."""
+
+    def __init__(self, data, kinds, jobs, env, domains=None, lock=None):
+        from robotarium_portal.models import Worker
+        self.data, self.env, self.lock = Path(data), env, lock
+        self.logs = self.data / "logs"
+        self.logs.mkdir(exist_ok=True)
+        self.host = socket.gethostname()
+        self.slots = []   # (Worker, Popen or None)
+        for kind in kinds:
+            for index in range(jobs):
+                domain = (domains or {}).get(kind) if index == 0 else None
+                worker = Worker.objects.create(host=self.host, pid=os.getpid(), kind=kind,
+                                               domain=domain if domain is not None else free_domain())
+                self.slots.append([worker, None])
+        self.watcher = Watcher(own=[w.pk for w, _ in self.slots])
+        self.stopping = threading.Event()
+        self.stopped_jobs = set()
+
+    @property
+    def pks(self):
+        return [w.pk for w, _ in self.slots]
+
+    def start(self):
+        from robotarium_core import lifeline
+        for slot in self.slots:
+            worker = slot[0]
+            log = open(self.logs / ("worker-%s-%s-%d.txt" % (self.host, worker.kind, worker.pk)), "ab")
+            env = dict(self.env, ROBOTARIUM_WORKER_ID=str(worker.pk), Q_CLUSTER_NAME=worker.kind,
+                       ROBOTARIUM_PORTAL_RUN_DOMAIN=str(worker.domain), ROBOTARIUM_PORTAL_VERIFY_DOMAIN=str(worker.domain))
+            env, pass_fds = lifeline.for_child(env)
+            if self.lock is not None:
+                pass_fds = pass_fds + (self.lock.fileno(),)
+            slot[1] = subprocess.Popen([sys.executable, "-m", "robotarium_portal.worker", worker.kind], env=env,
+                                       pass_fds=pass_fds, stdout=log, stderr=subprocess.STDOUT,
+                                       stdin=subprocess.DEVNULL, process_group=0, cwd=REPOSITORY)
+        threading.Thread(target=self._beat, daemon=True, name="heartbeat").start()
+
+    def dead(self):
+        return ["%s (%s)" % (w, w.kind) for w, p in self.slots if p is not None and p.poll() is not None]
+
+    def _beat(self):
+        from django.conf import settings
+        from django.db import close_old_connections
+        while not self.stopping.wait(settings.WORKER_HEARTBEAT):
+            close_old_connections()
+            try:
+                self.beat()
+                self.watcher.sweep()
+            except Exception as error:   # noqa: BLE001 - the database away (a restart): beat again next time
+                self.watcher.forget()
+                logger.warning("heartbeat: %s: %s", type(error).__name__, error)
+
+    def beat(self):
+        from django.db.models import F
+        from django.utils import timezone
+
+        from robotarium_portal.models import Experiment, Worker
+        for worker, process in self.slots:
+            if process is None or process.poll() is not None:
+                continue   # a slot that died beats no more: its watchers find it lost
+            if not Worker.objects.filter(pk=worker.pk, state=Worker.ALIVE).update(
+                    last_heartbeat=timezone.now(), beats=F("beats") + 1):
+                # Found lost while it could not beat (cut off from the database): its job was handed out or
+                # failed meanwhile, so it must not go on.
+                self._stop_job(worker.pk, "found lost")
+                continue
+            for pk in Experiment.objects.filter(worker=worker, state=Experiment.CANCELLED).values_list("pk", flat=True):
+                self._stop_job(worker.pk, "experiment %d cancelled" % pk)
+
+    def _stop_job(self, worker_pk, why):
+        from robotarium_portal import tasks
+        for pgid_file in tasks.jobs_dir(worker_pk).glob("*.pgid"):
+            key = (pgid_file, pgid_file.stat().st_mtime if pgid_file.exists() else 0)
+            if key in self.stopped_jobs:
+                continue
+            self.stopped_jobs.add(key)
+            try:
+                pgid = int(pgid_file.read_text())
+            except (OSError, ValueError):
+                continue
+            logger.warning("stopping the job of worker %d: %s", worker_pk, why)
+            threading.Thread(target=tasks.stop_group, args=(pgid,), daemon=True).start()
+
+    def stop(self, hand_back=True):
+        """Stop the jobs first (each ./robotarium ends its experiment and writes its results), then the
+        clusters (SIGTERM: each lets its worker finish and exits; SIGKILL after STOP_GRACE), and hand the
+        jobs back."""
+        from robotarium_portal import tasks
+        self.stopping.set()
+        for pk in self.pks:
+            tasks.stop_jobs(pk)
+        for _, process in self.slots:
+            if process is not None and process.poll() is None:
+                process.send_signal(signal.SIGTERM)
+        deadline = time.monotonic() + STOP_GRACE
+        for _, process in self.slots:
+            if process is None:
+                continue
+            try:
+                process.wait(timeout=max(0.1, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                pass
+            try:
+                os.killpg(process.pid, signal.SIGKILL)   # the cluster's own processes, whatever is left
+            except ProcessLookupError:
+                pass
+            process.wait()
+        if hand_back:
+            database_retry(lambda: release(self.pks), "handing the jobs back")
+        for pk in self.pks:
+            shutil.rmtree(tasks.jobs_dir(pk), ignore_errors=True)
+
+
+def forget_dead_local_workers():
+    """At serve's start: the slots of this machine whose supervisor is gone (a serve killed outright) hand
+    their jobs back at once; other machines' slots are their watchers' business."""
+    from robotarium_portal.models import Worker
+    gone = [w.pk for w in Worker.objects.filter(state=Worker.ALIVE, host=socket.gethostname())
+            if not _running(w.pid)]
+    if gone:
+        release(gone)
+
+
+def _running(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def parse(argv):
+    parser = argparse.ArgumentParser(
+        prog="./robotarium worker",
+        description="A worker of your own Robotarium on this machine: it verifies submissions and runs "
+                    "experiments from the service's queue, on testbeds of its own. Any number of workers, on any "
+                    "machines that reach the service's database and its data folder (a shared path: NFS, SMB...).",
+        epilog="Example, the portal on host A and a worker on host B, the data folder shared at /srv/robotarium: "
+               "A: ./robotarium serve --database postgresql://robotarium@A/robotarium --data /srv/robotarium "
+               "--host 0.0.0.0;  B: ./robotarium worker --database postgresql://robotarium@A/robotarium "
+               "--data /srv/robotarium. Ctrl-C stops it: its running experiment goes back to the head of the "
+               "queue. Killed outright (or its machine gone), the service notices within 5 heartbeats (10 s) and "
+               "verifies its submission again or fails its run (\"the testbed was lost\").")
+    parser.add_argument("--database", default="",
+                        help="the service's database, postgresql://USER[:PASSWORD]@HOST[:PORT]/NAME (default: the "
+                             "SQLite database in the data folder, for workers beside serve on its machine)")
+    parser.add_argument("--data", default=str(REPOSITORY / "service"),
+                        help="the service's data folder, shared with the portal (default: service/ in the repository)")
+    only = parser.add_mutually_exclusive_group()
+    only.add_argument("--verify-only", action="store_true", help="only verify submissions")
+    only.add_argument("--run-only", action="store_true", help="only run experiments")
+    parser.add_argument("--jobs", type=int, default=1,
+                        help="how many verifications and how many runs at once (default 1 of each), each on a "
+                             "testbed (ROS_DOMAIN_ID) of its own")
+    args = parser.parse_args(argv)
+    if args.jobs < 1:
+        parser.error("--jobs must be 1 or more")
+    return args
+
+
+def kinds_of(args):
+    if args.verify_only:
+        return ["verify"]
+    if args.run_only:
+        return ["runs"]
+    return ["verify", "runs"]
+
+
+def setup_django(data, database):
+    os.environ["ROBOTARIUM_PORTAL_DATA"] = str(Path(data).resolve())
+    if database:
+        os.environ["ROBOTARIUM_PORTAL_DATABASE"] = database
+    os.environ.setdefault("DJANGO_SETTINGS_MODULE", "robotarium_portal.settings")
+    import django
+    try:
+        django.setup()
+    except ValueError as error:
+        sys.exit("[robotarium] error: %s" % error)
+
+
+def check_database(what):
+    """The database answers and has the service's tables, else a clear error."""
+    from django.db import DatabaseError
+    from django.db.migrations.executor import MigrationExecutor
+    from django.db import connection
+    try:
+        pending = MigrationExecutor(connection).migration_plan(MigrationExecutor(connection).loader.graph.leaf_nodes())
+    except DatabaseError as error:
+        sys.exit("[robotarium] error: cannot reach the database %s (%s); check --database, and that the machine "
+                 "reaches it" % (what, str(error).strip()))
+    if pending:
+        sys.exit("[robotarium] error: the database %s has not the service's tables yet: start ./robotarium serve "
+                 "with it first (it makes them)" % what)
+
+
+def main(argv=None):
+    args = parse(argv)
+    data = Path(args.data).resolve()
+    if not data.is_dir():
+        sys.exit("[robotarium] error: no data folder %s: give the service's data folder (shared with the portal) "
+                 "with --data" % data)
+    setup_django(data, args.database)
+    from django.conf import settings
+    shown = args.database.split("@")[-1] if args.database else str(settings.DATABASES["default"]["NAME"])
+    check_database(shown)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPOSITORY), os.environ.get("PYTHONPATH", "")]))
+    supervisor = Supervisor(data, kinds_of(args), args.jobs, env)
+    supervisor.start()
+    print("[robotarium] worker on %s: %s; database %s, data %s; heartbeat every %g s, found lost by the others "
+          "after %g s without one; Ctrl-C stops it (its jobs are handed back)" % (
+              supervisor.host, ", ".join("%s on ROS_DOMAIN_ID %d" % (w.kind, w.domain) for w, _ in supervisor.slots),
+              shown, data, settings.WORKER_HEARTBEAT, settings.WORKER_LOST_AFTER), flush=True)
+
+    class Stop(Exception):
+        pass
+
+    def stop(signum, frame):
+        raise Stop()
+
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, stop)
+    code = 0
+    try:
+        while True:
+            time.sleep(1.0)
+            if supervisor.dead():
+                print("[robotarium] error: the cluster of %s stopped (its log is in %s); stopping this worker"
+                      % (", ".join(supervisor.dead()), supervisor.logs), flush=True)
+                code = 1
+                break
+    except Stop:
+        pass
+    finally:
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, signal.SIG_IGN)
+        print("[robotarium] stopping this worker (its running experiment goes back to the head of the queue)",
+              flush=True)
+        supervisor.stop()
+        print("[robotarium] stopped", flush=True)
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())
