@@ -349,7 +349,13 @@ class JobBox:
                     break
                 if not over_quota and folder_bytes(self.folder) > self.limits.disk_bytes:
                     over_quota = True
-                    self._stop_script()
+                    # Frozen first, its files removed, then stopped: had it ended first, `run` (its parent)
+                    # could copy them into the results before they were gone.
+                    for pid in processes_of(self.uid):
+                        try:
+                            os.kill(pid, signal.SIGSTOP)
+                        except OSError:
+                            continue
                     # What the script wrote goes (it would be copied to the results otherwise).
                     for path in sorted(set(self.folder.rglob("*")) - given, reverse=True):
                         try:
@@ -357,6 +363,7 @@ class JobBox:
                                 path.unlink()
                         except OSError:
                             continue
+                    self._stop_script()
                     notes.append("the script's folder grew past the job's disk quota (%s); the script was stopped "
                                  "and the files it wrote were removed" % _mb(self.limits.disk_bytes))
                 stopped = self._leftovers(process.pid)

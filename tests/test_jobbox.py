@@ -91,7 +91,9 @@ def run_script(place, name, script, timeout=120, prepare=None, extra_files=None)
     assert not jobbox.processes_of(box.uid), "the script's processes outlived its job"
     assert not processes_on_domain(domain), "the job's processes outlived it"
     assert not box.folder.exists()
-    (run_json,) = results.glob("*/run.json")
+    found = list(results.glob("*/run.json"))
+    assert len(found) == 1, "no run.json in %s; the output:\n%s" % (results, output.read_text()[-3000:])
+    (run_json,) = found
     return outcome, json.loads(run_json.read_text()), output.read_text(), box.uid
 
 

@@ -358,7 +358,12 @@ def finish_run_folder(run_dir, run, script, log_path, saved, cwd):
         data_dir = os.path.join(run_dir, "data")
         os.makedirs(data_dir, exist_ok=True)
         for path in saved:
-            shutil.copy2(path, os.path.join(data_dir, os.path.relpath(path, cwd).replace(os.sep, "__")))
+            name = os.path.relpath(path, cwd).replace(os.sep, "__")
+            try:
+                shutil.copy2(path, os.path.join(data_dir, name))
+            except OSError as error:   # gone meanwhile (a job box removes what broke its disk quota) or unreadable
+                run.setdefault("data_not_saved", {})[name] = error.strerror or str(error)
+                print("[robotarium] the data file %s was not saved: %s" % (name, error.strerror or error), flush=True)
     with open(os.path.join(run_dir, "run.json"), "w") as f:
         json.dump(run, f, indent=2)
 
