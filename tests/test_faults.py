@@ -213,9 +213,9 @@ def test_fake_poses_never_steer_the_safety_node(healthy, tmp_path):
     using the simulator's poses and keeps them apart (it once took the fake ones: 17 collisions)."""
     lab = healthy
     r = client(HEAD_ON)
-    # The flood outlasts any run of 110 steps (closed below when the run is done): a fixed 6 s flood ended
-    # before the run on a loaded machine, and the test failed for that.
-    flood = NodeProcess("devtools.flood", lab.domain, args=["--poses", r._run_id, "--rate", "100", "--seconds", "120",
+    # --poses=ID: under pytest-xdist the script name is "-c", so the run id starts with "-" and argparse took
+    # it for an option (the flood exited at once). The flood outlasts the run; it is closed below.
+    flood = NodeProcess("devtools.flood", lab.domain, args=["--poses=" + r._run_id, "--rate", "100", "--seconds", "120",
                                                             "--robots", "2", "--huge-every", "0"],
                         log_path=tmp_path / "flood.log")
     try:
