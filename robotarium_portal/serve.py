@@ -107,7 +107,7 @@ def main(argv=None):
 
     from robotarium_portal import tasks
     from robotarium_portal.wsgi import application
-    from robotarium_portal.workers import Supervisor
+    from robotarium_portal.workers import Stop, Supervisor, stop_on_signals
     tasks.reconcile()   # before any worker: the jobs again from the experiments' states
     hosts = ["localhost", "127.0.0.1", "[::1]"] + args.allowed_host + (
         [args.host] if args.host not in ("0.0.0.0", "::") else [])
@@ -144,14 +144,7 @@ def main(argv=None):
         print("[robotarium] no administrator yet: ./robotarium serve --create-admin you@example.org%s"
               % ("" if args.data == str(REPOSITORY / "service") else " --data %s" % args.data), flush=True)
 
-    class Stop(Exception):
-        pass
-
-    def stop(signum, frame):
-        raise Stop()
-
-    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-        signal.signal(sig, stop)
+    stop_on_signals()
 
     def watch():
         while True:

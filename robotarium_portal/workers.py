@@ -30,6 +30,18 @@ STOP_GRACE = 60.0        # s a slot has to stop its job (a run ends its experime
 DATABASE_PATIENCE = 600  # s a job keeps trying to write its outcome while the database does not answer
 
 
+class Stop(Exception):
+    """SIGINT, SIGTERM or SIGHUP arrived (stop_on_signals): unwind, hand the jobs back, exit."""
+
+
+def stop_on_signals():
+    """Turn the stop signals into Stop in the main thread (serve and worker alike)."""
+    def stop(signum, frame):
+        raise Stop()
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, stop)
+
+
 def me():
     """The Worker (slot) this process works for, or None outside a worker."""
     value = os.environ.get("ROBOTARIUM_WORKER_ID")
@@ -376,14 +388,7 @@ def main(argv=None):
               supervisor.host, ", ".join("%s on ROS_DOMAIN_ID %d" % (w.kind, w.domain) for w, _ in supervisor.slots),
               shown, data, settings.WORKER_HEARTBEAT, settings.WORKER_LOST_AFTER), flush=True)
 
-    class Stop(Exception):
-        pass
-
-    def stop(signum, frame):
-        raise Stop()
-
-    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-        signal.signal(sig, stop)
+    stop_on_signals()
     code = 0
     try:
         while True:
