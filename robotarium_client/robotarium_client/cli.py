@@ -334,6 +334,109 @@ def new_run_folder(results_dir, name):
     raise RuntimeError("no free folder name for %s" % base)
 
 
+# -- runs whose ./robotarium run was killed -------------------------------------------------------------
+#
+# Each run keeps its scratch folder (the script's log as it runs, the runner's run.json and
+# started.json, pending.json: what this command would need to finish the run folder) in
+# <results dir>/.unfinished/ until its run folder is finished. Should ./robotarium run be killed
+# outright (SIGKILL, or killed while it made the results), the scratch folder stays behind and the
+# next ./robotarium run, status or report finishes that run's folder as run would have:
+# the script's process, orphaned, ends its experiment and writes how (runner.py), the testbed closes the
+# recording, and finish_unfinished makes the report, the video and the page from it.
+
+UNFINISHED = ".unfinished"
+
+
+def new_work_folder(results_dir):
+    """The scratch folder of one run: in results_dir/.unfinished/, or (the portal's job box, which
+    keeps its own books) a temporary folder."""
+    if script_box.VARIABLE in os.environ:
+        return tempfile.mkdtemp(prefix="robotarium-run-")
+    parent = os.path.join(results_dir, UNFINISHED)
+    os.makedirs(parent, exist_ok=True)
+    return tempfile.mkdtemp(prefix="run-", dir=parent)
+
+
+def local_testbeds_process(pid):
+    from robotarium_client import local_testbeds
+    return local_testbeds.process(pid)
+
+
+def runner_started_file():
+    from robotarium_client.runner import STARTED
+    return STARTED
+
+
+def _read_json(path):
+    try:
+        with open(path, encoding="utf-8") as f:
+            return json.load(f)
+    except (OSError, ValueError):
+        return None
+
+
+def _write_pending(work, pending):
+    path = os.path.join(work, "pending.json")
+    with open(path + ".tmp", "w") as f:
+        json.dump(pending, f)
+    os.replace(path + ".tmp", path)
+
+
+def finish_unfinished(results_dir=None, quiet=False):
+    """Finish the run folder of every run in results_dir (default results/) whose ./robotarium run
+    was killed before it finished it; says so, one line each. Returns the folders finished."""
+    from robotarium_client import local_testbeds
+    results_dir = os.path.abspath(results_dir or os.path.join(repository_root(), "results"))
+    parent = os.path.join(results_dir, UNFINISHED)
+    try:
+        works = sorted(os.listdir(parent))
+    except OSError:
+        return []
+    finished = []
+    for entry in works:
+        work = os.path.join(parent, entry)
+        pending = _read_json(os.path.join(work, "pending.json"))
+        if pending is None:
+            if time.time() - _mtime(work) > 60:   # never got as far as starting its script
+                shutil.rmtree(work, ignore_errors=True)
+            continue
+        if local_testbeds.running(pending["run"]):
+            continue   # its ./robotarium run is still at work
+        try:   # claim it: only one command finishes a run
+            os.rename(os.path.join(work, "pending.json"), os.path.join(work, "claimed.json"))
+        except OSError:
+            continue
+        # The orphaned script ends its experiment and exits within moments (runner.ORPHAN_EXIT).
+        deadline = time.monotonic() + 10.0
+        while local_testbeds.running(pending.get("runner")) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        cwd = pending["cwd"] if os.path.isdir(pending["cwd"]) else os.getcwd()
+        try:
+            _, run, run_dir = _collect_run(
+                pending["script"], -signal.SIGKILL, None, None, work, os.path.join(work, "run.json"),
+                os.path.join(work, "log.txt"), pending["started"], pending["started_at"], pending["before"], cwd,
+                pending["bags_dir"], pending["results"], pending["results_dir"], pending["name"], pending["video"],
+                quiet=True)
+        except Exception as error:   # noqa: BLE001 - leave it for the next try, say why
+            os.replace(os.path.join(work, "claimed.json"), os.path.join(work, "pending.json"))
+            say("could not finish the folder of a run whose ./robotarium run was killed (%s); %s keeps what it left"
+                % (session.describe_exception(error), work))
+            continue
+        finished.append(run_dir)
+        if not quiet:
+            say("the run of %s (%s) lost its ./robotarium run (pid %d, killed); its folder is finished now: %s"
+                % (os.path.basename(pending["script"]), run.get("run_id") or "no experiment", pending["run"]["pid"],
+                   _shown(run_dir)))
+    return finished
+
+
+def _mtime(path):
+    try:
+        return os.stat(path).st_mtime
+    except OSError:
+        return time.time()
+
+
 def write_unrecorded_results(run_dir, run, testbed_report=""):
     """report.txt and index.html for a run with no recording here (it never started, or it was
     recorded on another machine): how it ended, and the testbed's debug report if there is one."""
@@ -415,7 +518,8 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
         detail, text = problem
         print(text, end="", file=sys.stderr, flush=True)
         run = {"run_id": "", "outcome": "script_error", "detail": "the script %s; no testbed was started" % detail,
-               "step": 0, "exit_code": outcomes.EXIT_CODES[outcomes.SCRIPT_ERROR], "runs": [], "script": script,
+               "steps": 0, "step_calls": 0, "exit_code": outcomes.EXIT_CODES[outcomes.SCRIPT_ERROR], "runs": [],
+               "script": script,
                "started": started_at, "wall_time": 0.0}
         run_dir = new_run_folder(results_dir, session.experiment_name_of(script))
         work = tempfile.mkdtemp(prefix="robotarium-run-")
@@ -499,7 +603,7 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
         else:
             say("no testbed answers in %s: started one on this machine for this run (logs in %s)"
                 % (ns, _shown(testbed.log_dir)))
-    work = tempfile.mkdtemp(prefix="robotarium-run-")
+    work = new_work_folder(results_dir)
     info_path = os.path.join(work, "run.json")
     log_path = os.path.join(work, "log.txt")
     # The testbed is up (found or started above): the script waits for it, never starts another.
@@ -521,6 +625,10 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
     before = _snapshot(cwd)
     started = time.time()
     code = None
+    pending = {"run": local_testbeds_process(os.getpid()), "runner": None, "script": script, "cwd": cwd,
+               "started": started, "started_at": started_at, "bags_dir": bags_dir, "results": results,
+               "results_dir": results_dir, "name": name, "video": video, "before": before}
+    _write_pending(work, pending)
     if results and record:   # made while the script runs: the results' imports
         threading.Thread(target=_import_results, args=(video,), daemon=True).start()
     try:
@@ -531,7 +639,8 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
                 process = subprocess.Popen(command, cwd=cwd, env=env, pass_fds=pass_fds, process_group=0,
                                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, **box_options)
                 interruption.watch(process)
-                _tee(process.stdout, [sys.stdout.buffer, log])
+                _write_pending(work, dict(pending, runner=local_testbeds_process(process.pid)))
+                _tee(process.stdout, [log, sys.stdout.buffer])   # the log first: it never lags what was shown
                 code = process.wait()
     finally:
         if testbed is not None:
@@ -546,8 +655,9 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
 
 
 def _collect_run(script, code, testbed, interruption, work, info_path, log_path, started, started_at, before, cwd,
-                 bags_dir, results, results_dir, name, video):
-    """What run_script does after the script's process ended: the run folder and the results."""
+                 bags_dir, results, results_dir, name, video, quiet=False):
+    """What run_script does after the script's process ended: the run folder and the results.
+    interruption None: finishing the folder of a ./robotarium run that was killed (finish_unfinished)."""
     if code is None:
         say("interrupted (%s) before the script started%s" % (
             interruption.name, "; the testbed this run started was stopped" if testbed is not None else ""))
@@ -555,26 +665,33 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
         return interruption.exit_code, None, None
     wall_time = round(time.time() - started, 3)
 
+    died = None   # the script's process ended without saying how its run ended (killed outright)
     try:
         with open(info_path) as f:
             run = json.load(f)
-    except (OSError, ValueError):   # the script's process died before it could say anything
-        if interruption.signum is not None:
+    except (OSError, ValueError):
+        if interruption is None:   # finishing the folder of a ./robotarium run that was killed (finish_unfinished)
+            died, exit_code = "./robotarium run was killed", 128 + signal.SIGKILL
+        elif interruption.signum is not None:
             died, exit_code = "interrupted by %s and killed" % interruption.name, interruption.exit_code
         elif code < 0:
             died, exit_code = "killed by %s" % signal.Signals(-code).name, 128 - code
         else:
             died, exit_code = "exit code %d" % code, code or 1
-        run = {"outcome": "interrupted" if code < 0 else "script_error",
-               "detail": "the script's process ended (%s) before it could end its experiment" % died,
-               "step": 0, "exit_code": exit_code, "runs": []}
-    if interruption.signum is not None:
+        # What the script's Robotarium said when its experiment started: the run, its recording.
+        started_info = _read_json(os.path.join(work, runner_started_file()))
+        run = {"outcome": "interrupted" if died.startswith(("./", "interrupted", "killed")) else "script_error",
+               "detail": "the script's process ended (%s) before it could end its experiment%s"
+                         % (died, "" if not started_info else " (the testbed ends it when the script stops answering)"),
+               "step_calls": None, "exit_code": exit_code, "runs": [started_info] if started_info else []}
+    if interruption is not None and interruption.signum is not None:
         say("interrupted (%s): the script was stopped%s" % (
             interruption.name, " and the testbed this run started was stopped" if testbed is not None else ""))
     info = run["runs"][-1] if run["runs"] else {}
     # The run is its (last) experiment: its keys at the top, how the script's run ended over them.
     run = dict({k: v for k, v in info.items() if k != "report"}, **run)
     run.update(run_id=info.get("run_id", ""), script=script, started=started_at, wall_time=wall_time)
+    run.setdefault("steps", 0)
     saved = [p for p, mtime in _snapshot(cwd).items() if before.get(p) != mtime and mtime / 1e9 >= started - 1]
 
     run_dir = info.get("recording") or ""
@@ -590,7 +707,6 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
                    else new_run_folder(results_dir, name))
         os.makedirs(run_dir, exist_ok=True)
     finish_run_folder(run_dir, run, script, log_path, saved, cwd)
-    shutil.rmtree(work, ignore_errors=True)
 
     if recorded:
         if info.get("recording_stopped_at_step") is not None:
@@ -602,27 +718,38 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
             say("the recorder was lost at step %d: %s holds the run up to there (recovered)"
                 % (info["recording_stopped_at_step"], run_dir))
         else:
-            # A lost testbed may never close the bag: then take what is on disk after a short wait.
-            timeout = 15.0 if info.get("ended") else 3.0
+            # A lost testbed may never close the bag: then take what is on disk after a short wait. A
+            # script killed outright has its experiment ended by the testbed (client_lease) or by
+            # this command's stopping of its own testbed.
+            timeout = 15.0 if info.get("ended") or died else 3.0
             if testbed is None:
-                wait_until_recorded(run_dir, timeout)
+                wait_until_recorded(run_dir, timeout, quiet=quiet)
             elif not wait_until_recorded(run_dir, timeout, quiet=True):
                 testbed.stop()   # its recorder closes the bag as it stops (or is gone)
                 wait_until_recorded(run_dir, timeout=1.0)
         from robotarium_recording.results import write_results
         try:
-            write_results(run_dir, progress=True, video=video, run=run)
+            if died:   # the testbed's steps, as the report counts them (a killed script could not say)
+                from robotarium_recording.bag import Bag
+                recorded_steps = Bag(run_dir).poses().steps
+                run["steps"] = int(recorded_steps[-1]) if len(recorded_steps) else 0
+                with open(os.path.join(run_dir, "run.json"), "w") as f:
+                    json.dump(run, f, indent=2)
+            write_results(run_dir, progress=not quiet, video=video, run=run)
         except Exception as error:   # noqa: BLE001 - say so, keep the folder
             say("could not make the results from the recording (%s); see %s"
                 % (session.describe_exception(error), run_dir))
             write_unrecorded_results(run_dir, run, info.get("report", ""))
     else:
         write_unrecorded_results(run_dir, run, info.get("report", ""))
-    print_summary(run_dir, run, cwd)
+    shutil.rmtree(work, ignore_errors=True)   # last: a run whose folder is finished is no longer pending
+    if not quiet:
+        print_summary(run_dir, run, cwd)
     return run["exit_code"], run, run_dir
 
 
 def cmd_run(args):
+    finish_unfinished(args.results_dir)
     real_time = {"lockstep": False, "real-time": True}.get(args.mode)
     code, _, _ = run_script(args.script, args.script_args, real_time=real_time, record=not args.no_record,
                             bags_dir=args.bags_dir, video=not args.no_video,
@@ -738,6 +865,7 @@ def _describe_status(msg):
 def cmd_status(args):
     from robotarium_client import local_testbeds
     from robotarium_client.testbed import testbed_status
+    finish_unfinished(quiet=args.json)
     found = local_testbeds.find()
     here = (local_testbeds.domain_id(), namespace())
     # only where a simulator runs can a testbed answer (a probe that gets no answer waits the whole timeout)
@@ -834,6 +962,8 @@ def cmd_view(argv):
 
 def cmd_report(argv):
     from robotarium_recording.results import main as report_main
+    if "-h" not in argv and "--help" not in argv:
+        finish_unfinished()
     return report_main(argv)
 
 
