@@ -284,6 +284,13 @@ def test_the_results_page_in_a_real_browser(testbed):
         hrefs = {href for href, _ in links}
         assert {"run.mp4", "report.txt", "log.txt", "run.json", "run_seeded.py", "metadata.yaml"} <= hrefs, hrefs
         assert all(size > 0 for _, size in links), links
+        # long report and log lines wrap: nothing runs off to the side, even in a narrow window
+        overflowing = page.evaluate("""(() => {
+            document.body.style.maxWidth = '420px';
+            return Array.from(document.querySelectorAll('pre, td')).filter(e => e.scrollWidth > e.clientWidth + 1)
+                .map(e => e.tagName + ': ' + e.textContent.slice(0, 60));
+        })()""")
+        assert overflowing == [], overflowing
         page.drain(0.5)
         assert page.errors == []
 

@@ -375,8 +375,8 @@ def _read_json(path):
         return None
 
 
-def _write_pending(work, pending):
-    path = os.path.join(work, "pending.json")
+def _write_pending(work, pending, name="pending.json"):
+    path = os.path.join(work, name)
     with open(path + ".tmp", "w") as f:
         json.dump(pending, f)
     os.replace(path + ".tmp", path)
@@ -395,9 +395,13 @@ def finish_unfinished(results_dir=None, quiet=False):
     finished = []
     for entry in works:
         work = os.path.join(parent, entry)
+        claimed = _read_json(os.path.join(work, "claimed.json"))
+        if claimed is not None and "by" in claimed and not local_testbeds.running(claimed["by"]):
+            # its finisher was killed in turn: hand the run back
+            os.replace(os.path.join(work, "claimed.json"), os.path.join(work, "pending.json"))
         pending = _read_json(os.path.join(work, "pending.json"))
         if pending is None:
-            if time.time() - _mtime(work) > 60:   # never got as far as starting its script
+            if claimed is None and time.time() - _mtime(work) > 60:   # run was killed before it started the script
                 shutil.rmtree(work, ignore_errors=True)
             continue
         if local_testbeds.running(pending["run"]):
@@ -406,6 +410,7 @@ def finish_unfinished(results_dir=None, quiet=False):
             os.rename(os.path.join(work, "pending.json"), os.path.join(work, "claimed.json"))
         except OSError:
             continue
+        _write_pending(work, dict(pending, by=local_testbeds.process(os.getpid())), name="claimed.json")
         # The orphaned script ends its experiment and exits within moments (runner.ORPHAN_EXIT).
         deadline = time.monotonic() + 10.0
         while local_testbeds.running(pending.get("runner")) and time.monotonic() < deadline:
@@ -932,11 +937,50 @@ def cmd_stop(args):
     return 0
 
 
+def _holder_parts(holder):
+    """("user@host", "pid N", "script") of a StartExperiment.holder ("user@host pid N script.py")."""
+    words = holder.split(None, 3)
+    if len(words) == 4 and words[1] == "pid":
+        return words[0], "pid " + words[2], words[3]
+    return holder, "", ""
+
+
 def cmd_end(args):
-    from robotarium_client.testbed import end_experiment
+    """Ends your own experiment: the one whose client runs as this user on this host (its holder,
+    robotarium_client.robotarium.holder_of_this_process). Another's is refused here, naming whose it is,
+    unless --force (the operator's override). The check is a courtesy, not a lock: the testbed
+    itself refuses only requests without the client's token and without force."""
+    from robotarium_client.robotarium import holder_of_this_process
+    from robotarium_client.testbed import end_experiment, testbed_status
+    from robotarium_core import outcomes
+    from robotarium_msgs.msg import TestbedStatus
     ns = namespace()
+    force, outcome, detail = args.force, outcomes.NONE, ""
+    if not force:
+        here = (os.environ.get("ROS_DOMAIN_ID", "0").strip() or "0", ns)
+        msg = testbed_status([(here[0], ns, None)], timeout=args.timeout).get(here)
+        if msg is None:
+            say("no testbed answers in %s on ROS_DOMAIN_ID %s; ./robotarium status shows what runs where" % here[::-1])
+            return 1
+        if msg.state != TestbedStatus.STATE_RUNNING:
+            say("no experiment is running in %s: nothing to end" % ns)
+            return 1
+        me = _holder_parts(holder_of_this_process())[0]
+        who, pid, script = _holder_parts(msg.holder)
+        since = _since(msg.run_id)
+        if who != me:
+            say("experiment %s is not yours: it is held by %s (%s%s), run %s since %s, step %d. It ends when its "
+                "client ends it or is gone; ./robotarium end --force ends it anyway (the operator's override)." % (
+                    msg.run_id, who or "a client that did not say who it is", pid or "pid ?",
+                    ", script %s" % script if script else "", msg.run_id,
+                    time.strftime("%H:%M:%S", since) + " (%s)" % _ago(time.time() - time.mktime(since))
+                    if since else "?", msg.step))
+            return 1
+        # Yours (this user on this host): ended as an operator would, saying by whom.
+        force, outcome = True, outcomes.INTERRUPTED
+        detail = "interrupted at step %d: ended by its user (%s) with ./robotarium end" % (msg.step, me)
     try:
-        response = end_experiment(ns, timeout=args.timeout, force=args.force)
+        response = end_experiment(ns, timeout=args.timeout, force=force, outcome=outcome, detail=detail)
     except TimeoutError as error:
         say("%s; ./robotarium status shows what runs where" % error)
         return 1
@@ -1109,12 +1153,15 @@ def main(argv=None):
     stop.add_argument("--all", action="store_true", help="every testbed on this machine")
     stop.set_defaults(func=cmd_stop)
 
-    end = sub.add_parser("end", help="end the experiment running on the testbed and print its report",
-                         description="End the experiment running in ROBOTARIUM_NAMESPACE on ROS_DOMAIN_ID (on any "
-                                     "machine of the domain) and print its debug report and where it was recorded. "
-                                     "The testbed keeps running for the next experiment.")
+    end = sub.add_parser("end", help="end your experiment running on the testbed and print its report",
+                         description="End your experiment running in ROBOTARIUM_NAMESPACE on ROS_DOMAIN_ID (on any "
+                                     "machine of the domain: yours when its client runs as your user on this host) "
+                                     "and print its debug report and where it was recorded; its script stops with "
+                                     "exit code 4. Someone else's is not ended: end says whose it is (user@host, pid, "
+                                     "script, run, since when) and that --force ends it anyway. The testbed keeps "
+                                     "running for the next experiment.")
     end.add_argument("--force", action="store_true",
-                     help="end it even though another client owns it (the operator's override)")
+                     help="end it whoever's it is (the operator's override)")
     end.add_argument("--timeout", type=_seconds, default=10.0, metavar="S",
                      help="seconds to wait for the testbed (default 10)")
     end.set_defaults(func=cmd_end)
