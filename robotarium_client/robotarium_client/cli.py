@@ -686,8 +686,9 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
         # What the script's Robotarium said when its experiment started: the run, its recording.
         started_info = _read_json(os.path.join(work, runner_started_file()))
         run = {"outcome": "interrupted" if died.startswith(("./", "interrupted", "killed")) else "script_error",
-               "detail": "the script's process ended (%s) before it could end its experiment%s"
-                         % (died, "" if not started_info else " (the testbed ends it when the script stops answering)"),
+               "detail": ("%s, and the script's process ended before it could say how its run ended" % died
+                          if interruption is None else
+                          "the script's process ended (%s) before it could end its experiment" % died),
                "step_calls": None, "exit_code": exit_code, "runs": [started_info] if started_info else []}
     if interruption is not None and interruption.signum is not None:
         say("interrupted (%s): the script was stopped%s" % (
