@@ -727,7 +727,7 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
             # A lost testbed may never close the bag: then take what is on disk after a short wait. A
             # script killed outright has its experiment ended by the testbed (client_lease) or by
             # this command's stopping of its own testbed.
-            timeout = 15.0 if info.get("ended") or died else 3.0
+            timeout = 15.0 if info.get("ended") or died or interruption is None else 3.0
             if testbed is None:
                 wait_until_recorded(run_dir, timeout, quiet=quiet)
             elif not wait_until_recorded(run_dir, timeout, quiet=True):
