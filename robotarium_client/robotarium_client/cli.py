@@ -1020,7 +1020,8 @@ DELEGATED = {"replay": (cmd_replay, "republish a recorded run (in experiment tim
 RUN_EPILOG = """\
 whatever happens, the run folder (the last line printed names it) gets log.txt, report.txt (its first
 line says how the run ended), run.json, index.html, and from a recording made here trajectories.png and
-run.mp4. Exit codes: 0 the run completed (call_at_scripts_end); 1 the script raised an exception or
+run.mp4 (a script killed outright included; should run itself be killed outright, the next run, status or
+report finishes the folder). Exit codes: 0 the run completed (call_at_scripts_end); 1 the script raised an exception or
 could not be compiled or imported (then no testbed is started); 2 a bad command line; 3 the script
 ended without call_at_scripts_end(); 4 no testbed, it was busy and --no-wait said not to wait, or it was lost
 or ended the experiment; 5 the time limit;
