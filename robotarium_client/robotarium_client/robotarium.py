@@ -10,8 +10,9 @@ and on the end request (nobody else's commands move the robots, nobody else ends
 operator with ./robotarium end --force), and a poses key: poses without it (a replay, a stray
 publisher) are ignored. The client holds a presence the testbed watches (a killed script frees the
 testbed within client_lease seconds) and watches the simulator's, the safety node's and the
-recorder's: step() raises within node_lease (0.75 s) naming the node that is gone, or saying who
-ended the experiment, and a lost recorder is reported as "recording stopped at step k".
+recorder's: step() raises within twice node_lease (0.75 s, then as long again to confirm: a presence
+that lapsed on a loaded machine and comes back is no loss) naming the node that is gone, or saying
+who ended the experiment, and a lost recorder is reported as "recording stopped at step k".
 
 Modes: sim_in_real_time=True paces the loop at the testbed's 30 Hz (the simulator's timer;
 a robot stops when its command is older than 0.5 s, as on the real testbed); False runs in
@@ -237,6 +238,7 @@ class Robotarium(RobotariumABC):
         self._watches = {}
         self._failure = None          # why the experiment cannot go on (a node lost, ended by someone else)
         self._failure_kind = TestbedLost
+        self._suspects = {}           # {node: (monotonic time, step)} whose presence lapsed, not yet confirmed lost
         self._recorder_lost_at = None
         self._context = Context()
         # With DDS Security (sros2/README.md) a script runs in the client enclave of the policy.
@@ -384,13 +386,26 @@ class Robotarium(RobotariumABC):
                 print("[robotarium] the recorder is gone: recording stopped at step %d. The experiment goes on; "
                       "what was recorded until then stays readable." % step, file=sys.stderr)
             return
-        what = {"simulator": "The simulator", "safety": "The safety node"}[who]
-        self._failure_kind = self._failure_kind if self._failure else TestbedLost
-        self._failure = self._failure or (
-            "%s is gone (no sign of it for %g s) at step %d: the experiment cannot go on%s. Node logs are in "
-            "log/testbed/ when ./robotarium started the testbed." % (
-                what, self.config.node_lease, step,
-                ", and the simulator stopped every robot" if who == "safety" else ""))
+        self._suspects.setdefault(who, (time.monotonic(), step))
+
+    def _confirm_losses(self):
+        """A node whose presence lapsed is lost once it stayed away another node_lease: on a loaded
+        2-core machine a presence lapsed now and then for a moment (a burst of discovery or a flood
+        starved the process's DDS threads) while the node went on working, and ended a run that was
+        fine. True when the experiment cannot go on."""
+        for who, (since, step) in list(self._suspects.items()):
+            watch = self._watches.get(who)
+            if watch is not None and watch.alive:
+                del self._suspects[who]   # it was there all along
+            elif time.monotonic() - since >= self.config.node_lease and self._failure is None:
+                what = {"simulator": "The simulator", "safety": "The safety node"}[who]
+                self._failure_kind = TestbedLost
+                self._failure = (
+                    "%s is gone (no sign of it for %g s) at step %d: the experiment cannot go on%s. Node logs are in "
+                    "log/testbed/ when ./robotarium started the testbed." % (
+                        what, 2 * self.config.node_lease, step,
+                        ", and the simulator stopped every robot" if who == "safety" else ""))
+        return self._failure is not None
 
     def _on_status(self, msg):
         from robotarium_msgs.msg import TestbedStatus
@@ -401,7 +416,7 @@ class Robotarium(RobotariumABC):
 
     def _check_testbed(self):
         """Raise RuntimeError when the experiment cannot go on (a node lost, ended by someone else)."""
-        if self._failure is not None:
+        if self._confirm_losses():
             raise self._failure_kind(self._failure)
 
     def _safety_node_matched(self):
@@ -436,7 +451,7 @@ class Robotarium(RobotariumABC):
             self._drawing_pub.publish(self._drawing_message)
 
     def _wait_for_step(self, target):
-        arrived = self._spin_until(lambda: self._failure is not None or (
+        arrived = self._spin_until(lambda: self._confirm_losses() or (
             self._latest is not None and self._latest.step >= target), STEP_TIMEOUT)
         self._check_testbed()
         if not arrived:

@@ -75,7 +75,8 @@ FIELDS = {
                           used_by=(SIMULATOR,)),
     "line_lease": Field("s; a client waiting in line for a busy testbed that stops asking this long leaves the line",
                         0.5, 60.0, used_by=(SIMULATOR,)),
-    "node_lease": Field("s; a simulator, safety node or recorder gone this long is reported lost", 0.1, 60.0),
+    "node_lease": Field("s; a simulator, safety node or recorder gone this long is reported lost (the client confirms "
+                        "a simulator's or safety node's loss for as long again)", 0.1, 60.0),
     "viewer_rate": Field("Hz at which the simulator publishes the markers topic for viewers (RViz, Foxglove), "
                          "while one subscribes", 0.0, 100.0, used_by=(SIMULATOR,)),
     "trail_length": Field("s of testbed time of each robot's trail in the viewers", 0.0, 600.0, low_open=False,
