@@ -20,7 +20,7 @@ import threading
 import time
 
 from robotarium_client import session
-from robotarium_client.testbed import LocalTestbed, namespace, repository_root, testbed_answers
+from robotarium_client.testbed import LocalTestbed, namespace, repository_root, running_testbed, testbed_answers
 from robotarium_core import lifeline, model, script_box
 
 DEMO_SCRIPT = os.path.join("examples", "barrier_certificates.py")  # 8 robots swap places through the middle
@@ -112,11 +112,16 @@ class Interruption:
 
 
 def cmd_up(args):
+    from robotarium_core import claim
+    from robotarium_core.config import DEFAULT
     ns = namespace()
-    if testbed_answers(ns, timeout=2.0):
-        say("a testbed already answers in %s on ROS_DOMAIN_ID %s; not starting a second one"
-            % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
-        return 1
+    domain = os.environ.get("ROS_DOMAIN_ID", "0")
+    # One testbed per namespace: name the one that runs. Where discovery reaches this machine only it
+    # answers within tens of ms (claim_wait); across machines it may wait for the next announcement.
+    running = running_testbed(ns, timeout=DEFAULT.claim_wait if discovery_is_local() else UP_PROBE_WAIT)
+    if running is not None:
+        say(claim.refusal(running, ns, domain))
+        return claim.REFUSED
     view = None
     if args.view:   # first: a port in use is said before any node starts
         from robotarium_recording.view_node import ViewProcess
@@ -127,7 +132,8 @@ def cmd_up(args):
             return 1
     interruption = Interruption()
     testbed = LocalTestbed(record=not args.no_record, quiet=False, bags_dir=args.bags_dir,
-                           config_file=args.config, hardware=args.hardware).start()
+                           config_file=args.config, hardware=args.hardware, looked=True).start()
+    code = 0
     try:
         say("testbed up in namespace %s on ROS_DOMAIN_ID %s (simulator%s, safety%s%s). It runs as long as this "
             "command does: Ctrl-C (or SIGTERM, SIGHUP) stops it." % (
@@ -135,6 +141,11 @@ def cmd_up(args):
                 "" if args.no_record else ", recorder", ", Foxglove view" if view else ""))
         while interruption.signum is None:
             failed = testbed.failed()
+            if claim.REFUSED in failed.values():   # one started at the same moment is older: it stays
+                say("an older testbed runs in %s on ROS_DOMAIN_ID %s (named above); stopping this one"
+                    % (ns, domain))
+                code = claim.REFUSED
+                break
             if failed:
                 say("node(s) exited: %s; stopping the testbed" % failed)
                 break
@@ -148,7 +159,7 @@ def cmd_up(args):
         testbed.stop()   # a running experiment is ended and its recording closed
         interruption.restore()
     say("testbed stopped" + (" (%s)" % interruption.name if interruption.signum else ""))
-    return 0
+    return code
 
 
 def _snapshot(directory):
@@ -442,6 +453,8 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
 # announcement (3 s; docs/benchmarks.md). The nodes started behind the start gate import meanwhile.
 # Where discovery reaches this machine only, the process table knows every testbed: no wait.
 PROBE_WAIT = 3.0
+# ./robotarium up's look for a testbed already running where discovery may reach other machines.
+UP_PROBE_WAIT = 2.0
 # ... and one seen running on this machine (in the process table) has as long.
 LOCAL_PROBE_WAIT = 3.0
 
@@ -463,7 +476,7 @@ def find_or_start_testbed(ns, record, bags_dir, config_file):
     if running_here:   # ./robotarium up (or ros2 run) on this machine: it answers
         if testbed_answers(ns, timeout=LOCAL_PROBE_WAIT):
             return None
-    testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file).start(gated=True)
+    testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file, looked=True).start(gated=True)
     try:
         if not running_here and not discovery_is_local() and testbed_answers(ns, timeout=PROBE_WAIT):
             testbed.cancel()
@@ -484,7 +497,7 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
     # Without local_testbed a testbed is known to be up (or coming up): wait for it, never start one.
     if own_testbed:
         if interruption.signum is None:
-            testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file).start()
+            testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file, looked=True).start()
     elif not local_testbed:
         if testbed_answers(ns, timeout=60.0):
             say("using the testbed that answers in %s" % ns)

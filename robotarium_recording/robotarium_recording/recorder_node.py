@@ -334,7 +334,7 @@ class RecorderNode(Node):
 
 def main(args=None):
     # a run in progress is closed properly on the way out: summary, final metadata.yaml
-    return run_node(RecorderNode, "recorder", args, before_destroy=lambda node: node.close())
+    return run_node(RecorderNode, "recorder", args, before_destroy=lambda node: node.close(), claim=presence.RECORDER)
 
 
 if __name__ == "__main__":

@@ -596,7 +596,7 @@ class SimulatorNode(Node):
 
 
 def main(args=None):
-    return run_node(SimulatorNode, "simulator", args)
+    return run_node(SimulatorNode, "simulator", args, claim=presence.SIMULATOR)
 
 
 if __name__ == "__main__":
