@@ -374,6 +374,8 @@ class StepGate:
 
 NOT_COMPLETED = "The run did not complete, so there is no acceptance estimate.\n"
 ACCEPTANCE_LIKELY = "No errors in your simulation! Acceptance of your experiment is likely!\n"
+# ... in its place when the run's recording stopped early (the recorder gone, a full disk)
+RECORDING_INCOMPLETE = "No errors in your simulation, but its recording is incomplete, so there is no acceptance estimate.\n"
 
 
 def safety_lines(interventions=0, arrays=0, largest_change=0.0, mean_change=0.0, prevented_collisions=0,

@@ -161,6 +161,7 @@ def recompute(bag, run=None):
     if missing:
         notes.append("poses of %d step(s) are missing from the bag (first: step %d); they are not counted."
                      % (len(missing), missing[0]))
+    notes += outcomes.run_notes(run)
     experiment = bag.experiment()
     if experiment.get("api") == rps2.API:
         return _recompute_2x(bag, settings, config, track, n, steps, by_step, notes, experiment, run)
@@ -363,6 +364,11 @@ def write_results(bag_dir, progress=True, *, out_dir=None, video=True, run=None)
     os.makedirs(out_dir, exist_ok=True)
     run = run if run is not None else (_run_json(bag.path) or None)
     numbers = recompute(bag, run)
+    stopped = outcomes.recording_stopped(run)
+    if stopped:   # no verdict from a recording that stopped early (the report's notes say where)
+        numbers["report"] = numbers["report"].replace(model.ACCEPTANCE_LIKELY, model.RECORDING_INCOMPLETE)
+        numbers["first_line"] = "%s %s%s: the recording is incomplete." % (
+            numbers["first_line"], stopped[0].upper(), stopped[1:])
     paths = {"report": os.path.join(out_dir, "report.txt")}
     with open(paths["report"], "w", encoding="utf-8") as f:
         f.write(report_text(bag, numbers))
