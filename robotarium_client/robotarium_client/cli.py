@@ -112,13 +112,17 @@ class Interruption:
 
 
 def cmd_up(args):
+    from robotarium_client import local_testbeds
     from robotarium_core import claim
     from robotarium_core.config import DEFAULT
     ns = namespace()
     domain = os.environ.get("ROS_DOMAIN_ID", "0")
-    # One testbed per namespace: name the one that runs. Where discovery reaches this machine only it
-    # answers within tens of ms (claim_wait); across machines it may wait for the next announcement.
-    running = running_testbed(ns, timeout=DEFAULT.claim_wait if discovery_is_local() else UP_PROBE_WAIT)
+    # One testbed per namespace: name the one that runs. Where discovery reaches this machine only,
+    # the process table knows it at once (a look on the domain backs it up for a claim_wait); else
+    # it is looked for on the domain, as run does (discovery can wait for the next announcement).
+    running = local_testbeds.running_here(ns, local_testbeds.domain_id()) if discovery_is_local() else None
+    if running is None:
+        running = running_testbed(ns, timeout=DEFAULT.claim_wait if discovery_is_local() else PROBE_WAIT)
     if running is not None:
         say(claim.refusal(running, ns, domain))
         return claim.REFUSED
@@ -488,8 +492,6 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
 # announcement (3 s; docs/benchmarks.md). The nodes started behind the start gate import meanwhile.
 # Where discovery reaches this machine only, the process table knows every testbed: no wait.
 PROBE_WAIT = 3.0
-# ./robotarium up's look for a testbed already running where discovery may reach other machines.
-UP_PROBE_WAIT = 2.0
 # ... and one seen running on this machine (in the process table) has as long.
 LOCAL_PROBE_WAIT = 3.0
 
