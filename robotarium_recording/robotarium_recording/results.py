@@ -33,8 +33,8 @@ import numpy as np
 from robotarium_core import model, outcomes, rps2
 from robotarium_recording.bag import Bag
 
-STOP_STATUSES = (2, 3, 4)   # SafetyReport.STATUS_STOP_NO_POSES, _SOLVER_FAILED, _BAD_INPUT (the message's constants)
 COUNTS_ONLY = 5             # SafetyReport.STATUS_COUNTS_ONLY: no array was filtered
+PASSTHROUGH, SATURATED = 0, 6   # SafetyReport.STATUS_PASSTHROUGH, _SATURATED: forwarded as asked (or scaled to the limits)
 
 
 # -- the report ----------------------------------------------------------------------------------
@@ -69,8 +69,8 @@ def safety_summary(bag, tolerance):
     (interventions, arrays, largest_change, mean_change, prevented_collisions, prevented_boundary)
     and audit (a verification run: it let the script's commands through). An intervention is an
     array whose safe command differs from the requested one by more than `tolerance` for some
-    robot, or a stop (SafetyReport.msg); the changes are those of the interventions (stops
-    included, as the largest finite speed they cancelled); prevented_*: its unfiltered replay of
+    robot, or a stop of a request not at rest (model.is_intervention, SafetyReport.msg); the changes
+    are those of the interventions (stops as the largest finite speed they cancelled); prevented_*: its unfiltered replay of
     the script's own commands, summed (0 in bags recorded before it existed)."""
     tally, arrays, audit = model.RunTally(), 0, False
     name = bag.topic("safety_report", required=False)
@@ -80,8 +80,10 @@ def safety_summary(bag, tolerance):
             continue
         arrays += 1
         audit = audit or bool(getattr(report, "audit", False))
-        stop = status in STOP_STATUSES if isinstance(status, int) else str(status).startswith("stop")
-        tally.add_safety_report(stop or report.max_change > tolerance, report.max_change,
+        # every status but these two is a stop or a solved QP (bags before the constants: strings)
+        filtered = (status not in (PASSTHROUGH, SATURATED) if isinstance(status, int)
+                    else str(status).startswith(("stop", "solved")))
+        tally.add_safety_report(model.is_intervention(filtered, report.max_change, tolerance), report.max_change,
                                 getattr(report, "unfiltered_collisions", 0),
                                 getattr(report, "unfiltered_boundary_violations", 0))
     return dict(tally.safety(arrays), audit=audit)
