@@ -178,6 +178,11 @@ def test_a_guide_script_runs_unchanged_in_real_time(testbed):
     with open(os.path.join(folder, "run.json")) as f:
         info = json.load(f)
     assert info["real_time"] is True and info["steps"] > 100
+    # steps: the testbed's 30 Hz steps, as the report counts them; step_calls: the script's step() calls.
+    # In real time the testbed may tick between the script's last step() and the end: never fewer.
+    assert info["steps"] >= info["step_calls"] > 100, info
+    with open(os.path.join(folder, "report.txt")) as f:
+        assert "steps:        %d " % info["steps"] in f.read()
     # Paced, not as fast as possible: the simulator's steps took at least their simulated time on
     # the wall clock (lockstep runs this script about ten times faster).
     from robotarium_recording.bag import Bag

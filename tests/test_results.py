@@ -110,3 +110,18 @@ def test_actuator_limits_are_counted_from_the_commands_in_force(mode):
     assert np.array_equal(forced[1][0], [[0.1, 0.1], [0.0, 0.0]]) and forced[1][1] is True
     counted = [model.is_actuator_limit_iteration(v, f) for v, f in forced]
     assert counted[:2] == [True, True]
+
+
+def test_the_results_page_wraps_long_report_and_log_lines(tmp_path):
+    """A report or log line longer than the page is wide wraps (pre-wrap, broken anywhere: a long path
+    has no spaces) instead of running off to the side; the browser check is in test_run_results."""
+    from robotarium_recording import page
+    long_path = "/very/long/" + "folder/" * 40 + "file.py"
+    (tmp_path / "report.txt").write_text("Run did not complete: the script raised OSError at " + long_path + ".\n")
+    (tmp_path / "log.txt").write_text("x = " + "1234567890" * 30 + "\n")
+    text = open(page.write_page(str(tmp_path), run={"outcome": "script_error"})).read()
+    style = text.split("<style>")[1].split("</style>")[0]
+    rule = style.split("pre {")[1].split("}")[0]
+    assert "white-space: pre-wrap" in rule and "overflow-wrap: anywhere" in rule, rule
+    assert "overflow-wrap: anywhere" in style.split("td {")[1].split("}")[0]
+    assert long_path in text and "1234567890" * 30 in text   # wrapped on the page, never cut

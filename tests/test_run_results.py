@@ -135,7 +135,7 @@ def test_a_script_that_raises_mid_run(testbed):
     assert first == "Run did not complete: the script raised KeyError: 'goal' at step 10 (line 13 of fails.py).", report
     assert "Acceptance" not in report and "no acceptance estimate" in report
     assert "Traceback (most recent call last)" in log and 'fails.py", line 13' in log and "KeyError: 'goal'" in log
-    assert run["outcome"] == "script_error" and run["exit_code"] == 1 and run["step"] == 10
+    assert run["outcome"] == "script_error" and run["exit_code"] == 1 and run["step_calls"] == run["steps"] == 10
     assert "hint: the traceback above" in out
     testbed["runs"]["fails"] = os.path.join(str(testbed["scripts"]), folder)
 
@@ -157,7 +157,7 @@ def test_a_run_interrupted_with_ctrl_c(testbed):
     first, report, log, run = check_folder(run_folder(out), str(testbed["scripts"]))
     name = signal.Signals(signum).name
     assert first.startswith("Run did not complete: interrupted by ") and name in first, report
-    assert "Acceptance" not in report and run["outcome"] == "interrupted" and run["step"] >= 6
+    assert "Acceptance" not in report and run["outcome"] == "interrupted" and run["step_calls"] >= 6
     assert "running" in log
 
 
@@ -284,6 +284,13 @@ def test_the_results_page_in_a_real_browser(testbed):
         hrefs = {href for href, _ in links}
         assert {"run.mp4", "report.txt", "log.txt", "run.json", "run_seeded.py", "metadata.yaml"} <= hrefs, hrefs
         assert all(size > 0 for _, size in links), links
+        # long report and log lines wrap: nothing runs off to the side, even in a narrow window
+        overflowing = page.evaluate("""(() => {
+            document.body.style.maxWidth = '420px';
+            return Array.from(document.querySelectorAll('pre, td')).filter(e => e.scrollWidth > e.clientWidth + 1)
+                .map(e => e.tagName + ': ' + e.textContent.slice(0, 60));
+        })()""")
+        assert overflowing == [], overflowing
         page.drain(0.5)
         assert page.errors == []
 
@@ -319,6 +326,70 @@ def test_replay_plays_a_lockstep_run_in_experiment_time_and_refuses_a_live_testb
     assert np.median(gaps) == pytest.approx(0.033, abs=0.01), gaps   # recorded as fast as it ran (a few ms)
     import imageio_ffmpeg
     assert imageio_ffmpeg.count_frames_and_secs(str(tmp_path / "replay.mp4"))[0] == 11   # headless --figure: a video
+
+
+def _script_process(pid):
+    """The script's process (robotarium_client.runner) that ./robotarium run `pid` started."""
+    with open("/proc/%d/task/%d/children" % (pid, pid)) as f:
+        children = [int(p) for p in f.read().split()]
+    for child in children:
+        with open("/proc/%d/cmdline" % child, "rb") as f:
+            if b"robotarium_client.runner" in f.read():
+                return child
+    raise AssertionError("no script process among %s" % children)
+
+
+def test_a_script_killed_outright_leaves_the_runs_folder(testbed):
+    """kill -9 of the script's process: it says nothing more, yet ./robotarium run finishes the run's own
+    folder (the recording) from the bag: the report, the video, the page, run.json with the run's steps."""
+    process = start_run(testbed, "endless.py", "--no-local-testbed")
+    head = wait_for_line(process, "running")
+    os.kill(_script_process(process.pid), signal.SIGKILL)
+    code, out = finish(process)
+    out = head + out
+    assert code == 128 + signal.SIGKILL, out
+    folder = os.path.join(str(testbed["scripts"]), run_folder(out))
+    first, report, log, run = check_folder(folder, "")
+    assert os.path.dirname(folder) == str(testbed["bags"]) and run["run_id"] == os.path.basename(folder), folder
+    assert "No experiment ran" not in report and "##### DEBUG OUTPUT #####" in report, report
+    # the testbed ended it when the script stopped answering, and the recording says so
+    assert first.startswith("Run did not complete: ") and "Acceptance" not in report, report
+    assert run["outcome"] == "interrupted" and "killed by SIGKILL" in run["detail"], run
+    assert run["steps"] > 5 and "steps:        %d " % run["steps"] in report, (run["steps"], report)
+    assert "running" in log
+
+
+def test_a_run_command_killed_outright_is_finished_by_the_next_command(testbed, tmp_path):
+    """kill -9 of ./robotarium run itself: the orphaned script ends its experiment, and the next
+    ./robotarium status (or run, or report) finishes the run folder that run could not."""
+    root = tmp_path / "root"   # status finishes the runs of <ROBOTARIUM_ROOT>/results
+    process = start_run(dict(testbed, results=root / "results"), "endless.py", "--no-local-testbed")
+    wait_for_line(process, "running")
+    os.kill(process.pid, signal.SIGKILL)
+    process.communicate()
+    pending = os.listdir(root / "results" / ".unfinished")
+    assert len(pending) == 1, pending
+    status = subprocess.run([sys.executable, "-m", "robotarium_client.cli", "status", "--timeout", "0.5"],
+                            env=dict(testbed["env"], ROBOTARIUM_ROOT=str(root)), stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, timeout=120, cwd=str(tmp_path))
+    out = status.stdout
+    assert status.returncode == 0 and "lost its ./robotarium run" in out and "its folder is finished now" in out, out
+    folder = out.split("its folder is finished now: ")[1].split("\n")[0].strip()
+    folder = os.path.join(str(tmp_path), folder)
+    assert os.path.dirname(folder) == str(testbed["bags"]), folder
+    first, report, log, run = check_folder(folder, "")
+    # The orphaned script ends its experiment saying why (the testbed ends it itself should the script
+    # not get that far within its 1.5 s): either way the recording says the run did not complete.
+    assert first.startswith("Run did not complete: ") and "##### DEBUG OUTPUT #####" in report, report
+    assert "No experiment ran" not in report and "Acceptance" not in report, report
+    assert run["outcome"] == "interrupted" and run["steps"] > 5, run
+    assert run["step_calls"] is None or run["steps"] >= run["step_calls"] > 5, run
+    assert "steps:        %d " % run["steps"] in report and "running" in log
+    assert os.listdir(root / "results" / ".unfinished") == []
+    again = subprocess.run([sys.executable, "-m", "robotarium_client.cli", "status", "--timeout", "0.5"],
+                           env=dict(testbed["env"], ROBOTARIUM_ROOT=str(root)), stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT, text=True, timeout=60)
+    assert "lost its ./robotarium run" not in again.stdout   # once
 
 
 def test_a_testbed_lost_mid_run(testbed):

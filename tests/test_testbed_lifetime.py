@@ -174,9 +174,11 @@ def test_status_lists_local_testbeds_and_stop_and_end_get_rid_of_them(lab):
     stray = NodeProcess("robotarium_sim.simulator_node", lab["domain"], ros_args=["-r", "__ns:=/stray"])
     probe = RosProbe(lab["domain"])
     try:
+        # someone else's experiment: another user on another host
         started = probe.hold_client_presence(probe.call(
             StartExperiment, NAMESPACE + "/start_experiment",
-            StartExperiment.Request(name="held", number_of_robots=3, real_time=True), timeout=60))
+            StartExperiment.Request(name="held", number_of_robots=3, real_time=True,
+                                    holder="bob@elsewhere pid 4242 erin.py"), timeout=60))
         assert started.success, started.message
 
         status = cli(lab, "status", "--json")
@@ -190,12 +192,32 @@ def test_status_lists_local_testbeds_and_stop_and_end_get_rid_of_them(lab):
         assert ours["experiment"]["since"]
         assert other["owner"] is None and other["nodes"] == {"simulator": stray.proc.pid}
 
-        end = cli(lab, "end")   # the experiment is the probe's: refused without --force
-        assert end.returncode == 1 and "belongs to the client that started it" in end.stderr, end.stderr
+        end = cli(lab, "end")   # not ours: refused, saying whose it is and how to force it
+        assert end.returncode == 1, end.stderr
+        assert ("experiment %s is not yours: it is held by bob@elsewhere (pid 4242, script erin.py), run %s since "
+                % (started.run_id, started.run_id)) in end.stderr, end.stderr
+        assert "./robotarium end --force ends it anyway" in end.stderr and "step " in end.stderr, end.stderr
         end = cli(lab, "end", "--force")
         assert end.returncode == 0, end.stderr
         assert "##### DEBUG OUTPUT #####" in end.stdout and started.run_id in end.stdout, end.stdout
         assert "ended by an operator (end --force)" in end.stdout, end.stdout
+
+        # our own (this user on this host): end ends it without --force, saying by whom
+        from robotarium_client.robotarium import holder_of_this_process
+        mine = probe.hold_client_presence(probe.call(
+            StartExperiment, NAMESPACE + "/start_experiment",
+            StartExperiment.Request(name="mine", number_of_robots=2, real_time=True,
+                                    holder=holder_of_this_process()), timeout=60))
+        assert mine.success, mine.message
+        end = cli(lab, "end")
+        assert end.returncode == 0 and mine.run_id in end.stdout, end.stdout + end.stderr
+        from robotarium_client.cli import wait_until_recorded
+        from robotarium_recording.results import recompute
+        assert wait_until_recorded(os.path.join(lab["bags"], mine.run_id))
+        ended = recompute(os.path.join(lab["bags"], mine.run_id))   # the recording says who ended it
+        assert "ended by its user (%s) with ./robotarium end" % holder_of_this_process().split()[0] \
+            in ended["first_line"], ended["first_line"]
+        assert cli(lab, "end").returncode == 1   # nothing running now
 
         stopped = cli(lab, "stop", "--namespace", "/stray")
         assert stopped.returncode == 0 and "stopped: " in stopped.stderr, stopped.stderr

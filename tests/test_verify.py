@@ -91,7 +91,7 @@ def test_the_rules_judge_the_counts_by_the_configured_limits():
     assert [r["rule"] for r in verify.judge(over, DEFAULT)] == ["collisions", "boundary"]
     assert [r["rule"] for r in verify.judge({"outcome": "no_end", "steps": 5}, DEFAULT)] == ["no_end"]
     failed = verify.judge({"outcome": "script_error", "detail": "the script raised KeyError: 'goal' at step 20",
-                           "step": 20}, DEFAULT)
+                           "step_calls": 20}, DEFAULT)
     assert failed[0]["rule"] == "script_error" and failed[0]["first_step"] == 20
 
 

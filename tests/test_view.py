@@ -17,6 +17,7 @@ from rclpy.serialization import deserialize_message
 
 from robotarium_msgs.msg import RobotPoses, TestbedStatus, TwistArray
 from robotarium_recording import foxglove_scene
+from robotarium_recording.bag import Bag
 from robotarium_recording.view_node import LAYOUT_FILE, READY, SCENE, SCENE_DRAWING, layout_text
 from devtools.foxglove_client import SUBPROTOCOL, FoxgloveClient
 from devtools.rosutil import REPO, NodeProcess, node_env, unique_domain_id
@@ -181,6 +182,36 @@ def test_replay_view_streams_a_recorded_run(tmp_path):
             client.close()
         replay.close(grace=10)
     assert "[replay]" in replay.output()
+
+
+def test_replay_view_played_once_waits_for_a_viewer(tmp_path):
+    """Without --loop the replay would be over before anyone opened Foxglove: it says it waits for a
+    viewer, waits, and plays the run once a client subscribed, then ends by itself."""
+    domain = unique_domain_id()
+    scene, poses_topic = NS + "/" + SCENE, NS + "/poses"
+    replay = NodeProcess("robotarium_recording.replay_node", domain,
+                         args=[SAMPLE, "--view", "--view-port", "0", "--rate", "4"], log_path=tmp_path / "replay.log")
+    client = None
+    try:
+        url = served_url(replay)
+        deadline = time.monotonic() + 90
+        while "[replay] waiting for a viewer" not in replay.output():
+            assert replay.alive() and time.monotonic() < deadline, replay.output()
+            time.sleep(0.2)
+        assert url in replay.output() and "[replay] done" not in replay.output()
+        client = FoxgloveClient(url, [scene, poses_topic])
+        last = int(Bag(SAMPLE).poses().steps[-1])
+
+        def steps():
+            return [deserialize_message(p, RobotPoses).step for _, p in client.messages[poses_topic]]
+        # the viewer gets the run from its first step to its last: it started only once the viewer was there
+        assert client.wait_until(lambda: last in steps(), 120), replay.output()
+        assert steps()[0] == 0, steps()[:5]
+        assert replay.proc.wait(timeout=120) == 0 and "[replay] done" in replay.output()
+    finally:
+        if client is not None:
+            client.close()
+        replay.close(grace=10)
 
 
 def test_the_committed_layout_is_the_views():

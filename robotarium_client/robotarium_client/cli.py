@@ -349,6 +349,114 @@ def new_run_folder(results_dir, name):
     raise RuntimeError("no free folder name for %s" % base)
 
 
+# -- runs whose ./robotarium run was killed -------------------------------------------------------------
+#
+# Each run keeps its scratch folder (the script's log as it runs, the runner's run.json and
+# started.json, pending.json: what this command would need to finish the run folder) in
+# <results dir>/.unfinished/ until its run folder is finished. Should ./robotarium run be killed
+# outright (SIGKILL, or killed while it made the results), the scratch folder stays behind and the
+# next ./robotarium run, status or report finishes that run's folder as run would have:
+# the script's process, orphaned, ends its experiment and writes how (runner.py), the testbed closes the
+# recording, and finish_unfinished makes the report, the video and the page from it.
+
+UNFINISHED = ".unfinished"
+
+
+def new_work_folder(results_dir):
+    """The scratch folder of one run: in results_dir/.unfinished/, or (the portal's job box, which
+    keeps its own books) a temporary folder."""
+    if script_box.VARIABLE in os.environ:
+        return tempfile.mkdtemp(prefix="robotarium-run-")
+    parent = os.path.join(results_dir, UNFINISHED)
+    os.makedirs(parent, exist_ok=True)
+    return tempfile.mkdtemp(prefix="run-", dir=parent)
+
+
+def local_testbeds_process(pid):
+    from robotarium_client import local_testbeds
+    return local_testbeds.process(pid)
+
+
+def runner_started_file():
+    from robotarium_client.runner import STARTED
+    return STARTED
+
+
+def _read_json(path):
+    try:
+        with open(path, encoding="utf-8") as f:
+            return json.load(f)
+    except (OSError, ValueError):
+        return None
+
+
+def _write_pending(work, pending, name="pending.json"):
+    path = os.path.join(work, name)
+    with open(path + ".tmp", "w") as f:
+        json.dump(pending, f)
+    os.replace(path + ".tmp", path)
+
+
+def finish_unfinished(results_dir=None, quiet=False):
+    """Finish the run folder of every run in results_dir (default results/) whose ./robotarium run
+    was killed before it finished it; says so, one line each. Returns the folders finished."""
+    from robotarium_client import local_testbeds
+    results_dir = os.path.abspath(results_dir or os.path.join(repository_root(), "results"))
+    parent = os.path.join(results_dir, UNFINISHED)
+    try:
+        works = sorted(os.listdir(parent))
+    except OSError:
+        return []
+    finished = []
+    for entry in works:
+        work = os.path.join(parent, entry)
+        claimed = _read_json(os.path.join(work, "claimed.json"))
+        if claimed is not None and "by" in claimed and not local_testbeds.running(claimed["by"]):
+            # its finisher was killed in turn: hand the run back
+            os.replace(os.path.join(work, "claimed.json"), os.path.join(work, "pending.json"))
+        pending = _read_json(os.path.join(work, "pending.json"))
+        if pending is None:
+            if claimed is None and time.time() - _mtime(work) > 60:   # run was killed before it started the script
+                shutil.rmtree(work, ignore_errors=True)
+            continue
+        if local_testbeds.running(pending["run"]):
+            continue   # its ./robotarium run is still at work
+        try:   # claim it: only one command finishes a run
+            os.rename(os.path.join(work, "pending.json"), os.path.join(work, "claimed.json"))
+        except OSError:
+            continue
+        _write_pending(work, dict(pending, by=local_testbeds.process(os.getpid())), name="claimed.json")
+        # The orphaned script ends its experiment and exits within moments (runner.ORPHAN_EXIT).
+        deadline = time.monotonic() + 10.0
+        while local_testbeds.running(pending.get("runner")) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        cwd = pending["cwd"] if os.path.isdir(pending["cwd"]) else os.getcwd()
+        try:
+            _, run, run_dir = _collect_run(
+                pending["script"], -signal.SIGKILL, None, None, work, os.path.join(work, "run.json"),
+                os.path.join(work, "log.txt"), pending["started"], pending["started_at"], pending["before"], cwd,
+                pending["bags_dir"], pending["results"], pending["results_dir"], pending["name"], pending["video"],
+                quiet=True)
+        except Exception as error:   # noqa: BLE001 - leave it for the next try, say why
+            os.replace(os.path.join(work, "claimed.json"), os.path.join(work, "pending.json"))
+            say("could not finish the folder of a run whose ./robotarium run was killed (%s); %s keeps what it left"
+                % (session.describe_exception(error), work))
+            continue
+        finished.append(run_dir)
+        if not quiet:
+            say("the run of %s (%s) lost its ./robotarium run (pid %d, killed); its folder is finished now: %s"
+                % (os.path.basename(pending["script"]), run.get("run_id") or "no experiment", pending["run"]["pid"],
+                   _shown(run_dir)))
+    return finished
+
+
+def _mtime(path):
+    try:
+        return os.stat(path).st_mtime
+    except OSError:
+        return time.time()
+
+
 def write_unrecorded_results(run_dir, run, testbed_report=""):
     """report.txt and index.html for a run with no recording here (it never started, or it was
     recorded on another machine): how it ended, and the testbed's debug report if there is one."""
@@ -465,7 +573,8 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
         detail, text = problem
         print(text, end="", file=sys.stderr, flush=True)
         run = {"run_id": "", "outcome": "script_error", "detail": "the script %s; no testbed was started" % detail,
-               "step": 0, "exit_code": outcomes.EXIT_CODES[outcomes.SCRIPT_ERROR], "runs": [], "script": script,
+               "steps": 0, "step_calls": 0, "exit_code": outcomes.EXIT_CODES[outcomes.SCRIPT_ERROR], "runs": [],
+               "script": script,
                "started": started_at, "wall_time": 0.0}
         run_dir = new_run_folder(results_dir, session.experiment_name_of(script))
         work = tempfile.mkdtemp(prefix="robotarium-run-")
@@ -549,7 +658,7 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
         else:
             say("no testbed answers in %s: started one on this machine for this run (logs in %s)"
                 % (ns, _shown(testbed.log_dir)))
-    work = tempfile.mkdtemp(prefix="robotarium-run-")
+    work = new_work_folder(results_dir)
     info_path = os.path.join(work, "run.json")
     log_path = os.path.join(work, "log.txt")
     # The testbed is up (found or started above): the script waits for it, never starts another.
@@ -571,6 +680,10 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
     before = _snapshot(cwd)
     started = time.time()
     code = None
+    pending = {"run": local_testbeds_process(os.getpid()), "runner": None, "script": script, "cwd": cwd,
+               "started": started, "started_at": started_at, "bags_dir": bags_dir, "results": results,
+               "results_dir": results_dir, "name": name, "video": video, "before": before}
+    _write_pending(work, pending)
     if results and record:   # made while the script runs: the results' imports
         threading.Thread(target=_import_results, args=(video,), daemon=True).start()
     try:
@@ -581,7 +694,8 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
                 process = subprocess.Popen(command, cwd=cwd, env=env, pass_fds=pass_fds, process_group=0,
                                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, **box_options)
                 interruption.watch(process)
-                _tee(process.stdout, [sys.stdout.buffer, log])
+                _write_pending(work, dict(pending, runner=local_testbeds_process(process.pid)))
+                _tee(process.stdout, [log, sys.stdout.buffer])   # the log first: it never lags what was shown
                 code = process.wait()
     finally:
         if testbed is not None:
@@ -606,8 +720,9 @@ def _data_limit(config_file):
 
 
 def _collect_run(script, code, testbed, interruption, work, info_path, log_path, started, started_at, before, cwd,
-                 bags_dir, results, results_dir, name, video, data_limit=None):
-    """What run_script does after the script's process ended: the run folder and the results."""
+                 bags_dir, results, results_dir, name, video, quiet=False, data_limit=None):
+    """What run_script does after the script's process ended: the run folder and the results.
+    interruption None: finishing the folder of a ./robotarium run that was killed (finish_unfinished)."""
     if code is None:
         say("interrupted (%s) before the script started%s" % (
             interruption.name, "; the testbed this run started was stopped" if testbed is not None else ""))
@@ -615,26 +730,34 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
         return interruption.exit_code, None, None
     wall_time = round(time.time() - started, 3)
 
+    died = None   # the script's process ended without saying how its run ended (killed outright)
     try:
         with open(info_path) as f:
             run = json.load(f)
-    except (OSError, ValueError):   # the script's process died before it could say anything
-        if interruption.signum is not None:
+    except (OSError, ValueError):
+        if interruption is None:   # finishing the folder of a ./robotarium run that was killed (finish_unfinished)
+            died, exit_code = "./robotarium run was killed", 128 + signal.SIGKILL
+        elif interruption.signum is not None:
             died, exit_code = "interrupted by %s and killed" % interruption.name, interruption.exit_code
         elif code < 0:
             died, exit_code = "killed by %s" % signal.Signals(-code).name, 128 - code
         else:
             died, exit_code = "exit code %d" % code, code or 1
-        run = {"outcome": "interrupted" if code < 0 else "script_error",
-               "detail": "the script's process ended (%s) before it could end its experiment" % died,
-               "step": 0, "exit_code": exit_code, "runs": []}
-    if interruption.signum is not None:
+        # What the script's Robotarium said when its experiment started: the run, its recording.
+        started_info = _read_json(os.path.join(work, runner_started_file()))
+        run = {"outcome": "interrupted" if died.startswith(("./", "interrupted", "killed")) else "script_error",
+               "detail": ("%s, and the script's process ended before it could say how its run ended" % died
+                          if interruption is None else
+                          "the script's process ended (%s) before it could end its experiment" % died),
+               "step_calls": None, "exit_code": exit_code, "runs": [started_info] if started_info else []}
+    if interruption is not None and interruption.signum is not None:
         say("interrupted (%s): the script was stopped%s" % (
             interruption.name, " and the testbed this run started was stopped" if testbed is not None else ""))
     info = run["runs"][-1] if run["runs"] else {}
     # The run is its (last) experiment: its keys at the top, how the script's run ended over them.
     run = dict({k: v for k, v in info.items() if k != "report"}, **run)
     run.update(run_id=info.get("run_id", ""), script=script, started=started_at, wall_time=wall_time)
+    run.setdefault("steps", 0)
     saved = [p for p, mtime in _snapshot(cwd).items() if before.get(p) != mtime and mtime / 1e9 >= started - 1]
 
     run_dir = info.get("recording") or ""
@@ -668,7 +791,8 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
         if len(steps):
             run["recording_stopped_at_step"] = int(steps[-1])
             stopped = outcomes.recording_stopped(run)
-        say("%s: %s holds the run up to there" % (stopped, bag_dir))
+        if not quiet:
+            say("%s: %s holds the run up to there" % (stopped, bag_dir))
     if not recorded or write_error:
         # Not recorded here (another machine's testbed, no recorder, or no experiment at all):
         # keep the local outputs in results/<run id>/.
@@ -676,31 +800,41 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
                    else new_run_folder(results_dir, name))
         os.makedirs(run_dir, exist_ok=True)
     finish_run_folder(run_dir, run, script, log_path, saved, cwd, data_limit)
-    shutil.rmtree(work, ignore_errors=True)
 
     if recorded:
         if not stopped:
-            # A lost testbed may never close the bag: then take what is on disk after a short wait.
-            timeout = 15.0 if info.get("ended") else 3.0
+            # A lost testbed may never close the bag: then take what is on disk after a short wait. A
+            # script killed outright has its experiment ended by the testbed (client_lease) or by
+            # this command's stopping of its own testbed.
+            timeout = 15.0 if info.get("ended") or died or interruption is None else 3.0
             if testbed is None:
-                wait_until_recorded(run_dir, timeout)
+                wait_until_recorded(run_dir, timeout, quiet=quiet)
             elif not wait_until_recorded(run_dir, timeout, quiet=True):
                 testbed.stop()   # its recorder closes the bag as it stops (or is gone)
                 wait_until_recorded(run_dir, timeout=1.0)
         from robotarium_recording.results import write_results
         try:
-            write_results(bag_dir, progress=True, video=video, run=run, out_dir=run_dir)
+            if died:   # the testbed's steps, as the report counts them (a killed script could not say)
+                from robotarium_recording.bag import Bag
+                recorded_steps = Bag(bag_dir).poses().steps
+                run["steps"] = int(recorded_steps[-1]) if len(recorded_steps) else 0
+                with open(os.path.join(run_dir, "run.json"), "w") as f:
+                    json.dump(run, f, indent=2)
+            write_results(bag_dir, progress=not quiet, video=video, run=run, out_dir=run_dir)
         except Exception as error:   # noqa: BLE001 - say so, keep the folder
             say("could not make the results from the recording (%s); see %s"
                 % (session.describe_exception(error), run_dir))
             write_unrecorded_results(run_dir, run, info.get("report", ""))
     else:
         write_unrecorded_results(run_dir, run, info.get("report", ""))
-    print_summary(run_dir, run, cwd)
+    shutil.rmtree(work, ignore_errors=True)   # last: a run whose folder is finished is no longer pending
+    if not quiet:
+        print_summary(run_dir, run, cwd)
     return run["exit_code"], run, run_dir
 
 
 def cmd_run(args):
+    finish_unfinished(args.results_dir)
     real_time = {"lockstep": False, "real-time": True}.get(args.mode)
     code, _, _ = run_script(args.script, args.script_args, real_time=real_time, record=not args.no_record,
                             bags_dir=args.bags_dir, video=not args.no_video,
@@ -816,6 +950,7 @@ def _describe_status(msg):
 def cmd_status(args):
     from robotarium_client import local_testbeds
     from robotarium_client.testbed import testbed_status
+    finish_unfinished(quiet=args.json)
     found = local_testbeds.find()
     here = (local_testbeds.domain_id(), namespace())
     # only where a simulator runs can a testbed answer (a probe that gets no answer waits the whole timeout)
@@ -882,11 +1017,50 @@ def cmd_stop(args):
     return 0
 
 
+def _holder_parts(holder):
+    """("user@host", "pid N", "script") of a StartExperiment.holder ("user@host pid N script.py")."""
+    words = holder.split(None, 3)
+    if len(words) == 4 and words[1] == "pid":
+        return words[0], "pid " + words[2], words[3]
+    return holder, "", ""
+
+
 def cmd_end(args):
-    from robotarium_client.testbed import end_experiment
+    """Ends your own experiment: the one whose client runs as this user on this host (its holder,
+    robotarium_client.robotarium.holder_of_this_process). Another's is refused here, naming whose it is,
+    unless --force (the operator's override). The check is a courtesy, not a lock: the testbed
+    itself refuses only requests without the client's token and without force."""
+    from robotarium_client.robotarium import holder_of_this_process
+    from robotarium_client.testbed import end_experiment, testbed_status
+    from robotarium_core import outcomes
+    from robotarium_msgs.msg import TestbedStatus
     ns = namespace()
+    force, outcome, detail = args.force, outcomes.NONE, ""
+    if not force:
+        here = (os.environ.get("ROS_DOMAIN_ID", "0").strip() or "0", ns)
+        msg = testbed_status([(here[0], ns, None)], timeout=args.timeout).get(here)
+        if msg is None:
+            say("no testbed answers in %s on ROS_DOMAIN_ID %s; ./robotarium status shows what runs where" % here[::-1])
+            return 1
+        if msg.state != TestbedStatus.STATE_RUNNING:
+            say("no experiment is running in %s: nothing to end" % ns)
+            return 1
+        me = _holder_parts(holder_of_this_process())[0]
+        who, pid, script = _holder_parts(msg.holder)
+        since = _since(msg.run_id)
+        if who != me:
+            say("experiment %s is not yours: it is held by %s (%s%s), run %s since %s, step %d. It ends when its "
+                "client ends it or is gone; ./robotarium end --force ends it anyway (the operator's override)." % (
+                    msg.run_id, who or "a client that did not say who it is", pid or "pid ?",
+                    ", script %s" % script if script else "", msg.run_id,
+                    time.strftime("%H:%M:%S", since) + " (%s)" % _ago(time.time() - time.mktime(since))
+                    if since else "?", msg.step))
+            return 1
+        # Yours (this user on this host): ended as an operator would, saying by whom.
+        force, outcome = True, outcomes.INTERRUPTED
+        detail = "interrupted at step %d: ended by its user (%s) with ./robotarium end" % (msg.step, me)
     try:
-        response = end_experiment(ns, timeout=args.timeout, force=args.force)
+        response = end_experiment(ns, timeout=args.timeout, force=force, outcome=outcome, detail=detail)
     except TimeoutError as error:
         say("%s; ./robotarium status shows what runs where" % error)
         return 1
@@ -912,6 +1086,8 @@ def cmd_view(argv):
 
 def cmd_report(argv):
     from robotarium_recording.results import main as report_main
+    if "-h" not in argv and "--help" not in argv:
+        finish_unfinished()
     return report_main(argv)
 
 
@@ -923,7 +1099,8 @@ DELEGATED = {"replay": (cmd_replay, "republish a recorded run (in experiment tim
 RUN_EPILOG = """\
 whatever happens, the run folder (the last line printed names it) gets log.txt, report.txt (its first
 line says how the run ended), run.json, index.html, and from a recording made here trajectories.png and
-run.mp4. Exit codes: 0 the run completed (call_at_scripts_end); 1 the script raised an exception or
+run.mp4 (a script killed outright included; should run itself be killed outright, the next run, status or
+report finishes the folder). Exit codes: 0 the run completed (call_at_scripts_end); 1 the script raised an exception or
 could not be compiled or imported (then no testbed is started); 2 a bad command line; 3 the script
 ended without call_at_scripts_end(); 4 no testbed, it was busy and --no-wait said not to wait, or it was lost
 or ended the experiment; 5 the time limit;
@@ -1057,12 +1234,15 @@ def main(argv=None):
     stop.add_argument("--all", action="store_true", help="every testbed on this machine")
     stop.set_defaults(func=cmd_stop)
 
-    end = sub.add_parser("end", help="end the experiment running on the testbed and print its report",
-                         description="End the experiment running in ROBOTARIUM_NAMESPACE on ROS_DOMAIN_ID (on any "
-                                     "machine of the domain) and print its debug report and where it was recorded. "
-                                     "The testbed keeps running for the next experiment.")
+    end = sub.add_parser("end", help="end your experiment running on the testbed and print its report",
+                         description="End your experiment running in ROBOTARIUM_NAMESPACE on ROS_DOMAIN_ID (on any "
+                                     "machine of the domain: yours when its client runs as your user on this host) "
+                                     "and print its debug report and where it was recorded; its script stops with "
+                                     "exit code 4. Someone else's is not ended: end says whose it is (user@host, pid, "
+                                     "script, run, since when) and that --force ends it anyway. The testbed keeps "
+                                     "running for the next experiment.")
     end.add_argument("--force", action="store_true",
-                     help="end it even though another client owns it (the operator's override)")
+                     help="end it whoever's it is (the operator's override)")
     end.add_argument("--timeout", type=_seconds, default=10.0, metavar="S",
                      help="seconds to wait for the testbed (default 10)")
     end.set_defaults(func=cmd_end)

@@ -195,7 +195,7 @@ class Robotarium(RobotariumABC):
     def partial_run_info(self):
         """What is known of a run whose end the testbed never confirmed (a lost testbed)."""
         return {"run_id": self._run_id or "", "recording": self._announced_recording(), "report": "",
-                "steps": self._iterations,
+                "steps": self._latest.step if self._latest is not None else 0,
                 "real_time": self.sim_in_real_time, "number_of_robots": self.number_of_robots, "ended": False}
 
     def _after_report(self):
@@ -293,6 +293,8 @@ class Robotarium(RobotariumABC):
 
     def _on_recording(self, msg):
         self._recording = msg.data   # the recorder announces each run's folder, and "" when it closed it
+        if self._run_id and not self._ended and self._announced_recording():
+            session.note_started(self.partial_run_info())
 
     def _on_recording_error(self, msg):
         """The recorder could not write this run's bag (a full disk): the run goes on, its recording
@@ -342,6 +344,7 @@ class Robotarium(RobotariumABC):
                 "The testbed refused to start the experiment: %s" % response.message)
         self._run_id = response.run_id
         self._token = response.token
+        session.note_started(self.partial_run_info())
         self._poses_key = response.poses_key
         from robotarium_core.presence import Presence
         self._presence = Presence(self._node, response.client_alive_topic, response.client_lease)

@@ -10,7 +10,11 @@ still running, telling the testbed how the run ended (so the recording says it),
 RUN_INFO_JSON for the command line to collect the results:
 
     {"outcome": "script_error", "detail": "the script raised KeyError: 'goal' at step 12 (line 9 of go.py)",
-     "step": 12, "exit_code": 1, "runs": [what each Robotarium's testbed said when it ended]}
+     "step_calls": 12, "exit_code": 1, "runs": [what each Robotarium's testbed said when it ended]}
+
+Beside it, started.json says which experiment runs (run id, recording) from its start on, so that a
+script killed outright (SIGKILL: it writes nothing more) still leaves its run to be found; and once
+./robotarium run is gone, this process's output goes on to log.txt beside it.
 
 The traceback is printed as Python prints it (from the script's own frames), so the run's log
 has it. Exit code: robotarium_core.outcomes.EXIT_CODES (128 + the signal for an interruption).
@@ -35,16 +39,36 @@ from robotarium_client import session
 from robotarium_core import lifeline, outcomes
 
 ORPHAN_EXIT = 1.5
+STARTED = "started.json"   # beside RUN_INFO_JSON: session.note_started's record of the running experiment
 orphaned = []   # set when ./robotarium run is gone: the interruption is said to be that
 
 
 def _orphaned():
-    # (nothing printed: the output went to the process that is gone)
+    # The output went to the process that is gone: what is printed from now on (the traceback,
+    # the report) goes to the run's log instead, where the one finishing the run folder reads it
+    # (a write to the closed pipe would raise in the script and cut its end short).
     orphaned.append(True)
+    _output_to(session.run_files and session.run_files.get("log"))
     timer = threading.Timer(ORPHAN_EXIT, os._exit, (128 + signal.SIGKILL,))
     timer.daemon = True   # it still fires while exit handlers run
     timer.start()
     _thread.interrupt_main(signal.SIGINT)
+
+def _output_to(path):
+    """Send this process's stdout and stderr to the end of file `path` (nowhere if it cannot be opened)."""
+    try:
+        fd = os.open(path or os.devnull, os.O_WRONLY | os.O_APPEND)
+    except OSError:   # a job box's script cannot write the command's log
+        fd = os.open(os.devnull, os.O_WRONLY)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os.dup2(fd, 1)
+    os.dup2(fd, 2)
+    os.close(fd)
+
 
 SIGNAL_EXIT = {signal.SIGINT: 128 + signal.SIGINT, signal.SIGTERM: 128 + signal.SIGTERM,
                signal.SIGHUP: 128 + signal.SIGHUP}
@@ -145,6 +169,10 @@ def finish(outcome, detail, code):
 
 def main(argv):
     options_json, run_info_path, script, *script_args = argv
+    folder = os.path.dirname(os.path.abspath(run_info_path))
+    # Beside RUN_INFO_JSON: the log ./robotarium run keeps, and what is known of the experiment as soon
+    # as it started (a script killed outright never writes RUN_INFO_JSON).
+    session.run_files = {"log": os.path.join(folder, "log.txt"), "started": os.path.join(folder, STARTED)}
     lifeline.watch(_orphaned)
     session.options = session.RunOptions.from_json(options_json)
     script = os.path.abspath(script)
@@ -155,7 +183,7 @@ def main(argv):
     outcome, detail, code, runs = finish(outcome, detail, code)
     with open(run_info_path, "w") as f:
         json.dump({"outcome": outcomes.NAMES[outcome], "detail": detail,
-                   "step": session.robotaria[-1]._iterations if session.robotaria else 0,
+                   "step_calls": session.robotaria[-1]._iterations if session.robotaria else 0,
                    "exit_code": code, "runs": runs}, f, indent=2)
     return code
 

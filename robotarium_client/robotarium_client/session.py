@@ -89,6 +89,23 @@ options = RunOptions()
 # The Robotarium objects the script made, newest last (the runner reads how each run ended).
 robotaria = []
 
+# Set by the runner (./robotarium run): {"log": the run's log, "started": where note_started writes}.
+run_files = None
+
+
+def note_started(info):
+    """Under ./robotarium run, keep what is known of the running experiment (run id, recording) in
+    the runner's started.json, so that its run is found even if this process is killed outright."""
+    path = run_files and run_files.get("started")
+    if not path:
+        return
+    try:
+        with open(path + ".tmp", "w") as f:
+            json.dump(info, f)
+        os.replace(path + ".tmp", path)
+    except OSError:
+        pass   # only a help for the one who finishes the run folder
+
 # The exception that ended a script run with plain python (seen by sys.excepthook before the exit
 # handler ends the experiment), so that the recording says how the run ended.
 uncaught = None

@@ -352,10 +352,11 @@ def testbed_status(targets, timeout=3.0):
     return newest
 
 
-def end_experiment(ns=None, timeout=10.0, force=False):
+def end_experiment(ns=None, timeout=10.0, force=False, outcome=0, detail=""):
     """Call <ns>/end_experiment on this domain; returns the response (raises TimeoutError when no
     testbed answers). Without `force` the testbed refuses: an experiment is ended by its own client
-    (with its token), or by an operator who says so."""
+    (with its token), or by an operator who says so. `outcome` and `detail`: how the run ended, as
+    its recording will say (robotarium_core.outcomes; 0: the testbed says an operator ended it)."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
@@ -372,7 +373,7 @@ def end_experiment(ns=None, timeout=10.0, force=False):
         client = node.create_client(EndExperiment, "%s/%s" % (ns.rstrip("/"), END_EXPERIMENT))
         if not client.wait_for_service(timeout_sec=timeout):
             raise TimeoutError("no testbed answers in %s on ROS_DOMAIN_ID %s" % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
-        future = client.call_async(EndExperiment.Request(force=force))
+        future = client.call_async(EndExperiment.Request(force=force, outcome=outcome, detail=detail))
         executor.spin_until_future_complete(future, timeout_sec=timeout)
         if not future.done():
             raise TimeoutError("the testbed in %s did not answer end_experiment within %.0f s" % (ns, timeout))

@@ -98,12 +98,12 @@ def static_rules(script, config):
 
 def judge(run, config, robots=None, duration=None):
     """The broken rules of a verification run. `run`: run.json's dict of ./robotarium run (outcome,
-    detail, steps, number_of_robots, collisions, boundary_violations, first_*_step); `robots`
+    detail, steps, step_calls, number_of_robots, collisions, boundary_violations, first_*_step); `robots`
     and `duration` (s) as declared, None: that rule is not judged."""
     broken = []
     outcome, detail = run.get("outcome"), run.get("detail", "")
-    iterations = int(run.get("steps") or run.get("step") or 0)
-    step_of_end = int(run.get("step") or iterations)
+    iterations = int(run.get("steps") or 0)
+    step_of_end = int(run.get("step_calls") or iterations)
     if outcome == "script_error" or (outcome == "completed" and str(detail).startswith("then the script raised")):
         broken.append(rule("script_error", "The script failed: %s." % str(detail).rstrip("."),
                            first_step=step_of_end))
@@ -146,7 +146,7 @@ def verdict(rules, run=None, report="", results=None):
     """The --json document."""
     run = run or {}
     return {"verdict": "rejected" if rules else "accepted", "rules": rules,
-            "iterations": int(run.get("steps") or run.get("step") or 0),
+            "iterations": int(run.get("steps") or 0),
             "number_of_robots": run.get("number_of_robots"), "outcome": run.get("outcome", "not_run"),
             "report": report,
             "counts": {key: run.get(key) for key in ("collisions", "boundary_violations", "actuator_limit_iterations",

@@ -20,9 +20,10 @@ h1 { font-size: 1.4em; margin-bottom: 0.2em; }
 .completed { background: #e3f4e3; border-left: 6px solid #2e8b57; }
 .failed { background: #fbe5e1; border-left: 6px solid #c0392b; }
 video, img.plot { width: 100%; max-width: 1280px; border: 1px solid #ccc; }
-pre { background: #f6f6f6; padding: 0.8em; overflow-x: auto; font-size: 0.85em; max-height: 40em; }
+pre { background: #f6f6f6; padding: 0.8em; overflow: auto; font-size: 0.85em; max-height: 40em;
+      white-space: pre-wrap; overflow-wrap: anywhere; }
 table { border-collapse: collapse; }
-td { padding: 0.15em 1em 0.15em 0; vertical-align: top; }
+td { padding: 0.15em 1em 0.15em 0; vertical-align: top; overflow-wrap: anywhere; }
 td:first-child { color: #555; white-space: nowrap; }
 """
 

@@ -15,7 +15,9 @@ them was best effort; transient local only if all of them were). Pause and resum
 written as a video to --figure-file (default <bag>/replay.mp4). --view also serves the replay to
 Foxglove: the view node (view_node.py, as `./robotarium view` runs it for a live testbed) in a
 process of its own subscribes to the republished topics like any viewer, and the replay starts once
-it has matched; so the live view and the replay's share one path, DDS included.
+it has matched; so the live view and the replay's share one path, DDS included. Played once (no
+--loop), it also waits for a viewer (a Foxglove client) to subscribe, else it would be over before
+anyone looked.
 """
 import argparse
 import os
@@ -39,6 +41,7 @@ SKIPPED_TOPICS = {"/rosout"}
 FIGURE_HZ = 15
 LIVE_CHECK = 3.0   # s to wait for a live testbed's start_experiment service before replaying
 VIEW_MATCH = 15.0  # s to wait for --view's subscriptions to match the replay's publishers
+VIEWER_SETTLE = 1.0   # s after a viewer's first subscription: it subscribes to its panels' channels one by one
 
 
 class ReplayClock:
@@ -344,7 +347,8 @@ def build_parser():
         "for live traffic); without it such a replay is refused"))
     parser.add_argument("--view", action="store_true", help=(
         "also serve the replay to Foxglove, as ./robotarium view does for a live testbed (--view-host, --view-port): "
-        "the view subscribes to the republished topics; it stops with the replay (--loop keeps both going)"))
+        "the view subscribes to the republished topics. Without --loop the replay waits for a viewer to "
+        "subscribe, then plays once and stops with the view; with --loop it plays at once, until Ctrl-C"))
     add_view_arguments(parser, prefix="view-")
     parser.add_argument("--delay", type=float, default=0.5, help=(
         "seconds to wait before the first message, so that subscribers discover the new publishers (default 0.5)"))
@@ -410,6 +414,16 @@ def main(argv=None):
                 print("replay: the Foxglove view could not start (its message is above)", file=sys.stderr)
                 return 1
             wait_for_view(node, poses_topic)
+            if not args.loop:
+                # Played once, the replay would be over before anyone opened Foxglove: wait for a viewer.
+                print("[replay] waiting for a viewer: in Foxglove, Open connection > Foxglove WebSocket > %s; the "
+                      "replay starts when it subscribes (Ctrl-C quits; --loop plays at once, again and again)"
+                      % view.url(), file=sys.stderr, flush=True)
+                while not view.wait_viewer(0.5):
+                    if view.failed():
+                        print("replay: the Foxglove view exited (its message is above)", file=sys.stderr)
+                        return 1
+                time.sleep(VIEWER_SETTLE)
         if args.figure and poses_topic in node.publishers_by_topic:
             figure = Figure(bag, args.figure_file or os.path.join(bag.path, "replay.mp4"))
         keyboard = Keyboard()

@@ -36,6 +36,7 @@ import threading
 import time
 
 import foxglove
+import foxglove.websocket
 from foxglove.channels import GridChannel, SceneUpdateChannel
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -243,6 +244,7 @@ class ViewProcess:
              "--port", str(port)], env=env, pass_fds=pass_fds, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
         self.lines = []
         self._ready = threading.Event()
+        self._viewer = threading.Event()
         threading.Thread(target=self._echo, daemon=True).start()
 
     def _echo(self):
@@ -252,7 +254,21 @@ class ViewProcess:
             print(line, file=sys.stderr, flush=True)
             if READY in line:
                 self._ready.set()
+            if VIEWER in line:
+                self._viewer.set()
         self._ready.set()   # it ended
+        self._viewer.set()
+
+    def wait_viewer(self, timeout):
+        """True once a viewer subscribed; False after `timeout` s, or when the view ended first."""
+        return self._viewer.wait(timeout) and self.process.poll() is None
+
+    def url(self):
+        """The ws:// address it serves (the port it chose for port 0), or ''."""
+        for line in self.lines:
+            if READY in line:
+                return "ws://" + line.split(READY, 1)[1].split()[0]
+        return ""
 
     def wait_ready(self, timeout=30.0):
         """True once it serves; False when it ended first or did not say so within `timeout`."""
@@ -273,6 +289,19 @@ class ViewProcess:
 
 
 READY = "Foxglove WebSocket server on ws://"
+VIEWER = "a viewer subscribed"   # said once per client: replay --view waits for it
+
+
+class ViewerWatch(foxglove.websocket.ServerListener):
+    """Says when a viewer (a Foxglove client) subscribes to its first channel: connected and watching."""
+
+    def __init__(self):
+        self.seen = set()
+
+    def on_subscribe(self, client, channel):
+        if client.id not in self.seen:
+            self.seen.add(client.id)
+            print("[view] %s (client %d, first to %s)" % (VIEWER, client.id, channel.topic), flush=True)
 
 
 def build_parser():
@@ -303,7 +332,8 @@ def main(argv=None):
     if not 0 <= args.port < 65536:
         parser.error("--port must be between 0 and 65535; received %d" % args.port)
     try:
-        server = foxglove.start_server(name="robotarium %s" % namespace, host=args.host, port=args.port)
+        server = foxglove.start_server(name="robotarium %s" % namespace, host=args.host, port=args.port,
+                                       server_listener=ViewerWatch())
     except RuntimeError as error:
         print("view: cannot serve on %s port %d: %s. Is another view running there (./robotarium view, up --view, "
               "replay --view)? Stop it, or choose another port (--port N, or --view-port N; 0 picks a free one)."
