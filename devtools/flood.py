@@ -21,6 +21,7 @@ and in place of each huge array a "forged_huge" (100,000 twists with the token).
 """
 import argparse
 import json
+import os
 import time
 
 import numpy as np
@@ -114,7 +115,11 @@ def main(argv=None):
     parser.add_argument("--forge", action="store_true",
                         help="copy the experiment's token from cmd_requested and send arrays with it too")
     parser.add_argument("--burst", type=int, default=1, help="forged arrays sent back to back each time (with --forge)")
+    parser.add_argument("--nice", type=int, default=0,
+                        help="run at this lower priority (os.nice): the rate is still the highest the CPU left over allows")
     args = parser.parse_args(argv)
+    if args.nice:
+        os.nice(args.nice)
 
     rclpy.init()
     node = Node("flood")

@@ -140,15 +140,24 @@ class RosProbe:
             self.executor.spin_once(timeout_sec=0.05)
         return True
 
-    def call(self, srv_type, name, request, timeout=10.0):
+    def call(self, srv_type, name, request, timeout=10.0, resend=None):
+        """The service's answer to `request`. With `resend` (seconds; only for a request that is the
+        same however often it is done, as ArmSafety is) it is sent again while unanswered, as the
+        simulator does: a service found a moment ago may not yet have matched this client's reply
+        reader, and rmw_fastrtps then drops the reply (seen on a loaded machine: no answer in 10 s)."""
         client = self.node.create_client(srv_type, name)
         try:
             if not client.wait_for_service(timeout_sec=timeout):
                 raise TimeoutError("service %s did not appear within %.0f s" % (name, timeout))
-            future = client.call_async(request)
-            if not self.spin_until(future.done, timeout):
-                raise TimeoutError("service %s did not answer within %.0f s" % (name, timeout))
-            return future.result()
+            deadline = time.monotonic() + timeout
+            while True:
+                future = client.call_async(request)
+                wait = deadline - time.monotonic() if resend is None else min(resend, deadline - time.monotonic())
+                if self.spin_until(future.done, max(wait, 0.0)):
+                    return future.result()
+                client.remove_pending_request(future)
+                if time.monotonic() >= deadline:
+                    raise TimeoutError("service %s did not answer within %.0f s" % (name, timeout))
         finally:
             self.node.destroy_client(client)
 

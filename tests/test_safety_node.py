@@ -129,7 +129,7 @@ def test_no_poses_means_stop(tmp_path):
         # the probe plays the simulator: it arms the safety node with an experiment of three robots
         arm = ArmSafety.Request(run_id="alone", number_of_robots=3, token="t" * 32, safety_key="s" * 32,
                                 poses_key="p" * 32)
-        assert probe.call(ArmSafety, NS + "/safety/arm", arm).success
+        assert probe.call(ArmSafety, NS + "/safety/arm", arm, resend=1.0).success
         requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
         connected(probe, requests)
         msg = command([0, 1, 2], [0.2, 0.2, 0.2], [1.0, 0.0, -1.0])
