@@ -272,3 +272,16 @@ def test_huge_finite_commands_saturate_on_their_arc_never_a_stop():
     # the arc v / omega is kept where both are of comparable size
     assert out[0, 1] / out[1, 1] == pytest.approx(-1.0) and out[0, 5] / out[1, 5] == pytest.approx(1.0)
     assert out[0, 0] == model.MAX_LINEAR_VELOCITY and out[1, 0] == 0.0
+
+
+def test_the_intervention_count_and_its_largest_change_agree():
+    """Stops of requests at rest once counted as interventions of change 0: a report said "658
+    interventions, largest change 0" (issue 22). Now a count > 0 always comes with a change > tolerance."""
+    tolerance, tally = 1e-3, model.RunTally()
+    for filtered, change in ((True, 0.0), (True, 0.0), (True, 0.5e-3), (False, 0.3)):   # stops at rest, a tiny
+        tally.add_safety_report(model.is_intervention(filtered, change, tolerance), change)   # change, a passthrough
+    assert tally.safety(4)["interventions"] == 0 and model.safety_lines(**tally.safety(4)) == []
+    tally.add_safety_report(model.is_intervention(True, 0.2, tolerance), 0.2)   # a stop of 0.2 m/s
+    summary = tally.safety(5)
+    assert summary["interventions"] == 1 and summary["largest_change"] == 0.2
+    assert "changed 1 of 5 command arrays (largest change 0.2," in "".join(model.safety_lines(**summary))

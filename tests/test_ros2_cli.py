@@ -204,6 +204,13 @@ def test_ros2_launch_starts_the_testbed_that_robotarium_run_uses(ros2, tmp_path)
         assert "using the testbed that answers in /launched" in run.stdout
         runs = list(bags.glob("two_robots_*"))
         assert len(runs) == 1 and (runs[0] / "report.txt").is_file(), run.stdout   # recorded by the launched recorder
+        # One testbed per namespace: a second launch there refuses, naming the first, and ends with an error.
+        second = cli.start("launch", "robotarium_client", "testbed.launch.py", "namespace:=launched",
+                           log=tmp_path / "second.log")
+        assert second.wait(timeout=120) != 0, (tmp_path / "second.log").read_text()
+        refused = (tmp_path / "second.log").read_text()
+        assert "not starting a second testbed: a simulator already runs in /launched" in refused, refused
+        assert launch.poll() is None, "the first testbed stopped"
         assert cli.stop(launch) == 0
         log = (tmp_path / "launch.log").read_text()
         assert all("process has finished cleanly" in line for line in log.splitlines() if "[INFO] [" in line

@@ -64,6 +64,8 @@ TOPICS = [
      "the run's settings (YAML: api, obstacles, drive-on goals)"),
     ("topics:RECORDING", "std_msgs/msg/String", [("", "topics:LATCHED")],
      "where the run is recorded (recorder to simulator and client)"),
+    ("topics:RECORDING_ERROR", "std_msgs/msg/String", [("", "topics:LATCHED")],
+     "a run whose recording stopped (JSON: run_id, path, why, e.g. disk full; recorder to client)"),
 ]
 
 # (where the name is, the service type, who serves it, what)

@@ -14,12 +14,17 @@ Real time or lockstep is no launch argument: each experiment chooses it when it 
 (StartExperiment.real_time, a script's sim_in_real_time, ./robotarium run --lockstep/--real-time).
 Ctrl-C (SIGINT to ros2 launch) stops the nodes the way ./robotarium up does: the simulator ends a
 running experiment, the recorder closes its bag.
+
+One testbed per namespace: where one runs already in the namespace and domain, each node prints one
+line naming it (host, pid, since when) and exits with code 4 (robotarium_core/claim.py); the launch
+then stops the others and ends with an error (ros2 launch's only failure code is 1).
 """
 import os
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
+from launch.actions import DeclareLaunchArgument, RegisterEventHandler
+from launch.event_handlers import OnProcessExit
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
@@ -49,4 +54,15 @@ def generate_launch_description():
              parameters=[{"bags_dir": LaunchConfiguration("bags_dir")}], output="screen", emulate_tty=True,
              condition=IfCondition(LaunchConfiguration("record"))),
     ]
-    return LaunchDescription(arguments + nodes)
+    return LaunchDescription(arguments + nodes + [RegisterEventHandler(OnProcessExit(on_exit=_refused))])
+
+
+REFUSED = 4   # robotarium_core.claim.REFUSED: an older node of this kind runs in the namespace and domain
+
+
+def _refused(event, context):
+    """A node that refused to be a second one ends the launch with an error (its line names the one
+    that runs): a testbed without its simulator, safety node or recorder is no testbed."""
+    if event.returncode == REFUSED:
+        raise RuntimeError("not starting a second testbed: %s refused (exit code 4), an older one runs in this "
+                           "namespace and domain (its line above names it)" % event.action.name)

@@ -20,8 +20,8 @@ import threading
 import time
 
 from robotarium_client import session
-from robotarium_client.testbed import LocalTestbed, namespace, repository_root, testbed_answers
-from robotarium_core import lifeline, model, script_box
+from robotarium_client.testbed import LocalTestbed, namespace, repository_root, running_testbed, testbed_answers
+from robotarium_core import lifeline, model, outcomes, script_box
 
 DEMO_SCRIPT = os.path.join("examples", "barrier_certificates.py")  # 8 robots swap places through the middle
 # Folders never searched for data files a script saved.
@@ -112,11 +112,20 @@ class Interruption:
 
 
 def cmd_up(args):
+    from robotarium_client import local_testbeds
+    from robotarium_core import claim
+    from robotarium_core.config import DEFAULT
     ns = namespace()
-    if testbed_answers(ns, timeout=2.0):
-        say("a testbed already answers in %s on ROS_DOMAIN_ID %s; not starting a second one"
-            % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
-        return 1
+    domain = os.environ.get("ROS_DOMAIN_ID", "0")
+    # One testbed per namespace: name the one that runs. Where discovery reaches this machine only,
+    # the process table knows it at once (a look on the domain backs it up for a claim_wait); else
+    # it is looked for on the domain, as run does (discovery can wait for the next announcement).
+    running = local_testbeds.running_here(ns, local_testbeds.domain_id()) if discovery_is_local() else None
+    if running is None:
+        running = running_testbed(ns, timeout=DEFAULT.claim_wait if discovery_is_local() else PROBE_WAIT)
+    if running is not None:
+        say(claim.refusal(running, ns, domain))
+        return claim.REFUSED
     view = None
     if args.view:   # first: a port in use is said before any node starts
         from robotarium_recording.view_node import ViewProcess
@@ -127,7 +136,8 @@ def cmd_up(args):
             return 1
     interruption = Interruption()
     testbed = LocalTestbed(record=not args.no_record, quiet=False, bags_dir=args.bags_dir,
-                           config_file=args.config, hardware=args.hardware).start()
+                           config_file=args.config, hardware=args.hardware, looked=True).start()
+    code = 0
     try:
         say("testbed up in namespace %s on ROS_DOMAIN_ID %s (simulator%s, safety%s%s). It runs as long as this "
             "command does: Ctrl-C (or SIGTERM, SIGHUP) stops it." % (
@@ -135,6 +145,11 @@ def cmd_up(args):
                 "" if args.no_record else ", recorder", ", Foxglove view" if view else ""))
         while interruption.signum is None:
             failed = testbed.failed()
+            if claim.REFUSED in failed.values():   # one started at the same moment is older: it stays
+                say("an older testbed runs in %s on ROS_DOMAIN_ID %s (named above); stopping this one"
+                    % (ns, domain))
+                code = claim.REFUSED
+                break
             if failed:
                 say("node(s) exited: %s; stopping the testbed" % failed)
                 break
@@ -148,7 +163,7 @@ def cmd_up(args):
         testbed.stop()   # a running experiment is ended and its recording closed
         interruption.restore()
     say("testbed stopped" + (" (%s)" % interruption.name if interruption.signum else ""))
-    return 0
+    return code
 
 
 def _snapshot(directory):
@@ -453,27 +468,59 @@ def write_unrecorded_results(run_dir, run, testbed_report=""):
         lines += [testbed_report.rstrip("\n"), "", "(the run was recorded on the testbed's machine, not here)"]
     else:
         lines.append("No experiment ran on a testbed, so there is no debug report.")
+    notes = outcomes.run_notes(run)
+    if notes:
+        lines += [""] + notes
     with open(os.path.join(run_dir, "report.txt"), "w", encoding="utf-8") as f:
         f.write("\n".join(lines) + "\n")
     write_page(run_dir, run=run)
 
 
-def finish_run_folder(run_dir, run, script, log_path, saved, cwd):
-    """Copy the script, the log and the data files into the run folder and write run.json."""
+def finish_run_folder(run_dir, run, script, log_path, saved, cwd, data_limit=None):
+    """Copy the script, the log and the data files into the run folder and write run.json.
+
+    The data files are capped at `data_limit` bytes (default: the configuration's run_data_limit):
+    the newest first, each that fits; the others are left out, each named in run.json's
+    data_not_saved with why, and in one line here (the report says so too: outcomes.run_notes)."""
+    from robotarium_core.config import DEFAULT
     shutil.copy2(script, os.path.join(run_dir, os.path.basename(script)))
     shutil.copy2(log_path, os.path.join(run_dir, "log.txt"))
+    limit = DEFAULT.run_data_limit * 1e6 if data_limit is None else data_limit
     if saved:
         data_dir = os.path.join(run_dir, "data")
         os.makedirs(data_dir, exist_ok=True)
-        for path in saved:
+        copied, left_out = 0, []
+
+        def newest_first(path):
+            try:
+                return -os.stat(path).st_mtime_ns
+            except OSError:
+                return 0
+        for path in sorted(saved, key=newest_first):
             name = os.path.relpath(path, cwd).replace(os.sep, "__")
             try:
+                size = os.stat(path).st_size
+                if copied + size > limit:
+                    left_out.append((name, size))
+                    run.setdefault("data_not_saved", {})[name] = (
+                        "left out: %s over the run folder's limit for data files (run_data_limit %s)"
+                        % (_megabytes(size), _megabytes(limit)))
+                    continue
                 shutil.copy2(path, os.path.join(data_dir, name))
+                copied += size
             except OSError as error:   # gone meanwhile (a job box removes what broke its disk quota) or unreadable
                 run.setdefault("data_not_saved", {})[name] = error.strerror or str(error)
                 print("[robotarium] the data file %s was not saved: %s" % (name, error.strerror or error), flush=True)
+        if left_out:
+            print("[robotarium] %d data file(s) of %s left out of the run folder (run_data_limit %s, the newest kept): %s"
+                  % (len(left_out), _megabytes(sum(size for _, size in left_out)), _megabytes(limit),
+                     ", ".join(name for name, _ in left_out)), flush=True)
     with open(os.path.join(run_dir, "run.json"), "w") as f:
         json.dump(run, f, indent=2)
+
+
+def _megabytes(size):
+    return "%.3g MB" % (size / 1e6)
 
 
 def print_summary(run_dir, run, cwd):
@@ -485,6 +532,9 @@ def print_summary(run_dir, run, cwd):
         say("hint: fix the line named above and run it again (nothing ran)")
     elif run["outcome"] != "completed" and run["outcome"] in HINTS:
         say("hint: " + HINTS[run["outcome"]])
+    elif outcomes.recording_stopped(run):
+        say("the experiment completed, but %s: its recording is incomplete (exit code %d)"
+            % (outcomes.recording_stopped(run), run["exit_code"]))
     elif run["exit_code"]:   # completed, and then the script failed or was stopped
         say("the experiment completed, %s (exit code %d)" % (run["detail"], run["exit_code"]))
     relative = os.path.relpath(run_dir, cwd)
@@ -572,7 +622,7 @@ def find_or_start_testbed(ns, record, bags_dir, config_file):
     if running_here:   # ./robotarium up (or ros2 run) on this machine: it answers
         if testbed_answers(ns, timeout=LOCAL_PROBE_WAIT):
             return None
-    testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file).start(gated=True)
+    testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file, looked=True).start(gated=True)
     try:
         if not running_here and not discovery_is_local() and testbed_answers(ns, timeout=PROBE_WAIT):
             testbed.cancel()
@@ -593,7 +643,7 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
     # Without local_testbed a testbed is known to be up (or coming up): wait for it, never start one.
     if own_testbed:
         if interruption.signum is None:
-            testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file).start()
+            testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file, looked=True).start()
     elif not local_testbed:
         if testbed_answers(ns, timeout=60.0):
             say("using the testbed that answers in %s" % ns)
@@ -653,14 +703,24 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
         interruption.restore()   # from here on (results, video) a signal acts as usual
     try:   # the results are made as soon as the bag is closed, while the nodes exit
         return _collect_run(script, code, testbed, interruption, work, info_path, log_path, started, started_at,
-                            before, cwd, bags_dir, results, results_dir, name, video)
+                            before, cwd, bags_dir, results, results_dir, name, video,
+                            data_limit=_data_limit(config_file))
     finally:
         if testbed is not None:
             testbed.stop()
 
 
+def _data_limit(config_file):
+    """Bytes of data files a run folder takes: run_data_limit of the configuration given (--config),
+    else None (the packaged one's)."""
+    if not config_file:
+        return None
+    from robotarium_core.config import TestbedConfig
+    return TestbedConfig.load(config_file).run_data_limit * 1e6
+
+
 def _collect_run(script, code, testbed, interruption, work, info_path, log_path, started, started_at, before, cwd,
-                 bags_dir, results, results_dir, name, video, quiet=False):
+                 bags_dir, results, results_dir, name, video, quiet=False, data_limit=None):
     """What run_script does after the script's process ended: the run folder and the results.
     interruption None: finishing the folder of a ./robotarium run that was killed (finish_unfinished)."""
     if code is None:
@@ -706,24 +766,43 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
         guess = os.path.join(bags_dir or os.path.join(repository_root(), "bags"), info["run_id"])
         run_dir = guess if os.path.isdir(guess) else ""
     recorded = bool(run_dir) and os.path.isdir(run_dir) and results
-    if not recorded:
+    bag_dir = run_dir if recorded else ""
+    stopped = outcomes.recording_stopped(run)
+    if stopped and run["exit_code"] == 0:   # completed, but its recording is not: not a success (README)
+        run["exit_code"] = outcomes.EXIT_CODES[outcomes.TESTBED_LOST]
+    # The recorder could not write (a full disk): the bag's disk takes nothing more, so the run's
+    # folder is results/<run id>/, with the results of what the bag holds.
+    write_error = stopped and info.get("recording_stopped_because") != outcomes.RECORDER_GONE
+    if recorded and stopped:
+        # Nothing will close the bag (its recorder is gone, or stopped writing it): make its metadata
+        # agree with its file where its disk allows; the step it stopped at is the last it holds.
+        from robotarium_recording.bag import Bag, recover_bag
+        if not write_error:   # (a recorder that could not write tidied the bag itself, as far as its disk let it)
+            if testbed is not None:
+                testbed.stop()
+            try:
+                recover_bag(bag_dir)
+            except OSError as error:
+                say("could not tidy the recording in %s (%s); readers scan it as it is" % (bag_dir, error.strerror))
+        try:
+            steps = Bag(bag_dir).poses().steps
+        except Exception:   # noqa: BLE001 - nothing readable: the client's step stands
+            steps = ()
+        if len(steps):
+            run["recording_stopped_at_step"] = int(steps[-1])
+            stopped = outcomes.recording_stopped(run)
+        if not quiet:
+            say("%s: %s holds the run up to there" % (stopped, bag_dir))
+    if not recorded or write_error:
         # Not recorded here (another machine's testbed, no recorder, or no experiment at all):
         # keep the local outputs in results/<run id>/.
         run_dir = (os.path.join(results_dir, info["run_id"]) if info.get("run_id")
                    else new_run_folder(results_dir, name))
         os.makedirs(run_dir, exist_ok=True)
-    finish_run_folder(run_dir, run, script, log_path, saved, cwd)
+    finish_run_folder(run_dir, run, script, log_path, saved, cwd, data_limit)
 
     if recorded:
-        if info.get("recording_stopped_at_step") is not None:
-            # The recorder is gone: nothing will close the bag. Make its metadata agree with its file.
-            from robotarium_recording.bag import recover_bag
-            if testbed is not None:
-                testbed.stop()
-            recover_bag(run_dir)
-            say("the recorder was lost at step %d: %s holds the run up to there (recovered)"
-                % (info["recording_stopped_at_step"], run_dir))
-        else:
+        if not stopped:
             # A lost testbed may never close the bag: then take what is on disk after a short wait. A
             # script killed outright has its experiment ended by the testbed (client_lease) or by
             # this command's stopping of its own testbed.
@@ -737,11 +816,11 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
         try:
             if died:   # the testbed's steps, as the report counts them (a killed script could not say)
                 from robotarium_recording.bag import Bag
-                recorded_steps = Bag(run_dir).poses().steps
+                recorded_steps = Bag(bag_dir).poses().steps
                 run["steps"] = int(recorded_steps[-1]) if len(recorded_steps) else 0
                 with open(os.path.join(run_dir, "run.json"), "w") as f:
                     json.dump(run, f, indent=2)
-            write_results(run_dir, progress=not quiet, video=video, run=run)
+            write_results(bag_dir, progress=not quiet, video=video, run=run, out_dir=run_dir)
         except Exception as error:   # noqa: BLE001 - say so, keep the folder
             say("could not make the results from the recording (%s); see %s"
                 % (session.describe_exception(error), run_dir))

@@ -220,6 +220,23 @@ def matching(testbeds, namespace=None, domain=None):
             and (domain is None or t["domain"] == str(domain))]
 
 
+def running_here(namespace, domain):
+    """The testbed of this machine with a live node in `namespace` on `domain`, as the identity a
+    node claims its place with (robotarium_core.claim: who, host, pid, since, testbed, owner), or
+    None. Where discovery reaches this machine only, this is the whole answer, at once."""
+    import socket
+    for testbed in matching(find(), namespace, domain):
+        if not testbed["nodes"]:
+            continue
+        who = next((name for name in ("simulator", "safety", "recorder") if name in testbed["nodes"]),
+                   sorted(testbed["nodes"])[0])
+        owner = testbed["owner"] or {}
+        return {"who": who.split("-")[0], "host": socket.gethostname(), "pid": testbed["nodes"][who],
+                "since": testbed["started"] or 0.0, "testbed": owner.get("pid", testbed["nodes"][who]),
+                "owner": "%s (pid %d)" % (owner["command"], owner["pid"]) if owner.get("command") else ""}
+    return None
+
+
 # -- stopping -------------------------------------------------------------------------------------
 
 def _signal(proc, sig):

@@ -163,8 +163,12 @@ class Robotarium(RobotariumABC):
         dropped = {name: {reason: int(getattr(counts, reason)) for reason in model.DROP_REASONS}
                    for name, counts in (("cmd_requested", response.dropped_cmd_requested),
                                         ("cmd_safe", response.dropped_cmd_safe))}
-        self.run_info = {"run_id": response.run_id, "recording": response.recording or self._announced_recording(),
-                         "report": response.report, "outcome": outcomes.NAMES[outcome], "detail": detail, "ended": True,
+        report = response.report
+        if self._recorder_lost_at is not None:   # no verdict on a run whose recording is incomplete
+            report = report.replace(model.ACCEPTANCE_LIKELY, model.RECORDING_INCOMPLETE)
+        self.run_info = {"run_id": response.run_id,
+                         "recording": response.recording or self._announced_recording() or self._stopped_recording,
+                         "report": report, "outcome": outcomes.NAMES[outcome], "detail": detail, "ended": True,
                          "steps": response.steps, "collisions": response.collisions,
                          "boundary_violations": response.boundary_violations,
                          "actuator_limit_iterations": response.actuator_limit_iterations,
@@ -172,6 +176,7 @@ class Robotarium(RobotariumABC):
                          "number_of_robots": self.number_of_robots,
                          "end_reason": response.end_reason, "dropped": dropped,
                          "recording_stopped_at_step": self._recorder_lost_at,
+                         "recording_stopped_because": self._recording_stopped_because,
                          "stale_pose_stops": response.stale_pose_stops, "hardware": response.hardware,
                          "hardware_seed": response.hardware_seed, "audit": response.audit,
                          "first_collision_step": response.first_collision_step or None,
@@ -181,7 +186,7 @@ class Robotarium(RobotariumABC):
                          "prevented_boundary_violations": response.prevented_boundary_violations}
         self._errors = {k: v for k, v in (("boundary", response.boundary_violations), ("collision", response.collisions),
                                           ("actuator", response.actuator_limit_iterations)) if v}
-        return response.report
+        return report
 
     def _announced_recording(self):
         """The recorder's folder for this run if it announced one (its name starts with the run id)."""
@@ -205,8 +210,8 @@ class Robotarium(RobotariumABC):
             print("The safety node stopped the robots %d time(s) because the testbed's newest poses were older than "
                   "its pose_timeout (an overloaded testbed machine?)." % info["stale_pose_stops"])
         if self._recorder_lost_at is not None:
-            print("Run %s: recording stopped at step %d (the recorder is gone)%s" % (
-                info["run_id"], self._recorder_lost_at,
+            print("Run %s: recording stopped at step %d (%s)%s" % (
+                info["run_id"], self._recorder_lost_at, self._recording_stopped_because,
                 "; what it recorded until then is in %s" % info["recording"] if info["recording"] else ""))
         elif info["recording"]:
             print("Run %s recorded in %s" % (info["run_id"], info["recording"]))
@@ -227,7 +232,7 @@ class Robotarium(RobotariumABC):
         from std_msgs.msg import String
 
         from robotarium_core.topics import (CMD_REQUESTED, CONFIG, DRAWING, DRAWING_QOS, END_EXPERIMENT, LATCHED, POSES,
-                                            RECORDING, START_EXPERIMENT, STATUS, TESTBED_QOS)
+                                            RECORDING, RECORDING_ERROR, START_EXPERIMENT, STATUS, TESTBED_QOS)
         from robotarium_msgs.msg import RobotPoses, TestbedStatus, TwistArray
         from robotarium_msgs.srv import EndExperiment, StartExperiment
 
@@ -240,6 +245,8 @@ class Robotarium(RobotariumABC):
         self._failure_kind = TestbedLost
         self._suspects = {}           # {node: (monotonic time, step)} whose presence lapsed, not yet confirmed lost
         self._recorder_lost_at = None
+        self._recording_stopped_because = None   # "the recorder is gone", "disk full", ...
+        self._stopped_recording = ""             # the bag of a recording stopped by a write error
         self._context = Context()
         # With DDS Security (sros2/README.md) a script runs in the client enclave of the policy.
         rclpy.init(context=self._context, args=["--ros-args", "--enclave", "/robotarium/client"]
@@ -259,6 +266,7 @@ class Robotarium(RobotariumABC):
         self._testbed_config = None
         self._node.create_subscription(String, CONFIG, self._on_config, LATCHED)
         self._node.create_subscription(String, RECORDING, self._on_recording, LATCHED)
+        self._node.create_subscription(String, RECORDING_ERROR, self._on_recording_error, LATCHED)
         self._start_client = self._node.create_client(StartExperiment, START_EXPERIMENT)
         self._end_client = self._node.create_client(EndExperiment, END_EXPERIMENT)
 
@@ -289,6 +297,23 @@ class Robotarium(RobotariumABC):
         self._recording = msg.data   # the recorder announces each run's folder, and "" when it closed it
         if self._run_id and not self._ended and self._announced_recording():
             session.note_started(self.partial_run_info())
+
+    def _on_recording_error(self, msg):
+        """The recorder could not write this run's bag (a full disk): the run goes on, its recording
+        stopped here; the report says so and gives no acceptance estimate."""
+        import json
+        try:
+            error = json.loads(msg.data)
+            run_id, why, path = str(error["run_id"]), str(error["why"]), str(error.get("path") or "")
+        except (ValueError, TypeError, KeyError):
+            return
+        if run_id != self._run_id or self._ended or self._recorder_lost_at is not None:
+            return   # another run's (latched), or known already
+        self._recorder_lost_at = self._latest.step if self._latest is not None else 0
+        self._recording_stopped_because, self._stopped_recording = why, path
+        print("[robotarium] the recorder stopped recording this run: %s (heard at step %d). The experiment goes on; "
+              "what was recorded until then stays readable%s." % (why, self._recorder_lost_at,
+                                                                 " in %s" % path if path else ""), file=sys.stderr)
 
     def _adopt_testbed_config(self):
         """Take the testbed's configuration (its latched `config` topic) for the constants and the
@@ -383,6 +408,7 @@ class Robotarium(RobotariumABC):
         if who == "recorder":
             if self._recorder_lost_at is None:
                 self._recorder_lost_at = step
+                self._recording_stopped_because = outcomes.RECORDER_GONE
                 print("[robotarium] the recorder is gone: recording stopped at step %d. The experiment goes on; "
                       "what was recorded until then stays readable." % step, file=sys.stderr)
             return

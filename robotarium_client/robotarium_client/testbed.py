@@ -18,7 +18,7 @@ import sys
 import time
 
 from robotarium_client import local_testbeds
-from robotarium_core import lifeline
+from robotarium_core import claim, lifeline
 from robotarium_core.config import DEFAULT_FILE
 from robotarium_core.topics import DEFAULT_NAMESPACE
 
@@ -99,8 +99,11 @@ class LocalTestbed:
     process by its lifeline."""
 
     def __init__(self, log_dir=None, record=True, ns=None, bags_dir=None, quiet=True, config_file=None,
-                 hardware=False):
+                 hardware=False, looked=False):
         self.gate = None
+        # The starter looked for a testbed in this namespace already (./robotarium up, run, verify's own
+        # namespace): the nodes claim their place without waiting for an older one (robotarium_core.claim).
+        self.looked = looked
         self._stop_deadline = None   # set by begin_stop()
         self.ns = ns or namespace()
         self.config_file = config_file
@@ -120,6 +123,10 @@ class LocalTestbed:
         os.makedirs(self.log_dir, exist_ok=True)
         # Each node reads the lifeline's end: it stops when this process is gone, however it went.
         env, pass_fds = lifeline.for_child(os.environ)
+        # One testbed per namespace: its nodes claim their places as one testbed (same since, same pid).
+        env = dict(env, **{claim.ENV_SINCE: repr(time.time()), claim.ENV_TESTBED: str(os.getpid()),
+                           claim.ENV_OWNER: "%s (pid %d)" % (owner_command(), os.getpid()),
+                           claim.ENV_CHECKED: "1" if self.looked else "0"})
         self.gate = lifeline.StartGate() if gated else None
         if self.gate is not None:
             env, pass_fds = self.gate.for_child(env, pass_fds)
@@ -224,6 +231,47 @@ def testbed_answers(ns=None, timeout=3.0):
         node.destroy_node()
         return found
     finally:
+        rclpy.try_shutdown(context=context)
+
+
+def running_testbed(ns=None, timeout=3.0):
+    """The testbed that runs in `ns` on this domain, if any: the identity (robotarium_core.claim) of
+    the first of its simulator, safety node or recorder heard within `timeout` seconds, or
+    {"who": "testbed", ...} with what is known where only a simulator without a claim answers; None
+    when nothing answered (then it took the whole timeout)."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from std_msgs.msg import String
+
+    from robotarium_core import presence
+    from robotarium_core.topics import START_EXPERIMENT
+    from robotarium_msgs.srv import StartExperiment
+
+    ns = (ns or namespace()).rstrip("/")
+    context = _private_context()
+    node = Node("robotarium_claims_%d" % os.getpid(), context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    heard = []
+    try:
+        for who in (presence.SIMULATOR, presence.SAFETY, presence.RECORDER):
+            node.create_subscription(String, "%s/%s" % (ns, claim.claim_topic(who)),
+                                     lambda msg: heard.append(claim.parse(msg.data)), claim.QOS)
+        service = node.create_client(StartExperiment, "%s/%s" % (ns, START_EXPERIMENT))
+        deadline = time.monotonic() + timeout
+        while not any(heard) and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.02)
+        found = [ident for ident in heard if ident]
+        if found:
+            return min(found, key=lambda ident: (claim.order(ident), ident["who"] != presence.SIMULATOR))
+        if service.service_is_ready():   # a simulator that does not claim (another version)
+            return {"who": "simulator", "host": "unknown host", "pid": 0, "since": 0.0, "testbed": 0,
+                    "owner": "a version without claims"}
+        return None
+    finally:
+        executor.shutdown()
+        node.destroy_node()
         rclpy.try_shutdown(context=context)
 
 

@@ -77,6 +77,11 @@ FIELDS = {
                         0.5, 60.0, used_by=(SIMULATOR,)),
     "node_lease": Field("s; a simulator, safety node or recorder gone this long is reported lost (the client confirms "
                         "a simulator's or safety node's loss for as long again)", 0.1, 60.0),
+    "claim_wait": Field("s a simulator, safety node or recorder started by ros2 run/launch listens for an older one "
+                        "of its kind in its domain and namespace before it offers anything (robotarium_core.claim)",
+                        0.0, 10.0, low_open=False, used_by=("every node (packaged file)",)),
+    "run_data_limit": Field("MB of the script's data files copied into a run folder; files beyond it are left "
+                            "out and named (0: none copied)", 0.0, low_open=False, used_by=(CLIENT,)),
     "viewer_rate": Field("Hz at which the simulator publishes the markers topic for viewers (RViz, Foxglove), "
                          "while one subscribes", 0.0, 100.0, used_by=(SIMULATOR,)),
     "trail_length": Field("s of testbed time of each robot's trail in the viewers", 0.0, 600.0, low_open=False,
@@ -255,6 +260,8 @@ class TestbedConfig:
     client_lease: float
     line_lease: float
     node_lease: float
+    claim_wait: float
+    run_data_limit: float
     viewer_rate: float
     trail_length: float
     hardware: bool

@@ -17,9 +17,10 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 
-from robotarium_core import lifeline
+from robotarium_core import claim as claims, lifeline
 from robotarium_core.config import DEFAULT, FIELDS, TestbedConfig
 from robotarium_core.executor import LeanExecutor
+from robotarium_core.topics import DEFAULT_NAMESPACE
 
 
 def _descriptor(description, value, low=-math.inf, high=math.inf, integer=False, read_only=True):
@@ -167,7 +168,27 @@ def bounded_memory():
         pass   # not glibc: its own rules apply
 
 
-def run_node(make_node, name, args=None, before_destroy=None):
+def claim_place(who, name, stop):
+    """Claim this node's place in its domain and namespace (robotarium_core.claim) on a small node
+    of its own, before the real node offers anything: returns (claim node, identity of an older
+    node of this kind or None). Unless the starter looked already, it waits DEFAULT.claim_wait for
+    an older claim; one heard later asks `stop` to stop (run_node then exits REFUSED)."""
+    node = rclpy.create_node(name + "_claim", namespace=DEFAULT_NAMESPACE)   # as the nodes; __ns:= remaps both
+
+    def older(ident):
+        node.refusal = claims.refusal(ident, node.get_namespace(), node.context.get_domain_id())
+        stop.request(node.refusal)
+    node.refusal = None
+    place = claims.Claim(node, who, on_older=older)
+    if os.environ.get(claims.ENV_CHECKED) != "1":
+        deadline = time.monotonic() + DEFAULT.claim_wait
+        while place.older is None and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=max(0.0, deadline - time.monotonic()))
+    node.claim = place
+    return node, place.older
+
+
+def run_node(make_node, name, args=None, before_destroy=None, claim=None):
     """rclpy.init, make the node (a bad parameter exits with code 2 and its message), spin until a
     stop is requested (StopRequest), wind down, then clean up. Returns the process exit code.
 
@@ -178,13 +199,25 @@ def run_node(make_node, name, args=None, before_destroy=None):
     records that end and closes the bag before anything exits. Nodes started with `ros2 run` get
     no lifeline and stop on the signals alone. A node started behind a start gate
     (lifeline.StartGate: ./robotarium run, while it looks for a testbed) waits there first and
-    exits at once (0) when the gate is closed without opening."""
+    exits at once (0) when the gate is closed without opening.
+
+    claim: the node's kind (robotarium_core.presence.SIMULATOR, ...): one of each per domain and
+    namespace (claim_place); a node that finds an older one prints one line naming it and exits
+    with claim.REFUSED (4), before it offers anything, or as soon as it hears of it later."""
     if not lifeline.pass_start_gate():
         return 0
     bounded_memory()
     # rclpy's own handlers would shut the context down at the first signal, before the wind-down.
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop = StopRequest()
+    claim_node = None
+    if claim is not None:
+        claim_node, older = claim_place(claim, name, stop)
+        if older is not None:
+            print("%s: %s" % (name, claim_node.refusal), file=sys.stderr, flush=True)
+            claim_node.destroy_node()
+            rclpy.try_shutdown()
+            return claims.REFUSED
     try:
         node = make_node()
     except (ValueError, AssertionError, ParameterException) as error:
@@ -193,6 +226,8 @@ def run_node(make_node, name, args=None, before_destroy=None):
         return 2
     executor = LeanExecutor()
     executor.add_node(node)
+    if claim_node is not None:
+        executor.add_node(claim_node)
     stop.attach(node)
     try:
         while stop.reason is None and rclpy.ok():
@@ -212,5 +247,10 @@ def run_node(make_node, name, args=None, before_destroy=None):
             before_destroy(node)
         executor.shutdown()
         node.destroy_node()
+        if claim_node is not None:
+            claim_node.destroy_node()
         rclpy.try_shutdown()
+    if claim_node is not None and claim_node.refusal is not None:
+        print("%s: %s" % (name, claim_node.refusal), file=sys.stderr, flush=True)
+        return claims.REFUSED
     return 0

@@ -50,3 +50,26 @@ def first_line(outcome, detail=""):
     if outcome == TIME_LIMIT and detail:   # the client's note says it all: "Stopped at the time limit: ..."
         return detail
     return "Run did not complete: %s." % (detail or PHRASES.get(outcome, "unknown outcome %s" % outcome)).rstrip(".")
+
+
+RECORDER_GONE = "the recorder is gone"   # why a recording stopped, when its recorder is lost
+
+
+def recording_stopped(run):
+    """"recording stopped at step k: why" when the recording of a run (run.json's dict) ended before
+    the run (the recorder gone, a full disk), else ""."""
+    step = (run or {}).get("recording_stopped_at_step")
+    if step is None:
+        return ""
+    return "recording stopped at step %d: %s" % (step, run.get("recording_stopped_because") or RECORDER_GONE)
+
+
+def run_notes(run):
+    """What the report adds about a run beyond its recording (run.json's dict): a recording that
+    stopped early, data files left out of the run folder."""
+    notes = []
+    if recording_stopped(run):
+        notes.append("%s. The recording is incomplete, so there is no acceptance estimate." % recording_stopped(run))
+    for name, why in sorted(((run or {}).get("data_not_saved") or {}).items()):
+        notes.append("data file %s not saved in the run folder: %s" % (name, why))
+    return notes

@@ -67,6 +67,8 @@ MARKERS = "markers"               # visualization_msgs/MarkerArray for viewers: 
 STATUS = "status"                 # TestbedStatus
 SAFETY_REPORT = "safety_report"   # SafetyReport
 RECORDING = "recording"           # std_msgs/String: recorder -> simulator, where the run is recorded
+RECORDING_ERROR = "recording_error"   # std_msgs/String (JSON, latched): recorder -> clients, a run whose recording
+                                      # stopped: {"run_id", "path", "why", "write_errors"}
 CONFIG = "config"                 # std_msgs/String, latched: the running experiment's TestbedConfig as YAML
 SAFETY_ARM = "safety/arm"         # ArmSafety: simulator -> safety node, the experiment to guard and its secrets
 DRAWING = "drawing"               # std_msgs/String, JSON: client -> recorder, what the script drew on r.axes

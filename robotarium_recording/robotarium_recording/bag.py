@@ -218,6 +218,14 @@ class _TailGuardedFile:
         os.ftruncate(self._fd, self._pos)   # the last provisional tail may be longer than the summary
         os.close(self._fd)
 
+    def abandon(self):
+        """Stop writing (a write failed: a full disk): close the file as it is on disk."""
+        self._pending.clear()
+        try:
+            os.close(self._fd)
+        except OSError:
+            pass
+
 
 TopicRecord = namedtuple("TopicRecord", "name type channel_id offered_qos type_hash count")
 
@@ -305,6 +313,12 @@ class BagWriter:
         self._writer.finish()
         self._file.close()
         self.write_metadata()
+
+    def abandon(self):
+        """After a write failed (a full disk): write nothing more. What is on disk stays readable up
+        to its last complete chunk; recover_bag() makes the file and metadata.yaml agree."""
+        self.closed = True
+        self._file.abandon()
 
     def metadata(self):
         start = self.start_ns or 0

@@ -34,7 +34,9 @@ message and five times a second, so no received message waits more than a second
 (the testbed configuration's: clients notice a lost recorder within it, robotarium_core.presence).
 Run: ros2 run robotarium_recording recorder [--ros-args -r __ns:=/other -p bags_dir:=/data/bags]
 """
+import errno
 import importlib
+import json
 import os
 import sys
 import time
@@ -51,12 +53,12 @@ from robotarium_msgs.msg import TestbedStatus
 from robotarium_core import presence
 from robotarium_core.config import DEFAULT, FIELDS
 from robotarium_core.node_tools import declare_parameter, run_node
-from robotarium_core.topics import DEFAULT_NAMESPACE, LATCHED, MARKERS, RECORDING
+from robotarium_core.topics import DEFAULT_NAMESPACE, LATCHED, MARKERS, RECORDING, RECORDING_ERROR
 from robotarium_recording import bag
 
 # Our own announcement is not part of a run; the viewers' markers are drawn from the poses (a subscription
 # here would make the simulator build them all the time, and they would fill the bag).
-EXCLUDED_TOPICS = {RECORDING, MARKERS}
+EXCLUDED_TOPICS = {RECORDING, RECORDING_ERROR, MARKERS}
 
 # Deep queues: at N = 50 and 30 Hz a topic carries 30 messages a second; nothing may be dropped
 # while a chunk is compressed.
@@ -77,7 +79,8 @@ class RunRecorder:
     """
 
     def __init__(self, bags_dir, describe, on_started=None, on_finished=None, log=None,
-                 preroll_ns=3_000_000_000, grace_ns=500_000_000, chunk_seconds=1.0, live_after_ns=None):
+                 preroll_ns=3_000_000_000, grace_ns=500_000_000, chunk_seconds=1.0, live_after_ns=None,
+                 on_write_error=None):
         self.bags_dir = os.path.abspath(bags_dir)
         self.describe = describe
         self.on_started = on_started or (lambda path: None)
@@ -97,6 +100,13 @@ class RunRecorder:
         self.live_after_ns = time.time_ns() if live_after_ns is None else live_after_ns
         self.pending = {}             # run id -> stamp of its first RUNNING status seen in history
         self.namespace = ""
+        # A write that fails (a full disk) stops this run's recording, never the recorder: what is on
+        # disk is made readable, on_write_error(run_id, path, why) says so, the run's later messages
+        # are counted as not recorded, and the next run gets a new bag.
+        self.on_write_error = on_write_error or (lambda run_id, path, why: None)
+        self.write_errors = 0         # failed writes, over the recorder's life
+        self.not_recorded = 0         # messages of the current run after its recording stopped
+        self.stopped_path = None      # the bag of the current run whose recording stopped ("" if none was made)
 
     def on_message(self, topic, data, recv_ns, pub_ns, log_line=False):
         if self.state == "recording" or (self.state == "closing" and (log_line or pub_ns <= self.end_ns)):
@@ -140,7 +150,10 @@ class RunRecorder:
         """Call a few times a second: flushes chunks, ends the grace period, and closes a run whose
         simulator went away without ending it."""
         if self.writer is not None:
-            self.writer.maybe_flush()
+            try:
+                self.writer.maybe_flush()
+            except OSError as error:
+                self._write_failed(error)
         if self.state == "closing" and now_ns >= self.grace_until:
             self.finish("the experiment ended")
         elif self.state == "recording" and not simulator_present:
@@ -150,28 +163,46 @@ class RunRecorder:
     def finish(self, why):
         writer, self.writer = self.writer, None
         self.state = "idle"
+        if self.stopped_path is not None:   # its recording stopped on a write error
+            self.finished[self.run_id] = self.end_ns if self.end_ns is not None else time.time_ns()
+            self.log("run %s ended (%s); %d of its messages after the write error were not recorded"
+                     % (self.run_id, why, self.not_recorded))
+            self.stopped_path, self.not_recorded = None, 0
+            return
         if writer is None:
             return
         self.finished[self.run_id] = self.end_ns if self.end_ns is not None else time.time_ns()
-        writer.close()
+        try:
+            writer.close()
+        except OSError as error:
+            self.writer = writer
+            self._write_failed(error)
+            self.writer, self.stopped_path, self.not_recorded = None, None, 0
+            return
         self.log("closed %s (%s): %d messages, %s" % (writer.path, why, writer.message_count, ", ".join(
             "%s %d" % (t.name, t.count[0]) for t in writer.topics.values())))
         self.on_finished(writer.path, writer)
 
     def _start(self, run_id, start_ns):
         self.run_id, self.end_ns = run_id, start_ns
-        os.makedirs(self.bags_dir, exist_ok=True)
-        for suffix in range(1000):   # never overwrite an old run
-            path = os.path.join(self.bags_dir, run_id if suffix == 0 else "%s_%d" % (run_id, suffix))
-            try:
-                self.writer = bag.BagWriter(path, chunk_seconds=self.chunk_seconds, custom_data={
-                    "run_id": run_id, "namespace": self.namespace, "recorder": "robotarium_recording recorder"})
-                break
-            except FileExistsError:
-                continue
-        else:
-            raise RuntimeError("could not find a free folder name for run %s in %s" % (run_id, self.bags_dir))
         self.state = "recording"
+        self.stopped_path, self.not_recorded = None, 0
+        try:
+            os.makedirs(self.bags_dir, exist_ok=True)
+            for suffix in range(1000):   # never overwrite an old run
+                path = os.path.join(self.bags_dir, run_id if suffix == 0 else "%s_%d" % (run_id, suffix))
+                try:
+                    self.writer = bag.BagWriter(path, chunk_seconds=self.chunk_seconds, custom_data={
+                        "run_id": run_id, "namespace": self.namespace, "recorder": "robotarium_recording recorder"})
+                    break
+                except FileExistsError:
+                    continue
+            else:
+                raise OSError(errno.EEXIST, "no free folder name for run %s in %s" % (run_id, self.bags_dir))
+        except OSError as error:   # a full disk: the run goes on unrecorded
+            self.preroll.clear()
+            self._write_failed(error)
+            return
         # Messages that overtook the RUNNING status (poses of step 0, first commands).
         for topic, data, recv_ns, pub_ns in self.preroll:
             if pub_ns >= start_ns:
@@ -181,11 +212,36 @@ class RunRecorder:
         self.on_started(self.writer.path)
 
     def _write(self, topic, data, recv_ns, pub_ns):
-        if topic not in self.writer.topics:
-            type_name, offered_qos = self.describe(topic)
-            self.writer.add_topic(topic, type_name, offered_qos)
-        self.writer.write(topic, data, recv_ns, pub_ns)
-        self.writer.maybe_flush()
+        if self.writer is None:   # this run's recording stopped on a write error
+            self.not_recorded += 1
+            return
+        try:
+            if topic not in self.writer.topics:
+                type_name, offered_qos = self.describe(topic)
+                self.writer.add_topic(topic, type_name, offered_qos)
+            self.writer.write(topic, data, recv_ns, pub_ns)
+            self.writer.maybe_flush()
+        except OSError as error:
+            self.not_recorded += 1
+            self._write_failed(error)
+
+    def _write_failed(self, error):
+        """A write of this run's bag failed: stop recording the run, make what is on disk readable,
+        and say so (on_write_error)."""
+        self.write_errors += 1
+        writer, self.writer = self.writer, None
+        why = "disk full" if error.errno in (errno.ENOSPC, errno.EDQUOT) else (error.strerror or str(error))
+        path = writer.path if writer is not None else ""
+        if writer is not None:
+            writer.abandon()
+            try:
+                bag.recover_bag(path)   # cut a torn chunk, metadata.yaml from what the file holds
+            except Exception as salvage:   # noqa: BLE001 - the disk may not take even that; the file still reads
+                self.log("could not tidy %s after the write error (%s): readers scan it" % (path, salvage))
+        self.stopped_path = path
+        self.log("recording of run %s stopped: %s (%s)%s" % (self.run_id, why, error,
+                                                         "; what was written is in %s" % path if path else ""))
+        self.on_write_error(self.run_id, path, why)
 
     def _prune(self, now_ns):
         while self.preroll and self.preroll[0][2] < now_ns - self.preroll_ns:
@@ -236,9 +292,11 @@ class RecorderNode(Node):
         self.logger_prefix = self.ns.strip("/").replace("/", ".") + "." if self.ns else ""
         self.topics = {}            # full name -> type name (None: cannot be recorded)
         self.session = RunRecorder(bags_dir, self.describe, self.announce_start, self.announce_end,
-                                   self.get_logger().info, chunk_seconds=chunk_seconds)
+                                   self.get_logger().info, chunk_seconds=chunk_seconds,
+                                   on_write_error=self.announce_write_error)
         self.session.namespace = self.ns or "/"
         self.recording_pub = self.create_publisher(String, RECORDING, LATCHED)
+        self.recording_error_pub = self.create_publisher(String, RECORDING_ERROR, LATCHED)
         self.status_topic = self.ns + "/status"
         self.subscribe("/rosout", "rcl_interfaces/msg/Log", QoSProfile(depth=SUBSCRIPTION_DEPTH))
         self._sim_missing_since = None
@@ -318,6 +376,14 @@ class RecorderNode(Node):
     def announce_start(self, path):
         self.recording_pub.publish(String(data=path))
 
+    def announce_write_error(self, run_id, path, why):
+        """The run's client reports "recording stopped at step k: why" (robotarium_client)."""
+        self.get_logger().error("recording of run %s stopped: %s; the run goes on unrecorded, the next run gets a "
+                                "new bag" % (run_id, why))
+        self.recording_error_pub.publish(String(data=json.dumps({
+            "run_id": run_id, "path": path, "why": why, "write_errors": self.session.write_errors})))
+        self.recording_pub.publish(String(data=""))   # no folder to hand out for this run any more
+
     def announce_end(self, path, writer):
         # So that the simulator does not hand this path out for a later run that nobody records.
         if self.context.ok():
@@ -334,7 +400,7 @@ class RecorderNode(Node):
 
 def main(args=None):
     # a run in progress is closed properly on the way out: summary, final metadata.yaml
-    return run_node(RecorderNode, "recorder", args, before_destroy=lambda node: node.close())
+    return run_node(RecorderNode, "recorder", args, before_destroy=lambda node: node.close(), claim=presence.RECORDER)
 
 
 if __name__ == "__main__":

@@ -33,8 +33,8 @@ import numpy as np
 from robotarium_core import model, outcomes, rps2
 from robotarium_recording.bag import Bag
 
-STOP_STATUSES = (2, 3, 4)   # SafetyReport.STATUS_STOP_NO_POSES, _SOLVER_FAILED, _BAD_INPUT (the message's constants)
 COUNTS_ONLY = 5             # SafetyReport.STATUS_COUNTS_ONLY: no array was filtered
+PASSTHROUGH, SATURATED = 0, 6   # SafetyReport.STATUS_PASSTHROUGH, _SATURATED: forwarded as asked (or scaled to the limits)
 
 
 # -- the report ----------------------------------------------------------------------------------
@@ -69,8 +69,8 @@ def safety_summary(bag, tolerance):
     (interventions, arrays, largest_change, mean_change, prevented_collisions, prevented_boundary)
     and audit (a verification run: it let the script's commands through). An intervention is an
     array whose safe command differs from the requested one by more than `tolerance` for some
-    robot, or a stop (SafetyReport.msg); the changes are those of the interventions (stops
-    included, as the largest finite speed they cancelled); prevented_*: its unfiltered replay of
+    robot, or a stop of a request not at rest (model.is_intervention, SafetyReport.msg); the changes
+    are those of the interventions (stops as the largest finite speed they cancelled); prevented_*: its unfiltered replay of
     the script's own commands, summed (0 in bags recorded before it existed)."""
     tally, arrays, audit = model.RunTally(), 0, False
     name = bag.topic("safety_report", required=False)
@@ -80,8 +80,10 @@ def safety_summary(bag, tolerance):
             continue
         arrays += 1
         audit = audit or bool(getattr(report, "audit", False))
-        stop = status in STOP_STATUSES if isinstance(status, int) else str(status).startswith("stop")
-        tally.add_safety_report(stop or report.max_change > tolerance, report.max_change,
+        # every status but these two is a stop or a solved QP (bags before the constants: strings)
+        filtered = (status not in (PASSTHROUGH, SATURATED) if isinstance(status, int)
+                    else str(status).startswith(("stop", "solved")))
+        tally.add_safety_report(model.is_intervention(filtered, report.max_change, tolerance), report.max_change,
                                 getattr(report, "unfiltered_collisions", 0),
                                 getattr(report, "unfiltered_boundary_violations", 0))
     return dict(tally.safety(arrays), audit=audit)
@@ -161,6 +163,7 @@ def recompute(bag, run=None):
     if missing:
         notes.append("poses of %d step(s) are missing from the bag (first: step %d); they are not counted."
                      % (len(missing), missing[0]))
+    notes += outcomes.run_notes(run)
     experiment = bag.experiment()
     if experiment.get("api") == rps2.API:
         return _recompute_2x(bag, settings, config, track, n, steps, by_step, notes, experiment, run)
@@ -363,6 +366,11 @@ def write_results(bag_dir, progress=True, *, out_dir=None, video=True, run=None)
     os.makedirs(out_dir, exist_ok=True)
     run = run if run is not None else (_run_json(bag.path) or None)
     numbers = recompute(bag, run)
+    stopped = outcomes.recording_stopped(run)
+    if stopped:   # no verdict from a recording that stopped early (the report's notes say where)
+        numbers["report"] = numbers["report"].replace(model.ACCEPTANCE_LIKELY, model.RECORDING_INCOMPLETE)
+        numbers["first_line"] = "%s %s%s: the recording is incomplete." % (
+            numbers["first_line"], stopped[0].upper(), stopped[1:])
     paths = {"report": os.path.join(out_dir, "report.txt")}
     with open(paths["report"], "w", encoding="utf-8") as f:
         f.write(report_text(bag, numbers))

@@ -414,7 +414,7 @@ class SafetyNode(Node):
 
 
 def main(args=None):
-    return run_node(SafetyNode, "safety", args)
+    return run_node(SafetyNode, "safety", args, claim=presence.SAFETY)
 
 
 if __name__ == "__main__":

@@ -121,9 +121,11 @@ STOPS = (SafetyReport.STATUS_STOP_NO_POSES, SafetyReport.STATUS_STOP_SOLVER_FAIL
 
 
 def is_intervention(report, tolerance):
-    """A safety intervention (SafetyReport.msg): a stop, or a change beyond the tolerance."""
-    # (scaling a command to the actuator limits is the thresholding's work, not an intervention)
-    return report.status in STOPS or (report.status == SafetyReport.STATUS_SOLVED and report.max_change > tolerance)
+    """A safety intervention (SafetyReport.msg): a stop or a solved QP that changed a command beyond
+    the tolerance (model.is_intervention). Scaling a command to the actuator limits is the
+    thresholding's work, not an intervention."""
+    return model.is_intervention(report.status in STOPS or report.status == SafetyReport.STATUS_SOLVED,
+                                 report.max_change, tolerance)
 
 
 class SimulatorNode(Node):
@@ -596,7 +598,7 @@ class SimulatorNode(Node):
 
 
 def main(args=None):
-    return run_node(SimulatorNode, "simulator", args)
+    return run_node(SimulatorNode, "simulator", args, claim=presence.SIMULATOR)
 
 
 if __name__ == "__main__":

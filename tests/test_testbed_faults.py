@@ -1,0 +1,166 @@
+"""Faults of a whole testbed, through ./robotarium with real processes (issue 22): a second testbed
+in a namespace that has one, a full disk under the recorder, a script's data files over the run
+folder's cap.
+
+One `./robotarium up` on a domain and namespace of its own serves the module; each test runs real
+scripts on it with `./robotarium run --no-local-testbed` (tests/data/turns_and_saves.py: robots
+turning on the spot, far apart, so a completed run would say "Acceptance likely").
+"""
+import glob
+import json
+import os
+import re
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import pytest
+import yaml
+
+from devtools.rosutil import NodeProcess, node_env, processes_on_domain, unique_domain_id
+from robotarium_core.config import DEFAULT_FILE
+
+pytestmark = pytest.mark.e2e   # whole runs through ./robotarium
+
+NAMESPACE = "/faults"
+SCRIPT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "turns_and_saves.py")
+ACCEPTANCE = "Acceptance of your experiment is likely"
+
+
+def cli(*args, env, cwd, timeout=180):
+    return subprocess.run([sys.executable, "-m", "robotarium_client.cli", *args], env=env, cwd=cwd, timeout=timeout,
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+@pytest.fixture(scope="module")
+def testbed(tmp_path_factory):
+    """`./robotarium up` in NAMESPACE on a domain of its own, until the module is done."""
+    domain = unique_domain_id()
+    root = tmp_path_factory.mktemp("testbed_faults")
+    bags = root / "bags"
+    bags.mkdir()
+    env = node_env(domain, ROBOTARIUM_NAMESPACE=NAMESPACE, ROBOTARIUM_ROOT=str(root), ROBOTARIUM_PROGRESS="0")
+    log = open(root / "up.log", "wb")
+    up = subprocess.Popen([sys.executable, "-m", "robotarium_client.cli", "up", "--bags-dir", str(bags)], env=env,
+                          cwd=str(root), stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120   # its three nodes say they are ready
+        while (up.poll() is None and time.monotonic() < deadline
+               and (root / "up.log").read_text(errors="replace").count(" ready") < 3):
+            time.sleep(0.1)
+        yield {"domain": domain, "root": root, "bags": bags, "env": env, "up": up, "log": root / "up.log"}
+    finally:
+        if up.poll() is None:
+            os.killpg(up.pid, signal.SIGINT)
+            try:
+                up.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                os.killpg(up.pid, signal.SIGKILL)
+                up.wait()
+        log.close()
+        for pid in processes_on_domain(domain):   # only after a failure: never leave them running
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+
+def run(testbed, cwd, *args, steps=30, robots=2, files=()):
+    """./robotarium run turns_and_saves.py on the module's testbed; (exit code, output, run folder)."""
+    done = cli("run", "--no-local-testbed", "--no-video", "--bags-dir", str(testbed["bags"]), "--results-dir",
+               str(testbed["root"] / "results"), *args, SCRIPT, str(steps), str(robots), *files,
+               env=testbed["env"], cwd=str(cwd))
+    folder = re.findall(r"results in (\S+) \(open", done.stdout)
+    return done.returncode, done.stdout, os.path.join(str(cwd), folder[-1]) if folder else None
+
+
+def test_a_second_testbed_in_the_namespace_refuses_naming_the_first(testbed, tmp_path):
+    # The same command again: one line naming the testbed that runs (host, pid, since), exit code 4.
+    second = cli("up", "--bags-dir", str(tmp_path), env=testbed["env"], cwd=str(tmp_path))
+    lines = second.stdout.strip().splitlines()
+    assert second.returncode == 4 and len(lines) == 1, second.stdout
+    assert "not starting a second testbed: a simulator already runs in %s" % NAMESPACE in lines[0], lines[0]
+    assert "host %s" % socket.gethostname() in lines[0] and "since " in lines[0], lines[0]
+    assert "started by ./robotarium up --bags-dir %s (pid %d)" % (testbed["bags"], testbed["up"].pid) in lines[0]
+    # A node started as ros2 run or a launch file starts it (no starter that looked first) refuses too.
+    log = tmp_path / "safety.log"
+    stray = NodeProcess("robotarium_safety.safety_node", testbed["domain"], ros_args=["-r", "__ns:=%s" % NAMESPACE],
+                        log_path=str(log), env=testbed["env"])
+    try:
+        assert stray.proc.wait(timeout=60) == 4, stray.output()
+    finally:
+        stray.close()
+    assert "a safety node already runs in %s" % NAMESPACE in stray.output(), stray.output()
+    # The first testbed never noticed: a run completes on it, recorded by its recorder.
+    code, out, folder = run(testbed, tmp_path)
+    assert code == 0 and "Run completed." in out, out
+    assert folder.startswith(str(testbed["bags"])) and os.path.isfile(os.path.join(folder, "report.txt")), out
+    assert testbed["up"].poll() is None, testbed["log"].read_text()
+
+
+def test_data_files_over_the_cap_are_left_out_and_named(testbed, tmp_path):
+    config = yaml.safe_load(open(DEFAULT_FILE))
+    config["/**"]["ros__parameters"]["run_data_limit"] = 0.05   # MB
+    with open(tmp_path / "capped.yaml", "w") as f:
+        yaml.safe_dump(config, f)
+    # small.dat (10 kB) is written first, big.dat (80 kB) last: the newest first, each that fits.
+    code, out, folder = run(testbed, tmp_path, "--config", str(tmp_path / "capped.yaml"),
+                            files=("small.dat:10", "big.dat:80"))
+    assert code == 0 and "Run completed." in out, out
+    assert "1 data file(s) of 0.08 MB left out of the run folder (run_data_limit 0.05 MB" in out, out
+    assert os.listdir(os.path.join(folder, "data")) == ["small.dat"]
+    with open(os.path.join(folder, "run.json")) as f:
+        assert list(json.load(f)["data_not_saved"]) == ["big.dat"]
+    with open(os.path.join(folder, "report.txt")) as f:
+        assert "data file big.dat not saved in the run folder: left out: 0.08 MB over" in f.read()
+
+
+def test_a_full_disk_stops_the_recording_not_the_run_nor_the_testbed(testbed, tmp_path):
+    if os.geteuid() != 0:
+        pytest.skip("mounting a small tmpfs under the recorder needs root")
+    bags = str(testbed["bags"])
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", bags], stderr=subprocess.PIPE,
+                             text=True)
+    if mounted.returncode != 0:
+        pytest.skip("cannot mount a tmpfs here: %s" % mounted.stderr.strip())
+    try:
+        # 10 robots, 1000 steps: a bag of ~300 kB, so the disk fills during the run.
+        code, out, folder = run(testbed, tmp_path, steps=1000, robots=10)
+        assert code == 4 and ACCEPTANCE not in out, out
+        assert "the experiment completed, but recording stopped at step" in out and "disk full" in out, out
+        # The run folder is beside the full disk; it says where the recording stopped and why.
+        assert folder.startswith(str(testbed["root"] / "results")), out
+        with open(os.path.join(folder, "run.json")) as f:
+            info = json.load(f)
+        k = info["recording_stopped_at_step"]
+        assert info["recording_stopped_because"] == "disk full" and info["exit_code"] == 4, info
+        assert info["outcome"] == "completed" and 0 < k < 1000, info
+        assert info["collisions"] == 0 and info["boundary_violations"] == 0, info   # the robots were unharmed
+        with open(os.path.join(folder, "report.txt")) as f:
+            report = f.read()
+        assert report.startswith("Run completed. Recording stopped at step %d: disk full" % k), report
+        assert ACCEPTANCE not in report and "recording is incomplete" in report, report
+        with open(os.path.join(folder, "index.html")) as f:
+            assert "Recording stopped at step %d: disk full" % k in f.read()
+        # What was recorded reads back with an independent reader, up to step k.
+        from rosbags.highlevel import AnyReader
+        from pathlib import Path
+        with AnyReader([Path(info["recording"])]) as reader:
+            poses = [c for c in reader.connections if c.topic == NAMESPACE + "/poses"]
+            steps = [reader.deserialize(raw, c.msgtype).step for c, _, raw in reader.messages(connections=poses)]
+        assert steps and max(steps) == k
+        assert testbed["up"].poll() is None, testbed["log"].read_text()
+        assert "Traceback" not in testbed["log"].read_text()
+        # The testbed survives: with room again, the next run is recorded in full.
+        shutil.rmtree(info["recording"])
+        code, out, folder = run(testbed, tmp_path)
+        assert code == 0 and "Run completed." in out and ACCEPTANCE in out, out
+        assert folder.startswith(bags) and glob.glob(os.path.join(folder, "*.mcap")), out
+    finally:
+        for _ in range(50):   # the recorder may still hold the bag it wrote: lazily, then wait
+            if subprocess.run(["umount", "-l", bags], stderr=subprocess.DEVNULL).returncode == 0:
+                break
+            time.sleep(0.1)
