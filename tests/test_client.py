@@ -160,6 +160,7 @@ def test_after_a_pause_the_next_step_shows_what_the_command_timeout_allowed(test
     assert abs(moved - 0.1 * 0.5) <= 0.1 * r.time_step + 1e-9, moved
 
 
+@pytest.mark.slow
 def test_hardware_like_lockstep_through_the_stack_is_repeatable(testbed, capsys, monkeypatch):
     from robotarium_client import session
     runs = []
@@ -276,6 +277,7 @@ def test_no_testbed_gives_a_clear_error(monkeypatch):
         robotarium(number_of_robots=2)
 
 
+@pytest.mark.slow
 def test_without_safety_node_nothing_moves(tmp_path, monkeypatch):
     domain = unique_domain_id()
     sim = NodeProcess("robotarium_sim.simulator_node", domain, log_path=tmp_path / "sim.log")

@@ -302,6 +302,7 @@ def sent_by(flood_process):
     return json.loads(flood_process.output().strip().splitlines()[-1])
 
 
+@pytest.mark.slow
 def test_a_flood_on_both_command_topics_costs_the_experiment_nothing(healthy, tmp_path):
     """1 kHz of foreign and malformed arrays (and a 2.4 MB one twice a second) on cmd_requested and
     on cmd_safe: a real-time 8-robot run has no command timeout and counts every array of the
@@ -377,6 +378,7 @@ def test_the_clients_own_oversized_and_huge_arrays(healthy):
         lab.probe.node.destroy_publisher(pub)
 
 
+@pytest.mark.slow
 def test_a_forger_with_the_copied_token_never_pushes_robots_out(healthy, tmp_path):
     """The issue's attack (22): a process copies the client's token off the wire and floods
     cmd_requested with arrays driving every robot straight at the wall at full speed, in bursts of
@@ -421,6 +423,7 @@ def rss_mb(pid):
         return next(int(line.split()[1]) / 1024 for line in f if line.startswith("VmRSS:"))
 
 
+@pytest.mark.slow
 def test_a_flood_at_the_highest_rate_leaves_no_memory_behind(healthy, tmp_path):
     """10 s of the highest rate one process sends, on both command topics: foreign and malformed
     arrays, arrays with the client's copied token (any step), and every 50th one of 2.4 MB (with

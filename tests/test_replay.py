@@ -52,6 +52,7 @@ def offsets(times):
     return times - times[0]
 
 
+@pytest.mark.slow
 def test_replay_republishes_the_same_messages_in_order_with_the_original_timing(tmp_path, sample):
     bag, original = recorded(sample)
     probe, process, received, statuses = replay(tmp_path, sample, "--figure", "--figure-file", str(tmp_path / "fig.mp4"))

@@ -65,6 +65,7 @@ def test_report_command_on_the_sample_run(tmp_path, capsys):
     assert results.main([str(tmp_path / "missing")]) == 2
 
 
+@pytest.mark.slow
 def test_gif_when_no_video_encoder(tmp_path):
     from PIL import Image
     track = Bag(SAMPLE).poses()

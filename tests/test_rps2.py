@@ -256,6 +256,7 @@ def test_debug_texts_are_2x_character_for_character():
 
 # -- where robots start: the fixed bugs -------------------------------------------------------------------
 
+@pytest.mark.slow
 @pytest.mark.skipif(not (os.path.isdir(REFERENCE) and os.path.exists(REFERENCE_PYTHON)),
                     reason="needs 2.1.0's source and .venv-reference")
 def test_the_reference_fails_where_we_do_not():
@@ -377,9 +378,9 @@ def rps2_utilities():
 # which a script may pass as initial_conditions.
 # Measured (N = 23-50, seeds 0-4, both kinds: 60 of 60 arrive in 672-3220 steps); here a sample,
 # with the slowest (50, seed 2, guide grid: 3220 steps) and slowest random (50, seed 3: 2331).
-@pytest.mark.parametrize("n, seed, kind", [(23, 1, "random"), (30, 1, "random"), (40, 2, "random"),
-                                           (50, 0, "random"), (50, 3, "random"),
-                                           (45, 0, "guide"), (50, 1, "guide"), (50, 2, "guide")])
+@pytest.mark.parametrize("n, seed, kind", [(23, 1, "random"), (30, 1, "random")] + [
+    pytest.param(*case, marks=pytest.mark.slow) for case in [(40, 2, "random"), (50, 0, "random"), (50, 3, "random"),
+                                                             (45, 0, "guide"), (50, 1, "guide"), (50, 2, "guide")]])
 def test_the_drive_on_phase_brings_many_robots_to_their_initial_conditions(rps2_utilities, n, seed, kind, capsys):
     r = InProcess(n, seed, guide_initial_conditions(n, seed) if kind == "guide" else None)
     r.initialize()

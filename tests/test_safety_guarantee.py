@@ -375,6 +375,7 @@ adversaries = st.one_of(st.none(), st.tuples(st.just("scale"), seeds, st.floats(
 
 # About 15 s on this project's 2-core machine. Search longer with ROBOTARIUM_SAFETY_EXAMPLES=2000
 # (a failure prints the specs of its minimised case: add it to REGRESSIONS).
+@pytest.mark.slow
 @settings(max_examples=int(os.environ.get("ROBOTARIUM_SAFETY_EXAMPLES", "40")), deadline=None, derandomize=True,
           database=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(scene=scenes(), script=scripts(), adversary=adversaries, steps=st.sampled_from([200, 300]))
@@ -585,6 +586,7 @@ def test_a_forger_with_the_token_cannot_push_robots_out_in_lockstep():
     assert testbed.steps >= 300
 
 
+@pytest.mark.slow
 def test_a_forger_with_the_token_cannot_push_robots_out_in_real_time():
     poses = make_scene(AT_THE_WALL)
     poses[2] = 0.0
@@ -616,6 +618,7 @@ kinds = st.fixed_dictionaries({"burst": st.sampled_from([1, 5, 40]), "forge": st
 
 
 # About 20 s on this project's 2-core machine; search longer with ROBOTARIUM_STREAM_EXAMPLES=500.
+@pytest.mark.slow
 @settings(max_examples=int(os.environ.get("ROBOTARIUM_STREAM_EXAMPLES", "30")), deadline=None, derandomize=True,
           database=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(scene=scenes(), script=scripts(), seed=seeds, kind=kinds, real_time=st.booleans(),

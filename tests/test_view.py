@@ -79,6 +79,7 @@ def published_at(robots, poses):
     return None
 
 
+@pytest.mark.slow
 def test_a_foxglove_client_gets_the_live_scene_poses_status_and_commands_during_a_run(tmp_path):
     domain = unique_domain_id()
     scene, grid = NS + "/" + SCENE, NS + "/" + SCENE_DRAWING
@@ -184,6 +185,7 @@ def test_replay_view_streams_a_recorded_run(tmp_path):
     assert "[replay]" in replay.output()
 
 
+@pytest.mark.slow
 def test_replay_view_played_once_waits_for_a_viewer(tmp_path):
     """Without --loop the replay would be over before anyone opened Foxglove: it says it waits for a
     viewer, waits, and plays the run once a client subscribed, then ends by itself."""
