@@ -153,6 +153,8 @@ class Robotarium(RobotariumABC):
 
     def _end(self, outcome=outcomes.COMPLETED, detail=""):
         from robotarium_msgs.srv import EndExperiment
+        if "recorder" in self._suspects:   # a lapse just before the end: settle whether the recorder is gone
+            self._spin_until(lambda: self._confirm_losses() or "recorder" not in self._suspects, 2 * self.config.node_lease)
         self._check_testbed()
         # A testbed that was lost is asked briefly: it may be back, but nobody should wait for it.
         response = self._call(self._end_client, EndExperiment.Request(token=self._token, outcome=outcome, detail=detail),
@@ -405,12 +407,7 @@ class Robotarium(RobotariumABC):
         if self._run_id is None or self._ended:
             return
         step = self._latest.step if self._latest is not None else 0
-        if who == "recorder":
-            if self._recorder_lost_at is None:
-                self._recorder_lost_at = step
-                self._recording_stopped_because = outcomes.RECORDER_GONE
-                print("[robotarium] the recorder is gone: recording stopped at step %d. The experiment goes on; "
-                      "what was recorded until then stays readable." % step, file=sys.stderr)
+        if who == "recorder" and self._recorder_lost_at is not None:
             return
         self._suspects.setdefault(who, (time.monotonic(), step))
 
@@ -418,12 +415,22 @@ class Robotarium(RobotariumABC):
         """A node whose presence lapsed is lost once it stayed away another node_lease: on a loaded
         2-core machine a presence lapsed now and then for a moment (a burst of discovery or a flood
         starved the process's DDS threads) while the node went on working, and ended a run that was
-        fine. True when the experiment cannot go on."""
+        fine (a recorder then "stopped" recording a run it recorded whole). A lost recorder is reported
+        as "recording stopped at step k" (k: where its presence lapsed). True when the experiment
+        cannot go on."""
         for who, (since, step) in list(self._suspects.items()):
             watch = self._watches.get(who)
             if watch is not None and watch.alive:
                 del self._suspects[who]   # it was there all along
-            elif time.monotonic() - since >= self.config.node_lease and self._failure is None:
+            elif time.monotonic() - since < self.config.node_lease:
+                continue
+            elif who == "recorder":
+                del self._suspects[who]
+                self._recorder_lost_at = step
+                self._recording_stopped_because = outcomes.RECORDER_GONE
+                print("[robotarium] the recorder is gone: recording stopped at step %d. The experiment goes on; "
+                      "what was recorded until then stays readable." % step, file=sys.stderr)
+            elif self._failure is None:
                 what = {"simulator": "The simulator", "safety": "The safety node"}[who]
                 self._failure_kind = TestbedLost
                 self._failure = (
