@@ -34,7 +34,7 @@ from django.core.files.uploadedfile import SimpleUploadedFile  # noqa: E402
 from django.core.management import call_command  # noqa: E402
 from django.http import Http404  # noqa: E402
 from django.test import Client, override_settings  # noqa: E402
-from django.test.utils import setup_test_environment  # noqa: E402
+from django.test.utils import setup_test_environment, teardown_test_environment  # noqa: E402
 from django_q.models import OrmQ  # noqa: E402
 
 from robotarium_portal import files  # noqa: E402
@@ -50,8 +50,13 @@ def database():
     # Django's advice for tests: a fast hasher (the service keeps Django's default, PBKDF2)
     from django.conf import settings
     settings.PASSWORD_HASHERS = ["django.contrib.auth.hashers.MD5PasswordHasher"]
+    os.makedirs(DATA, exist_ok=True)
     call_command("migrate", interactive=False, verbosity=0)
     yield
+    # (all undone: with pytest-xdist a worker may run this module's tests in two turns, setting it up twice)
+    from django.db import connections
+    connections.close_all()
+    teardown_test_environment()
     shutil.rmtree(DATA, ignore_errors=True)
 
 
