@@ -426,6 +426,8 @@ class Robotarium(RobotariumABC):
                 continue
             elif who == "recorder":
                 del self._suspects[who]
+                if self._recorder_lost_at is not None:
+                    continue   # its recording stopped already, for a cause it named (a full disk): keep that one
                 self._recorder_lost_at = step
                 self._recording_stopped_because = outcomes.RECORDER_GONE
                 print("[robotarium] the recorder is gone: recording stopped at step %d. The experiment goes on; "
