@@ -209,7 +209,11 @@ def test_ros2_launch_starts_the_testbed_that_robotarium_run_uses(ros2, tmp_path)
                            log=tmp_path / "second.log")
         assert second.wait(timeout=120) != 0, (tmp_path / "second.log").read_text()
         refused = (tmp_path / "second.log").read_text()
-        assert "not starting a second testbed: a simulator already runs in /launched" in refused, refused
+        # Whichever of its nodes looks first refuses (launch then stops the others); it names the first testbed's node.
+        first_pids = set(re.findall(r"process started with pid \[(\d+)\]", (tmp_path / "launch.log").read_text()))
+        named = re.findall(r"not starting a second testbed: a (?:simulator|safety node|recorder) already runs in "
+                           r"/launched on ROS_DOMAIN_ID %d: host \S+, pid (\d+)" % domain, refused)
+        assert named and set(named) <= first_pids, (first_pids, refused)
         assert launch.poll() is None, "the first testbed stopped"
         assert cli.stop(launch) == 0
         log = (tmp_path / "launch.log").read_text()

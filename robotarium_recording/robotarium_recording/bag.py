@@ -23,6 +23,7 @@ import functools
 import glob
 import hashlib
 import os
+import errno
 import re
 import struct
 import time
@@ -352,9 +353,14 @@ class BagWriter:
 def write_metadata_file(bag_dir, metadata):
     """Replace metadata.yaml atomically (a reader never sees half of it)."""
     tmp = os.path.join(bag_dir, ".metadata.yaml.tmp")
-    with open(tmp, "w", encoding="utf-8") as f:
-        yaml.dump(metadata, f, Dumper=_DUMPER, sort_keys=False, default_flow_style=False)
-    os.replace(tmp, os.path.join(bag_dir, "metadata.yaml"))
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            yaml.dump(metadata, f, Dumper=_DUMPER, sort_keys=False, default_flow_style=False)
+        os.replace(tmp, os.path.join(bag_dir, "metadata.yaml"))
+    except OSError:
+        if os.path.exists(tmp):   # a full disk: the old metadata.yaml stays, no half-written copy beside it
+            os.remove(tmp)
+        raise
 
 
 # -- reading -----------------------------------------------------------------------------------
@@ -637,14 +643,43 @@ def recover_bag(path):
         os.remove(leftover)
     if bag.complete and not bag.truncated:
         return bag
+    cuts = {}   # file -> offsets just after each of its complete records, the last one first to try
     for file_path in bag.files:
         with open(file_path, "rb") as f:
-            data = f.read()
-        end = _last_complete_record_end(data)
-        with open(file_path, "r+b") as f:
-            f.seek(end)
-            f.write(_PROVISIONAL_TAIL)
-            f.truncate()
+            cuts[file_path] = _complete_record_ends(f.read())
+        _cut_after_record(file_path, cuts[file_path])
+    while True:
+        try:
+            _write_recovered_metadata(path)
+            return Bag(path)
+        except OSError as error:
+            # On a full disk even metadata.yaml may not fit: give up the last chunk to make room.
+            last = bag.files[-1] if bag.files else None
+            if error.errno not in (errno.ENOSPC, errno.EDQUOT) or last is None or len(cuts[last]) < 2:
+                raise
+            cuts[last].pop()
+            _cut_after_record(last, cuts[last])
+
+
+def _cut_after_record(file_path, ends):
+    """Cut an MCAP file after the last complete record in `ends` and give it a provisional end. The
+    end is written after the cut so a full disk has the cut's space back; if even that does not fit,
+    cut one record earlier (`ends` loses what was given up)."""
+    while True:
+        try:
+            with open(file_path, "r+b") as f:
+                f.truncate(ends[-1])
+                f.seek(ends[-1])
+                f.write(_PROVISIONAL_TAIL)
+            return
+        except OSError as error:
+            if error.errno not in (errno.ENOSPC, errno.EDQUOT) or len(ends) < 2:
+                raise
+            ends.pop()
+
+
+def _write_recovered_metadata(path):
+    """metadata.yaml rewritten from what the (cut) file holds, keeping the recorder's topic metadata."""
     bag = Bag(path)
     metadata = (bag.metadata and {"rosbag2_bagfile_information": dict(bag.metadata)}) or {
         "rosbag2_bagfile_information": {"version": METADATA_VERSION, "storage_identifier": "mcap",
@@ -671,14 +706,15 @@ def recover_bag(path):
     return Bag(path)
 
 
-def _last_complete_record_end(data):
-    """Offset just after the last complete data-section record of an MCAP file's bytes (a chunk
-    counts only if it decompresses and its CRC matches)."""
+def _complete_record_ends(data):
+    """Offsets just after each complete data-section record of an MCAP file's bytes, in order (a
+    chunk counts only if it decompresses and its CRC matches); just the magic's end if none is."""
     import io
 
     from mcap.data_stream import ReadDataStream
     from mcap.stream_reader import breakup_chunk
-    pos = last = len(MAGIC)
+    pos = len(MAGIC)
+    ends = []
     while pos + 9 <= len(data):
         opcode, length = struct.unpack_from("<BQ", data, pos)
         end = pos + 9 + length
@@ -689,5 +725,6 @@ def _last_complete_record_end(data):
                 breakup_chunk(Chunk.read(ReadDataStream(io.BytesIO(data[pos + 9:end]))), validate_crc=True)
             except Exception:
                 break
-        pos = last = end
-    return last
+        pos = end
+        ends.append(end)
+    return ends or [len(MAGIC)]

@@ -428,8 +428,9 @@ class _CentreGuard:
         high = np.full(len(v), np.inf)
         low = np.full(len(v), -np.inf)
         up, down = coef > 0, coef < 0
-        np.minimum.at(high, robot[up], bound[up] / coef[up])
-        np.maximum.at(low, robot[down], bound[down] / coef[down])
+        with np.errstate(over="ignore"):   # a vanishing coefficient bounds nothing: +-inf is the right limit
+            np.minimum.at(high, robot[up], bound[up] / coef[up])
+            np.maximum.at(low, robot[down], bound[down] / coef[down])
         return np.minimum(np.maximum(v, low), high)
 
 
