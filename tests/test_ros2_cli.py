@@ -145,16 +145,17 @@ def test_ros2_run_param_service_call_topic_pub_and_hz(ros2, tmp_path):
         assert probe.spin_until(lambda: poses and poses[-1].run_id == field(started, "run_id"), 20)
         x_before = np.array(poses[-1].x)
 
-        # Driven with ros2 topic pub at its default QoS (reliable, volatile): the robots move.
-        cli.run("topic", "pub", "--times", "30", "--rate", "30", "--wait-matching-subscriptions", "2",
-                "/robotarium/cmd_requested", "robotarium_msgs/msg/TwistArray",
-                "{token: '%s', ids: [0, 1], twists: [{linear: {x: 0.1}}, {linear: {x: 0.1}}]}" % token, timeout=30)
-        # It waits for the safety node and the recorder to match it (-w 2: with -w 1 the recorder may be
-        # the one, and what it publishes before the safety node matched is lost: the input is volatile);
-        # then its first arrays may still come a heartbeat late, 1-3 s, and at once (the safety node's
-        # side of the match). A robot drives on an array for 0.5 s.
+        # Driven with ros2 topic pub at its default QoS (reliable, volatile): the robots move. It
+        # publishes until they do: the safety node's side of the match may come a heartbeat or more
+        # after the publisher's (1-3 s on a loaded machine), and a volatile publisher that had already
+        # sent its last array and exited (as with --times 30) delivered nothing at all.
+        pub = cli.start("topic", "pub", "--rate", "30", "/robotarium/cmd_requested", "robotarium_msgs/msg/TwistArray",
+                        "{token: '%s', ids: [0, 1], twists: [{linear: {x: 0.1}}, {linear: {x: 0.1}}]}" % token,
+                        log=tmp_path / "pub.log")
         moved = lambda: np.array(poses[-1].x) - x_before   # noqa: E731
-        assert probe.spin_until(lambda: np.all(moved() > 0.03), 5), "ros2 topic pub did not move the robots (%s)" % moved()
+        assert probe.spin_until(lambda: np.all(moved() > 0.03), 30), "ros2 topic pub did not move the robots (%s)" % (
+            moved(), (tmp_path / "pub.log").read_text(), (tmp_path / "safety.log").read_text())
+        cli.stop(pub)
 
         # ros2 topic hz of the poses: the 30 Hz real-time loop (only a sane range: the machine is shared)
         assert probe.spin_until(lambda: "average rate" in (tmp_path / "hz.log").read_text(), 20), (
