@@ -153,8 +153,9 @@ def test_ros2_run_param_service_call_topic_pub_and_hz(ros2, tmp_path):
                         "{token: '%s', ids: [0, 1], twists: [{linear: {x: 0.1}}, {linear: {x: 0.1}}]}" % token,
                         log=tmp_path / "pub.log")
         moved = lambda: np.array(poses[-1].x) - x_before   # noqa: E731
-        assert probe.spin_until(lambda: np.all(moved() > 0.03), 30), "ros2 topic pub did not move the robots (%s)" % (
-            moved(), (tmp_path / "pub.log").read_text(), (tmp_path / "safety.log").read_text())
+        assert probe.spin_until(lambda: np.all(moved() > 0.03), 30), (
+            "ros2 topic pub did not move the robots (moved %s)\npub log: %s\nsafety log: %s" % (
+                moved(), (tmp_path / "pub.log").read_text(), (tmp_path / "safety.log").read_text()))
         cli.stop(pub)
 
         # ros2 topic hz of the poses: the 30 Hz real-time loop (only a sane range: the machine is shared)
