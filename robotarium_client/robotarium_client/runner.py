@@ -135,6 +135,7 @@ def run(script, script_args):
 
 def finish(outcome, detail, code):
     """End every experiment still running, saying how; returns (outcome, detail, code, runs)."""
+    from robotarium_client.robotarium import EndedByUnsentRequest
     step = session.robotaria[-1]._iterations if session.robotaria else 0
     if outcome is None:   # the script's code ran to its end (or sys.exit)
         if not session.robotaria:
@@ -160,6 +161,8 @@ def finish(outcome, detail, code):
         if robotarium.run_info is None:
             try:
                 robotarium._finish(outcome, detail)
+            except EndedByUnsentRequest:
+                pass   # ended already, by the request it names (the script's exception said so)
             except BaseException as error:   # noqa: BLE001 - a lost testbed cannot be told
                 print("[robotarium] could not end the experiment on the testbed (%s)"
                       % session.describe_exception(error), file=sys.stderr)
