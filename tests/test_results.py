@@ -1,5 +1,6 @@
 """Results of a recorded run from its bag alone: the debug report (equal to the live one), the
 trajectory plot and the video."""
+import json
 import math
 import os
 import shutil
@@ -126,3 +127,44 @@ def test_the_results_page_wraps_long_report_and_log_lines(tmp_path):
     assert "white-space: pre-wrap" in rule and "overflow-wrap: anywhere" in rule, rule
     assert "overflow-wrap: anywhere" in style.split("td {")[1].split("}")[0]
     assert long_path in text and "1234567890" * 30 in text   # wrapped on the page, never cut
+
+
+def _copy_without_poses(source, target, steps):
+    """A copy of the bag at `source` (with the project's bag writer) without the poses of `steps`."""
+    from robotarium_recording.bag import BagWriter
+    bag = Bag(source)
+    poses_topic = bag.topic("poses")
+    writer = BagWriter(str(target), custom_data=(bag.metadata or {}).get("custom_data") or {})
+    dropped = 0
+    for message in bag.messages():
+        if message.topic == poses_topic and int(bag.decode(message).step) in steps:
+            dropped += 1
+            continue
+        writer.add_topic(message.topic, message.type, definition=bag.schemas[message.type])   # its own types
+        writer.write(message.topic, message.data, message.log_time, message.publish_time)
+    writer.close()
+    assert dropped == len(steps)
+
+
+def test_poses_missing_from_the_bag_are_counted_and_the_recording_called_incomplete(tmp_path, capsys):
+    """A gap in the bag's step sequence (poses the recorder lost): the results count it, run.json
+    gets recording_lost_poses and recording_first_lost_step, the report has no acceptance estimate and
+    says the recording is incomplete, exit code 4 (it used to be a note and 'Acceptance likely')."""
+    bag = tmp_path / "gap"
+    _copy_without_poses(SAMPLE, bag, {40, 41, 42})
+    numbers = results.recompute(str(bag))
+    assert (numbers["recording_lost_poses"], numbers["recording_first_lost_step"]) == (3, 40)
+    run = {"outcome": "completed", "detail": "", "exit_code": 0, "run_id": numbers["settings"]["run_id"]}
+    with open(bag / "run.json", "w") as f:
+        json.dump(run, f)
+    assert results.main([str(bag), "--no-video", "--quiet"]) == 4
+    out = capsys.readouterr().out
+    lost = "The recording is incomplete: poses of 3 step(s) are missing from the bag (first: step 40)."
+    assert out.startswith("Run completed. " + lost) and "Acceptance of your experiment is likely" not in out, out
+    with open(bag / "run.json") as f:
+        info = json.load(f)
+    assert (info["recording_lost_poses"], info["recording_first_lost_step"], info["exit_code"]) == (3, 40, 4), info
+    with open(bag / "index.html") as f:
+        assert lost in f.read()
+    # the untouched sample: nothing lost
+    assert results.recompute(SAMPLE)["recording_lost_poses"] == 0

@@ -538,6 +538,9 @@ def print_summary(run_dir, run, cwd):
     elif outcomes.recording_stopped(run):
         say("the experiment completed, but %s: its recording is incomplete (exit code %d)"
             % (outcomes.recording_stopped(run), run["exit_code"]))
+    elif run.get("recording_lost_poses"):
+        say("the experiment completed, but %s (exit code %d)" % (outcomes.lost_poses(
+            run["recording_lost_poses"], run["recording_first_lost_step"]), run["exit_code"]))
     elif run["exit_code"]:   # completed, and then the script failed or was stopped
         say("the experiment completed, %s (exit code %d)" % (run["detail"], run["exit_code"]))
     relative = os.path.relpath(run_dir, cwd)

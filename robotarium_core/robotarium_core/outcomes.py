@@ -86,6 +86,13 @@ def recording_stopped(run):
     return "recording stopped at step %d: %s" % (step, run.get("recording_stopped_because") or RECORDER_GONE)
 
 
+def lost_poses(count, first_step):
+    """What a report says of a recording missing the poses of `count` steps (a gap in the bag's step
+    sequence), the first of them `first_step`."""
+    return ("the recording is incomplete: poses of %d step(s) are missing from the bag (first: step %d)"
+            % (count, first_step))
+
+
 def run_notes(run):
     """What the report adds about a run beyond its recording (run.json's dict): a recording that
     stopped early, data files left out of the run folder."""

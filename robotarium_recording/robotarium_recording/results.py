@@ -164,9 +164,10 @@ def recompute(bag, run=None):
         notes.append("poses of %d step(s) are missing from the bag (first: step %d); they are not counted."
                      % (len(missing), missing[0]))
     notes += outcomes.run_notes(run)
+    lost = {"recording_lost_poses": len(missing), "recording_first_lost_step": missing[0] if missing else None}
     experiment = bag.experiment()
     if experiment.get("api") == rps2.API:
-        return _recompute_2x(bag, settings, config, track, n, steps, by_step, notes, experiment, run)
+        return dict(_recompute_2x(bag, settings, config, track, n, steps, by_step, notes, experiment, run), **lost)
     collisions = boundary = 0
     for s in range(steps):
         if s in by_step:
@@ -193,6 +194,7 @@ def recompute(bag, run=None):
     completed = _add_outcome(settings, run)
     safety = safety_summary(bag, config.intervention_tolerance)
     return _cross_check(bag, {
+        **lost,
         "iterations": steps, "collisions": collisions, "boundary_violations": boundary,
         "actuator_limit_iterations": actuator, "number_of_robots": n, "settings": settings,
         "report": model.debug_report(steps, boundary, collisions, actuator, config.time_step, completed, n,
@@ -375,6 +377,19 @@ def write_results(bag_dir, progress=True, *, out_dir=None, video=True, run=None)
         numbers["report"] = numbers["report"].replace(model.ACCEPTANCE_LIKELY, model.RECORDING_INCOMPLETE)
         numbers["first_line"] = "%s %s%s: the recording is incomplete." % (
             numbers["first_line"], stopped[0].upper(), stopped[1:])
+    if numbers["recording_lost_poses"]:   # a gap in the bag's steps: no verdict, and run.json says so
+        lost = outcomes.lost_poses(numbers["recording_lost_poses"], numbers["recording_first_lost_step"])
+        numbers["report"] = numbers["report"].replace(model.ACCEPTANCE_LIKELY, model.RECORDING_INCOMPLETE)
+        numbers["first_line"] = "%s %s%s." % (numbers["first_line"], lost[0].upper(), lost[1:])
+        if run is not None:
+            run.update(recording_lost_poses=numbers["recording_lost_poses"],
+                       recording_first_lost_step=numbers["recording_first_lost_step"])
+            if run.get("exit_code") == 0:   # completed, its recording not: not a success (README)
+                run["exit_code"] = outcomes.EXIT_CODES[outcomes.TESTBED_LOST]
+            run_json = os.path.join(out_dir, "run.json")
+            if os.path.isfile(run_json):
+                with open(run_json, "w", encoding="utf-8") as f:
+                    json.dump(run, f, indent=2)
     paths = {"report": os.path.join(out_dir, "report.txt")}
     with open(paths["report"], "w", encoding="utf-8") as f:
         f.write(report_text(bag, numbers))
@@ -404,14 +419,17 @@ def main(argv=None):
     parser.add_argument("--quiet", action="store_true", help="no progress output")
     args = parser.parse_args(argv)
     try:
-        paths = write_results(args.bag, progress=not args.quiet, out_dir=args.out, video=not args.no_video)
+        run = _run_json(Bag(args.bag).path)
+        paths = write_results(args.bag, progress=not args.quiet, out_dir=args.out, video=not args.no_video,
+                              run=run)
     except (FileNotFoundError, KeyError) as error:
         print("report: %s" % error, file=sys.stderr)
         return 2
     with open(paths["report"], encoding="utf-8") as f:
         print(f.read(), end="")
     print("\nresults:\n" + "\n".join("  %-13s %s" % (k, v) for k, v in paths.items()))
-    return 0
+    # A recording that lost poses is incomplete: exit code 4, as ./robotarium run gives it (README).
+    return outcomes.EXIT_CODES[outcomes.TESTBED_LOST] if run.get("recording_lost_poses") else 0
 
 
 if __name__ == "__main__":
