@@ -81,3 +81,54 @@ def test_an_import_of_something_real_passes_the_pre_check(tmp_path):
     script = tmp_path / "fine.py"
     script.write_text("import rps.robotarium as robotarium\nfrom rps.utilities.misc import *\nimport numpy\n")
     assert cli.check_script(str(script)) is None
+
+
+def _unwritable_results_folder(tmp_path, how):
+    """A results folder ./robotarium run cannot write: under a regular file, read-only, or full."""
+    if how == "under_a_file":
+        (tmp_path / "a_file").write_text("not a folder")
+        return str(tmp_path / "a_file" / "results"), None
+    folder = tmp_path / how
+    folder.mkdir()
+    if os.geteuid() != 0:
+        if how == "full":
+            pytest.skip("a full tmpfs needs root")
+        folder.chmod(0o555)   # read-only for this user
+        return str(folder), None
+    options = "ro,size=64k" if how == "read_only" else "size=64k"
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)], stderr=subprocess.PIPE,
+                             text=True)
+    if mounted.returncode != 0:
+        pytest.skip("cannot mount a tmpfs here: %s" % mounted.stderr.strip())
+    if how == "full":
+        with open(folder / "filler", "wb") as f:
+            try:
+                f.write(b"\0" * 128 * 1024)
+            except OSError:
+                pass
+    return str(folder), str(folder)
+
+
+@pytest.mark.parametrize("how", ["under_a_file", "read_only", "full"])
+def test_an_unwritable_results_folder_is_one_line_and_exit_2_before_anything_runs(tmp_path, how):
+    """A results folder that cannot be written (a full disk, read-only) is said in one line with exit
+    code 2 before a testbed starts (it used to be found after the run: a traceback, exit 1)."""
+    from devtools.rosutil import node_env, unique_domain_id
+    results, mount = _unwritable_results_folder(tmp_path, how)
+    script = tmp_path / "moves.py"
+    script.write_text("import rps.robotarium as robotarium\nr = robotarium.Robotarium(number_of_robots=1, "
+                      "show_figure=False)\nr.step()\nr.call_at_scripts_end()\n")
+    try:
+        done = subprocess.run([ROBOTARIUM, "run", "--no-video", "--results-dir", results, "--bags-dir",
+                               str(tmp_path / "bags"), str(script)], env=node_env(unique_domain_id()), cwd=str(tmp_path),
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=300)
+    finally:
+        if mount:
+            subprocess.run(["umount", "-l", mount])
+    lines = [line for line in done.stdout.splitlines() if line.strip() and "building" not in line]
+    assert done.returncode == 2 and len(lines) == 1, done.stdout
+    assert lines[0].startswith("[robotarium] cannot run: the run's folder would go where it cannot be written: %s"
+                               % results) and "Traceback" not in done.stdout, done.stdout
+    full = "is on a full disk (No space left on device)" in lines[0] or "less than results_min_free" in lines[0]
+    assert full if how == "full" else "is not writable" in lines[0], lines[0]
+    assert not os.path.exists(tmp_path / "bags"), done.stdout   # no testbed was started, nothing recorded

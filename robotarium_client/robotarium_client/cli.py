@@ -338,6 +338,45 @@ HINTS = {
 }
 
 
+def results_folder_problem(folder, min_free_mb):
+    """Why a run's folder cannot go into `folder` (created if missing): not writable, or less than
+    `min_free_mb` MB free; None when it can. Checked with a real write, so a read-only mount, a full
+    disk and missing permissions are all found before anything runs."""
+    try:
+        os.makedirs(folder, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".robotarium-write-check-") as probe:
+            probe.write(b"\0" * 4096)
+            probe.flush()
+            os.fsync(probe.fileno())
+        free = shutil.disk_usage(folder).free
+    except OSError as error:
+        import errno
+        if error.errno in (errno.ENOSPC, errno.EDQUOT):
+            return "%s is on a full disk (%s)" % (folder, error.strerror)
+        return "%s is not writable (%s)" % (folder, error.strerror or error)
+    if free < min_free_mb * 1e6:
+        return "%s has %s free, less than results_min_free (%s)" % (folder, _megabytes(free), _megabytes(min_free_mb * 1e6))
+    return None
+
+
+def check_run_folders(folders, config_file=None):
+    """One line and USAGE_ERROR when a run's folder could not be written (results_folder_problem),
+    else None: said before a testbed starts or a robot moves, not as a traceback after the run."""
+    from robotarium_core import outcomes
+    from robotarium_core.config import ConfigError, DEFAULT, TestbedConfig
+    try:
+        min_free = (TestbedConfig.load(config_file) if config_file else DEFAULT).results_min_free
+    except (OSError, ConfigError):
+        min_free = DEFAULT.results_min_free   # (the run itself says what is wrong with the file)
+    for folder in folders:
+        problem = results_folder_problem(folder, min_free)
+        if problem is not None:
+            say("cannot run: the run's folder would go where it cannot be written: %s. Free some space, or choose "
+                "another folder (--results-dir, --bags-dir)." % problem)
+            return outcomes.USAGE_ERROR
+    return None
+
+
 def new_run_folder(results_dir, name):
     """results/<name>_<YYYYmmdd-HHMMSS>[_k]: a fresh folder for a run that has no recording here."""
     os.makedirs(results_dir, exist_ok=True)
@@ -573,6 +612,12 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
     cwd = os.getcwd()
     results_dir = os.path.abspath(results_dir or os.path.join(repository_root(), "results"))
     started_at = time.strftime("%Y-%m-%d %H:%M:%S")
+    folders = [results_dir]
+    if record and local_testbed:   # a testbed started here records into bags_dir
+        folders.append(os.path.abspath(bags_dir or os.path.join(repository_root(), "bags")))
+    problem = check_run_folders(folders, config_file)
+    if problem is not None:
+        return problem, None, None
 
     problem = check_script(script)
     if problem is not None:

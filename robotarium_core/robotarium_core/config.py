@@ -83,6 +83,8 @@ FIELDS = {
     "recorder_dedup_window": Field("samples per topic whose identity the recorder remembers, to record a sample "
                                    "that two of its readers hear once", 1, 10_000_000, low_open=False,
                                    used_by=("recorder",), integer=True),
+    "results_min_free": Field("MB that must be free where a run's folder goes (results/, bags/) before "
+                              "./robotarium run starts anything", 0.0, low_open=False, used_by=(CLIENT,)),
     "run_data_limit": Field("MB of the script's data files copied into a run folder; files beyond it are left "
                             "out and named (0: none copied)", 0.0, low_open=False, used_by=(CLIENT,)),
     "viewer_rate": Field("Hz at which the simulator publishes the markers topic for viewers (RViz, Foxglove), "
@@ -265,6 +267,7 @@ class TestbedConfig:
     node_lease: float
     claim_wait: float
     recorder_dedup_window: int
+    results_min_free: float
     run_data_limit: float
     viewer_rate: float
     trail_length: float
