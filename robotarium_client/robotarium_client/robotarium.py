@@ -62,6 +62,18 @@ class TestbedBusy(RuntimeError):
     """The testbed is busy with another experiment and this client would not wait (--no-wait)."""
 
 
+class TestbedIncomplete(RuntimeError):
+    """The testbed answers but lacks a node an experiment needs (no safety node: nothing could move)."""
+
+
+def incomplete_testbed_message(ns):
+    """What a client says of a testbed in `ns` whose safety node does not answer (one line)."""
+    return ("The testbed in %s on ROS_DOMAIN_ID %s is incomplete: no safety node answers, and without it the robots "
+            "cannot move. Start one there (ros2 run robotarium_safety safety --ros-args -r __ns:=%s), or stop this "
+            "testbed (./robotarium stop) and start a whole one (./robotarium up)."
+            % (ns, os.environ.get("ROS_DOMAIN_ID", "0").strip() or "0", ns))
+
+
 LINE_POLL = 0.5         # s between a waiting client's asks (well within the testbed's line_lease)
 LINE_REPORT = 10.0      # s between lines saying who holds the testbed, when nothing else changed
 
@@ -344,8 +356,9 @@ class Robotarium(RobotariumABC):
         if not response.success:
             incomplete = not self._watches["safety"].seen   # the testbed's fault, not the request's
             self._shutdown()
-            raise (RuntimeError if incomplete else RobotariumError)(
-                "The testbed refused to start the experiment: %s" % response.message)
+            if incomplete:   # the simulator waited for the safety node in vain: say so, as the testbed's problem
+                raise TestbedIncomplete(incomplete_testbed_message(self._ns))
+            raise RobotariumError("The testbed refused to start the experiment: %s" % response.message)
         self._run_id = response.run_id
         self._token = response.token
         session.note_started(self.partial_run_info())
@@ -360,8 +373,7 @@ class Robotarium(RobotariumABC):
         # so now rather than at the first step's timeout.
         if not self._spin_until(self._safety_node_matched, STEP_TIMEOUT):
             self._end_quietly()
-            raise RuntimeError("No safety node listens on %s/cmd_requested: without it the robots cannot move. "
-                               "Is the testbed complete (./robotarium up starts all of it)?" % self._ns)
+            raise TestbedIncomplete(incomplete_testbed_message(self._ns))
         # Until the simulator follows our presence, a crash of this process would free the testbed
         # only after its discovery wait (10 s) instead of client_lease: wait for it (it takes moments).
         if self._spin_until(lambda: self._presence.publisher.get_subscription_count() > 0, STEP_TIMEOUT):
