@@ -246,7 +246,8 @@ class Robotarium(RobotariumABC):
         from std_msgs.msg import String
 
         from robotarium_core.topics import (CMD_REQUESTED, CONFIG, DRAWING, DRAWING_QOS, END_EXPERIMENT, LATCHED, POSES,
-                                            RECORDING, RECORDING_ERROR, START_EXPERIMENT, STATUS, TESTBED_QOS)
+                                            RECORDING, RECORDING_ERROR, START_EXPERIMENT, STATUS, STATUS_QOS,
+                                            TESTBED_QOS)
         from robotarium_msgs.msg import RobotPoses, TestbedStatus, TwistArray
         from robotarium_msgs.srv import EndExperiment, StartExperiment
 
@@ -273,7 +274,7 @@ class Robotarium(RobotariumABC):
         self._command_pub = self._node.create_publisher(TwistArray, CMD_REQUESTED, TESTBED_QOS)
         self._poses_subscription = self._node.create_subscription(RobotPoses, POSES, self._on_poses, TESTBED_QOS,
                                                                   raw=True)
-        self._node.create_subscription(TestbedStatus, STATUS, self._on_status, TESTBED_QOS)
+        self._node.create_subscription(TestbedStatus, STATUS, self._on_status, STATUS_QOS)
         # Made now, not at the first drawing: the recorder discovers it while the experiment starts.
         self._drawing_pub = self._node.create_publisher(String, DRAWING, DRAWING_QOS)
         self._drawing_message = String()

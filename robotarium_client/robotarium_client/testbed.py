@@ -308,16 +308,10 @@ def testbed_status(targets, timeout=3.0, safety=None):
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-
     from robotarium_core import presence
     from robotarium_core.config import DEFAULT
-    from robotarium_core.topics import STATUS
+    from robotarium_core.topics import STATUS, STATUS_QOS
     from robotarium_msgs.msg import TestbedStatus
-
-    # The testbed's status QoS, but keeping only the newest message of the history handed over.
-    NEWEST_ONLY = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
     newest = {}
     watches = {}   # (domain, namespace): presence.Watch of its safety node
@@ -341,7 +335,7 @@ def testbed_status(targets, timeout=3.0, safety=None):
                     stamp = (msg.header.stamp.sec, msg.header.stamp.nanosec)
                     if old is None or stamp >= (old.header.stamp.sec, old.header.stamp.nanosec):
                         newest[key] = msg
-                node.create_subscription(TestbedStatus, "%s/%s" % (ns.rstrip("/"), STATUS), keep, NEWEST_ONLY)
+                node.create_subscription(TestbedStatus, "%s/%s" % (ns.rstrip("/"), STATUS), keep, STATUS_QOS)
                 if safety is not None:
                     watches[(domain, ns)] = presence.Watch(
                         node, "%s/%s" % (ns.rstrip("/"), presence.alive_topic(presence.SAFETY)), DEFAULT.node_lease)
