@@ -268,6 +268,37 @@ def test_a_testbed_without_a_safety_node_is_incomplete_not_a_script_error(lab):
         testbed.stop()
 
 
+def test_stop_mid_run_names_the_stopped_testbed_first(lab):
+    """`./robotarium stop` of an `up` testbed while a run goes on (issue 23): the run ends with exit 4,
+    the first cause it prints is the real one (the testbed was stopped), in one line (no traceback:
+    the script is fine), and no "could not end the experiment" line follows (the testbed ended it
+    itself)."""
+    ns = "/stopped"
+    env = dict(lab["env"], ROBOTARIUM_NAMESPACE=ns)
+    up = subprocess.Popen([sys.executable, "-m", "robotarium_client.cli", "up", "--bags-dir", lab["bags"]],
+                          env=env, cwd=str(lab["root"]), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                          start_new_session=True)
+    run = None
+    try:
+        run = CliRun(["--no-local-testbed", "--no-video", "--bags-dir", lab["bags"], lab["script"]], env,
+                     cwd=str(lab["root"]))
+        assert run.wait_for("RUNNING", timeout=120), run.output()
+        stopped = cli(lab, "stop", ns=ns)
+        assert stopped.returncode == 0, stopped.stderr
+        assert run.wait(timeout=60) == 4, run.output()
+        out = run.output()
+        assert "could not end the experiment" not in out and "Traceback" not in out, out
+        causes = [line for line in out.splitlines() if "gone" in line or "stopped at step" in line]
+        assert causes and "the testbed stopped at step" in causes[0], out
+        assert "hint: " in out and "fix it" not in out, out
+    finally:
+        if run is not None:
+            run.close()
+        if up.poll() is None:
+            os.killpg(up.pid, signal.SIGKILL)
+        up.wait()
+
+
 def test_every_new_command_has_help():
     from robotarium_client import cli as robotarium_cli
     for command in ("status", "stop", "end", "run", "up"):

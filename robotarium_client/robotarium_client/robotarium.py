@@ -202,6 +202,17 @@ class Robotarium(RobotariumABC):
                                           ("actuator", response.actuator_limit_iterations)) if v}
         return report
 
+    def _finish(self, outcome, detail=""):
+        """As RobotariumABC._finish; but an experiment that the testbed ended itself (an operator, a
+        stopped testbed) or whose simulator or safety node is gone has nothing left to end here: the
+        script was stopped with that cause, which was printed, and a second line ("could not end the
+        experiment") would only repeat it as if something else had failed. ./robotarium run makes the
+        results from the recording."""
+        if self._failure is not None:
+            self._ended = True
+            return None
+        return super()._finish(outcome, detail)
+
     def _announced_recording(self):
         """The recorder's folder for this run if it announced one (its name starts with the run id)."""
         ok = self._run_id and os.path.basename(self._recording).startswith(self._run_id)

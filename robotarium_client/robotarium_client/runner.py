@@ -115,7 +115,7 @@ def run(script, script_args):
             code = 1
         return None, "", code or 0
     except BaseException as exc:   # noqa: BLE001 - every way a script can end is reported
-        if isinstance(exc, (TestbedBusy, TestbedIncomplete)):   # not the script's fault: one line, no traceback
+        if isinstance(exc, (TestbedBusy, TestbedIncomplete, EndedByTestbed)):   # not the script's fault: one line
             print("[robotarium] %s" % exc, file=sys.stderr, flush=True)
         else:
             print_traceback(exc, script)
