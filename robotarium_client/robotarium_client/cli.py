@@ -967,7 +967,8 @@ def cmd_status(args):
     # only where a simulator runs can a testbed answer (a probe that gets no answer waits the whole timeout)
     targets = [(t["domain"], t["namespace"], t.get("discovery_range")) for t in found
                if t["domain"] != "?" and any(name.startswith("simulator") for name in t["nodes"])]
-    safety = {}
+    # A safety node in this machine's process table is there; for the others its presence decides.
+    safety = {(t["domain"], t["namespace"]): True for t in found if any(name.startswith("safety") for name in t["nodes"])}
     statuses = testbed_status(targets + [(here[0], here[1], None)], timeout=args.timeout, safety=safety)
 
     def described(key):

@@ -295,15 +295,20 @@ def _private_context(domain=None, discovery_range=None):
     return context
 
 
+SAFETY_PRESENCE_WAIT = 2.0   # s a testbed that answers has to show its safety node's presence (testbed_status)
+
+
 def testbed_status(targets, timeout=3.0, safety=None):
     """The newest status of the testbed in each (domain, namespace, discovery range) of `targets`:
     {(domain, namespace): robotarium_msgs TestbedStatus, or None where no testbed answered within
     `timeout` seconds}. The status topic keeps its last messages (transient local), so a testbed
     answers as soon as discovery matched it; all domains are probed at once.
 
-    safety: a dict to fill with {(domain, namespace): whether its safety node's presence was seen}
-    (robotarium_core.presence); a testbed that answers is then given the rest of `timeout` for it,
-    so an incomplete one (no safety node) takes the whole timeout."""
+    safety: a dict {(domain, namespace): whether its safety node is there} to complete: a key set
+    True already (a safety node in this machine's process table) is taken as it is; the others get
+    whether the safety node's presence (robotarium_core.presence) was seen, a testbed that answers
+    being given at least SAFETY_PRESENCE_WAIT s for it (discovery of another process may take that
+    long on a loaded machine), so an incomplete one takes that long."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
@@ -336,14 +341,19 @@ def testbed_status(targets, timeout=3.0, safety=None):
                     if old is None or stamp >= (old.header.stamp.sec, old.header.stamp.nanosec):
                         newest[key] = msg
                 node.create_subscription(TestbedStatus, "%s/%s" % (ns.rstrip("/"), STATUS), keep, STATUS_QOS)
-                if safety is not None:
+                if safety is not None and not safety.get((domain, ns)):
                     watches[(domain, ns)] = presence.Watch(
                         node, "%s/%s" % (ns.rstrip("/"), presence.alive_topic(presence.SAFETY)), DEFAULT.node_lease)
 
+        start = time.monotonic()
+        deadline, safety_deadline = start + timeout, start + max(timeout, SAFETY_PRESENCE_WAIT)
+
         def waiting():
-            return any(v is None or (key in watches and not watches[key].seen) for key, v in newest.items())
-        deadline = time.monotonic() + timeout
-        while waiting() and time.monotonic() < deadline:
+            now = time.monotonic()
+            return any((v is None and now < deadline)
+                       or (v is not None and key in watches and not watches[key].seen and now < safety_deadline)
+                       for key, v in newest.items())
+        while waiting():
             for _, executor, _ in probes:
                 executor.spin_once(timeout_sec=0.02)
         # a moment more, for anything newer still on its way
