@@ -295,25 +295,26 @@ def _private_context(domain=None, discovery_range=None):
     return context
 
 
-def testbed_status(targets, timeout=3.0):
+def testbed_status(targets, timeout=3.0, safety=None):
     """The newest status of the testbed in each (domain, namespace, discovery range) of `targets`:
     {(domain, namespace): robotarium_msgs TestbedStatus, or None where no testbed answered within
     `timeout` seconds}. The status topic keeps its last messages (transient local), so a testbed
-    answers as soon as discovery matched it; all domains are probed at once."""
+    answers as soon as discovery matched it; all domains are probed at once.
+
+    safety: a dict to fill with {(domain, namespace): whether its safety node's presence was seen}
+    (robotarium_core.presence); a testbed that answers is then given the rest of `timeout` for it,
+    so an incomplete one (no safety node) takes the whole timeout."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-
-    from robotarium_core.topics import STATUS
+    from robotarium_core import presence
+    from robotarium_core.config import DEFAULT
+    from robotarium_core.topics import STATUS, STATUS_QOS
     from robotarium_msgs.msg import TestbedStatus
 
-    # The testbed's status QoS, but keeping only the newest message of the history handed over.
-    NEWEST_ONLY = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
     newest = {}
+    watches = {}   # (domain, namespace): presence.Watch of its safety node
     probes = []   # (context, executor, node)
     by_domain = {}
     for domain, ns, discovery_range in targets:   # one probe per domain (the first discovery range given)
@@ -334,9 +335,15 @@ def testbed_status(targets, timeout=3.0):
                     stamp = (msg.header.stamp.sec, msg.header.stamp.nanosec)
                     if old is None or stamp >= (old.header.stamp.sec, old.header.stamp.nanosec):
                         newest[key] = msg
-                node.create_subscription(TestbedStatus, "%s/%s" % (ns.rstrip("/"), STATUS), keep, NEWEST_ONLY)
+                node.create_subscription(TestbedStatus, "%s/%s" % (ns.rstrip("/"), STATUS), keep, STATUS_QOS)
+                if safety is not None:
+                    watches[(domain, ns)] = presence.Watch(
+                        node, "%s/%s" % (ns.rstrip("/"), presence.alive_topic(presence.SAFETY)), DEFAULT.node_lease)
+
+        def waiting():
+            return any(v is None or (key in watches and not watches[key].seen) for key, v in newest.items())
         deadline = time.monotonic() + timeout
-        while any(v is None for v in newest.values()) and time.monotonic() < deadline:
+        while waiting() and time.monotonic() < deadline:
             for _, executor, _ in probes:
                 executor.spin_once(timeout_sec=0.02)
         # a moment more, for anything newer still on its way
@@ -344,6 +351,8 @@ def testbed_status(targets, timeout=3.0):
         while time.monotonic() < settle:
             for _, executor, _ in probes:
                 executor.spin_once(timeout_sec=0.02)
+        if safety is not None:
+            safety.update({key: watch.seen for key, watch in watches.items()})
     finally:
         for context, executor, node in probes:
             executor.shutdown()
