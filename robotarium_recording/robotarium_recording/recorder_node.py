@@ -350,6 +350,7 @@ class RecorderNode(Node):
         a volatile publisher)."""
         for name, types in self.get_topic_names_and_types():
             if (not name.startswith(self.ns + "/") or (name in self.topics and self.topics[name] is None) or not types
+                    or name == self.status_topic   # recorded from its stream (above)
                     or name[len(self.ns) + 1:] in EXCLUDED_TOPICS or "/_" in name):
                 continue
             offers = [(o.qos_profile.reliability == ReliabilityPolicy.RELIABLE,
