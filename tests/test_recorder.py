@@ -231,6 +231,35 @@ def test_run_through_the_stack_is_recorded_completely(stack):
     assert bagmod.Bag(second.recording).topics[NS + "/poses"].count == 2
 
 
+def test_a_default_qos_publisher_is_recorded_once_beside_the_testbeds_own(stack):
+    """Arrays from a plain rclpy publisher with default QoS (reliable, volatile: as ros2 topic pub) on
+    cmd_safe, beside the testbed's transient-local writer: the testbed hears them (its inputs are
+    volatile), so the bag holds them, each once, and the testbed's own arrays once too (the recorder
+    used to have one transient-local reader there, which no volatile writer matches)."""
+    stack.start(2, name="injected")
+    stack.step(1, [0.05, 0.05], [0.0, 0.0])
+    injector = stack.probe.node.create_publisher(TwistArray, NS + "/cmd_safe", 10)   # rclpy's default QoS
+    # the simulator's reader matches it at once; the recorder's (if it has one that can) within its discovery
+    stack.probe.spin_until(lambda: injector.get_subscription_count() >= 2, 10)
+    for i in range(5):
+        msg = TwistArray(token="f" * 32, step=100 + i, ids=[0, 1], twists=[Twist(), Twist()])
+        msg.header.frame_id = "injected"
+        injector.publish(msg)
+        stack.probe.spin_for(0.02)
+    for k in range(2, 6):
+        stack.step(k, [0.05, 0.05], [0.0, 0.0])
+    ended = stack.end()
+    stack.wait_closed(ended.recording)
+    decoded, counts, _ = rosbags_messages(ended.recording)
+    arrays = decoded[NS + "/cmd_safe"]
+    assert sorted(a.step for a in arrays if a.header.frame_id == "injected") == [100, 101, 102, 103, 104]
+    assert sorted(a.step for a in arrays if a.header.frame_id != "injected") == [1, 2, 3, 4, 5]
+    assert counts[NS + "/cmd_safe"] == 10
+    assert [p.step for p in decoded[NS + "/poses"]] == list(range(6))   # the testbed's own topics: once each
+    header, by_topic = mcap_messages(ended.recording)
+    assert len(by_topic[NS + "/cmd_safe"]) == 10
+
+
 def test_a_recorder_started_after_the_run_began_still_gets_its_start(tmp_path):
     """The testbed's topics keep a history (transient local) that a late recorder is handed."""
     late = Stack(tmp_path, recorder=False)
@@ -445,3 +474,15 @@ def test_run_recorder_ignores_a_finished_run_handed_over_as_history(tmp_path):
     rec.close()
     assert [os.path.basename(p) for p in started] == ["going"]
     assert [m.data[4:] for m in bagmod.Bag(started[0]).messages()] == [b"b1", b"b2", b"b3"]
+
+
+def test_seen_samples_drop_copies_within_their_window_and_reader_kinds_cover_every_writer():
+    from robotarium_recording import samples
+    seen = samples.SeenSamples(window=3)
+    assert [seen.first("/t", k) for k in (1, 2, 1, 3, 4, 1)] == [True, True, False, True, True, True]
+    assert seen.first("/u", 2) and seen.copies == 1 and len(seen.topics["/t"][0]) == 3   # bounded, per topic
+    assert samples.identity({"source_timestamp": 5, "publication_sequence_number": 2}, b"abc") == (5, 2, 3)
+    assert samples.identity({}, b"abc") is None
+    assert samples.reader_kinds([(True, True)]) == {samples.RELIABLE_LATCHED}
+    assert samples.reader_kinds([(True, True), (True, False), (False, False)]) == {
+        samples.RELIABLE_LATCHED, samples.RELIABLE_VOLATILE, samples.BEST_EFFORT}

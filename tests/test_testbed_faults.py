@@ -165,3 +165,35 @@ def test_a_full_disk_stops_the_recording_not_the_run_nor_the_testbed(testbed, tm
             if subprocess.run(["umount", "-l", bags], stderr=subprocess.DEVNULL).returncode == 0:
                 break
             time.sleep(0.1)
+
+
+def test_an_end_request_the_script_did_not_send_is_never_run_completed(testbed, tmp_path):
+    """A process that copied the run's token off the wire ends the experiment at step ~115 (it used to
+    be "Run completed. Acceptance ... likely!" with run.json saying interrupted)."""
+    forger = subprocess.Popen([sys.executable, "-m", "devtools.forged_end", "--namespace", NAMESPACE, "--at-step",
+                               "115", "--wait", "150"], env=testbed["env"], cwd=str(tmp_path),
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        code, out, folder = run(testbed, tmp_path, steps=3000)   # lockstep: it ends long before step 3000
+        forged = forger.communicate(timeout=60)[0]
+    finally:
+        if forger.poll() is None:
+            forger.kill()
+            forger.wait()
+    assert '"success": true' in forged, forged
+    assert "Run completed" not in out and ACCEPTANCE not in out and code == 4, out
+    with open(os.path.join(folder, "run.json")) as f:
+        info = json.load(f)
+    k = info["ended_by_unsent_request_at_step"]
+    assert 110 <= k < 3000, info   # (the simulator may not have applied the array of step 115 yet)
+    assert info["outcome"] == "ended_by_unsent_request" and info["exit_code"] == 4 and code == 4, (info, out)
+    cause = "the experiment was ended at step %d by an end request this script did not send (a process holding " \
+            "its token)" % k
+    assert "EndedByUnsentRequest: T%s" % cause[1:] in out and "could not end" not in out, out   # the script's step() raised it
+    assert "Run did not complete: %s." % cause in out, out
+    with open(os.path.join(folder, "report.txt")) as f:
+        report = f.read()
+    assert report.startswith("Run did not complete: %s." % cause) and ACCEPTANCE not in report, report
+    with open(os.path.join(folder, "index.html")) as f:
+        assert cause in f.read()
+    assert testbed["up"].poll() is None, testbed["log"].read_text()

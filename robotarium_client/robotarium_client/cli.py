@@ -330,6 +330,9 @@ HINTS = {
                      "log/testbed/, otherwise look at the machine running ./robotarium up"),
     "client_lost": "the testbed ended the experiment because it stopped hearing from the script",
     "time_limit": "the experiment reached its time limit",
+    "ended_by_unsent_request": ("another process holding the run's token (copied off the wire: without SROS2 it is no "
+                                "secret) ended the experiment: stop that process (./robotarium status lists what runs "
+                                "on the domain) or use DDS Security (sros2/README.md), then run the script again"),
     "testbed_busy": ("the testbed was busy with another experiment (nothing ran): run again without --no-wait to wait in "
                      "line for it; ./robotarium status shows who holds it"),
     "testbed_incomplete": ("the testbed has no safety node (nothing ran): start one in its namespace, or stop the "

@@ -93,6 +93,18 @@ class EndedByTestbed(RuntimeError):
     """The testbed ended the experiment (an operator's ./robotarium end --force, a stopped testbed)."""
 
 
+class EndedByUnsentRequest(EndedByTestbed):
+    """An end request with this run's token that this script did not send ended the experiment: a
+    process that copied the token off the wire (without SROS2 it is no secret). Never "completed"."""
+
+    def __init__(self, step):
+        super().__init__(
+            "%s. Stop the process that sends it (./robotarium status lists what runs on the domain), or run the "
+            "testbed with DDS Security (sros2/README.md) so that no other process learns the token; then run the "
+            "script again." % ("T" + outcomes.unsent_end(step)[1:]))
+        self.step = step
+
+
 class TimeLimitReached(SystemExit):
     """Raised by step() once the experiment reached its time limit (testbed configuration
     `time_limit`, or ./robotarium run --time-limit): the experiment has been ended and its report
@@ -165,6 +177,7 @@ class Robotarium(RobotariumABC):
 
     def _end(self, outcome=outcomes.COMPLETED, detail=""):
         from robotarium_msgs.srv import EndExperiment
+        self._end_sent = True   # an IDLE status of this run from now on may be this request's
         if "recorder" in self._suspects:   # a lapse just before the end: settle whether the recorder is gone
             self._spin_until(lambda: self._confirm_losses() or "recorder" not in self._suspects, 2 * self.config.node_lease)
         self._check_testbed()
@@ -172,6 +185,12 @@ class Robotarium(RobotariumABC):
         response = self._call(self._end_client, EndExperiment.Request(token=self._token, outcome=outcome, detail=detail),
                               timeout=3.0 if outcome == outcomes.TESTBED_LOST else 30.0)
         if not response.success:
+            # Refused: if the testbed says its client ended the run, that end request was not ours (ours
+            # was in flight when one with our token came first).
+            if self._unsent_end_at is None and self._idle_end_reason.startswith(outcomes.ENDED_BY_ITS_CLIENT):
+                self._unsent_end_at = outcomes.step_of_end_reason(self._idle_end_reason)
+            if self._unsent_end_at is not None:
+                self._failure_kind, self._failure = EndedByUnsentRequest, self._unsent_end_at
             self._check_testbed()   # ended meanwhile (lost, or by an operator): say so rather than "no experiment"
             raise RuntimeError("The testbed could not end the experiment: %s" % response.message)
         dropped = {name: {reason: int(getattr(counts, reason)) for reason in model.DROP_REASONS}
@@ -220,9 +239,12 @@ class Robotarium(RobotariumABC):
 
     def partial_run_info(self):
         """What is known of a run whose end the testbed never confirmed (a lost testbed)."""
-        return {"run_id": self._run_id or "", "recording": self._announced_recording(), "report": "",
+        info = {"run_id": self._run_id or "", "recording": self._announced_recording(), "report": "",
                 "steps": self._latest.step if self._latest is not None else 0,
                 "real_time": self.sim_in_real_time, "number_of_robots": self.number_of_robots, "ended": False}
+        if getattr(self, "_unsent_end_at", None) is not None:
+            info.update(ended=True, ended_by_unsent_request_at_step=self._unsent_end_at)
+        return info
 
     def _after_report(self):
         info = self.run_info
@@ -269,6 +291,9 @@ class Robotarium(RobotariumABC):
         self._watches = {}
         self._failure = None          # why the experiment cannot go on (a node lost, ended by someone else)
         self._failure_kind = TestbedLost
+        self._end_sent = False        # this script sent its end request (call_at_scripts_end, or ending as it failed)
+        self._unsent_end_at = None    # the step at which an end request with our token ended the run, if not ours
+        self._idle_end_reason = ""    # who ended this run, as the simulator's IDLE status says
         self._suspects = {}           # {node: (monotonic time, step)} whose presence lapsed, not yet confirmed lost
         self._recorder_lost_at = None
         self._recording_stopped_because = None   # "the recorder is gone", "disk full", ...
@@ -468,9 +493,20 @@ class Robotarium(RobotariumABC):
 
     def _on_status(self, msg):
         from robotarium_msgs.msg import TestbedStatus
-        if msg.run_id == self._run_id and msg.state == TestbedStatus.STATE_IDLE and not self._ended:
-            self._failure_kind = self._failure_kind if self._failure else EndedByTestbed
-            self._failure = self._failure or ("The experiment was ended by the testbed: %s." % (
+        if msg.run_id != self._run_id or msg.state != TestbedStatus.STATE_IDLE:
+            return
+        self._idle_end_reason = msg.end_reason
+        if msg.end_reason.startswith(outcomes.ENDED_BY_ITS_CLIENT) and not self._end_sent and self._unsent_end_at is None:
+            # Ended by a request with our token that we did not send: a process holding the token.
+            step = outcomes.step_of_end_reason(msg.end_reason, self._latest.step if self._latest is not None else 0)
+            self._unsent_end_at = step
+            print("[robotarium] %s." % outcomes.unsent_end(step), file=sys.stderr)
+            if not (self._failure is not None and self._failure_kind is TestbedLost):
+                self._failure_kind, self._failure = EndedByUnsentRequest, step
+            return
+        if not self._ended:
+            self._failure_kind = self._failure_kind if self._failure is not None else EndedByTestbed
+            self._failure = self._failure if self._failure is not None else ("The experiment was ended by the testbed: %s." % (
                 msg.end_reason or "no reason given"))
 
     def _check_testbed(self):
@@ -553,6 +589,7 @@ class Robotarium(RobotariumABC):
             # (a testbed whose service is gone has ended the experiment itself, or is gone with it)
             if self._token and not (simulator is not None and simulator.lost) and self._end_client.service_is_ready():
                 outcome, detail = session.outcome_of_uncaught(self._iterations)
+                self._end_sent = True
                 try:
                     from robotarium_msgs.srv import EndExperiment
                     self._call(self._end_client, EndExperiment.Request(token=self._token, outcome=outcome,

@@ -98,7 +98,7 @@ def where_in_script(exc, script):
 
 def run(script, script_args):
     """Run the script; returns (outcome, detail, exit code)."""
-    from robotarium_client.robotarium import EndedByTestbed, TestbedBusy, TestbedIncomplete
+    from robotarium_client.robotarium import EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete
     sys.argv = [script, *script_args]
     sys.path.insert(0, os.path.dirname(script))
     for signum in (signal.SIGTERM, signal.SIGHUP):
@@ -115,7 +115,8 @@ def run(script, script_args):
             code = 1
         return None, "", code or 0
     except BaseException as exc:   # noqa: BLE001 - every way a script can end is reported
-        if isinstance(exc, (TestbedBusy, TestbedIncomplete, EndedByTestbed)):   # not the script's fault: one line
+        if (isinstance(exc, (TestbedBusy, TestbedIncomplete, EndedByTestbed))
+                and not isinstance(exc, EndedByUnsentRequest)):   # the testbed's doing, not the script's: one line
             print("[robotarium] %s" % exc, file=sys.stderr, flush=True)
         else:
             print_traceback(exc, script)
@@ -135,6 +136,7 @@ def run(script, script_args):
 
 def finish(outcome, detail, code):
     """End every experiment still running, saying how; returns (outcome, detail, code, runs)."""
+    from robotarium_client.robotarium import EndedByUnsentRequest
     step = session.robotaria[-1]._iterations if session.robotaria else 0
     if outcome is None:   # the script's code ran to its end (or sys.exit)
         if not session.robotaria:
@@ -160,6 +162,8 @@ def finish(outcome, detail, code):
         if robotarium.run_info is None:
             try:
                 robotarium._finish(outcome, detail)
+            except EndedByUnsentRequest:
+                pass   # ended already, by the request it names (the script's exception said so)
             except BaseException as error:   # noqa: BLE001 - a lost testbed cannot be told
                 print("[robotarium] could not end the experiment on the testbed (%s)"
                       % session.describe_exception(error), file=sys.stderr)

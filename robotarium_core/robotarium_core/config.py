@@ -80,6 +80,9 @@ FIELDS = {
     "claim_wait": Field("s a simulator, safety node or recorder started by ros2 run/launch listens for an older one "
                         "of its kind in its domain and namespace before it offers anything (robotarium_core.claim)",
                         0.0, 10.0, low_open=False, used_by=("every node (packaged file)",)),
+    "recorder_dedup_window": Field("samples per topic whose identity the recorder remembers, to record a sample "
+                                   "that two of its readers hear once", 1, 10_000_000, low_open=False,
+                                   used_by=("recorder",), integer=True),
     "run_data_limit": Field("MB of the script's data files copied into a run folder; files beyond it are left "
                             "out and named (0: none copied)", 0.0, low_open=False, used_by=(CLIENT,)),
     "viewer_rate": Field("Hz at which the simulator publishes the markers topic for viewers (RViz, Foxglove), "
@@ -261,6 +264,7 @@ class TestbedConfig:
     line_lease: float
     node_lease: float
     claim_wait: float
+    recorder_dedup_window: int
     run_data_limit: float
     viewer_rate: float
     trail_length: float

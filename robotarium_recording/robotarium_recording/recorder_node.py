@@ -10,10 +10,13 @@ why a killed recorder still leaves a readable bag); its absolute path is announc
 <ns>/recording (std_msgs/String, reliable + transient local), which the simulator hands back in
 end_experiment's `recording`, and an empty string is announced when the run is closed.
 
-Subscriptions follow rosbag2's rule: a topic is subscribed once it has publishers, reliable unless
-one of them is best effort, transient local when all of them are (the testbed's topics are: see
-robotarium_core.topics), so the history a publisher keeps is handed over on matching and nothing
-published before discovery completed is lost. /rosout is taken live only (volatile).
+Subscriptions: a topic is subscribed once it has publishers, with one reader per kind of publisher
+it has (robotarium_recording.samples): reliable transient-local for the testbed's own (robotarium_core.topics),
+so the history a publisher keeps is handed over on matching and nothing published before discovery
+completed is lost; reliable volatile for a default-QoS publisher (`ros2 topic pub`, plain rclpy), which
+a transient-local reader never matches; best effort for a best-effort one. Kinds that appear later get
+their reader then. A sample that two readers hear is recorded once (samples.SeenSamples, the last
+recorder_dedup_window samples of a topic). /rosout is taken live only (volatile).
 
 Which messages belong to a run (RunRecorder below, no ROS in it): messages from different
 publishers can arrive in any order around the start and end, so the node keeps the last seconds
@@ -55,7 +58,7 @@ from robotarium_core.config import DEFAULT, FIELDS
 from robotarium_core.node_tools import declare_parameter, run_node
 from robotarium_core.topics import (DEFAULT_NAMESPACE, LATCHED, MARKERS, RECORDING, RECORDING_ERROR, STATUS,
                                     STATUS_STREAM)
-from robotarium_recording import bag
+from robotarium_recording import bag, samples
 
 # Our own announcement is not part of a run; the viewers' markers are drawn from the poses (a subscription
 # here would make the simulator build them all the time, and they would fill the bag).
@@ -286,6 +289,11 @@ class RecorderNode(Node):
         field = FIELDS["node_lease"]
         node_lease = declare_parameter(self, "node_lease", DEFAULT.node_lease, field.description,
                                        low=field.low, high=field.high)
+        field = FIELDS["recorder_dedup_window"]
+        window = declare_parameter(self, "recorder_dedup_window", DEFAULT.recorder_dedup_window, field.description,
+                                   low=field.low, high=field.high)
+        self.seen = samples.SeenSamples(window)
+        self.readers = {}           # full name -> {(reliable, transient_local)} of the readers it has
         # Clients watch it: a lost recorder is reported as "recording stopped at step k".
         self.presence = presence.Presence(self, presence.alive_topic(presence.RECORDER), node_lease)
         self.ns = self.get_namespace().rstrip("/")
@@ -323,11 +331,16 @@ class RecorderNode(Node):
             self.topics[topic] = None
             return
         if topic == "/rosout":
-            callback = self.on_rosout
+            handle = self.on_rosout
         else:
-            def callback(data, topic=topic, leading_stamp=leading_stamp):
+            def handle(data, topic=topic, leading_stamp=leading_stamp):
                 recv = time.time_ns()
                 self.session.on_message(topic, data, recv, (leading_stamp and bag.stamp_from_cdr(data)) or recv)
+
+        def callback(data, info, topic=topic, handle=handle):
+            identity = samples.identity(info, data)
+            if identity is None or self.seen.first(topic, identity):   # not a copy another reader of ours heard
+                handle(data)
         self.create_subscription(cls, topic, callback, qos, raw=True)
         self.topics[topic] = type_name
 
@@ -336,18 +349,22 @@ class RecorderNode(Node):
         (a reliable subscription would not hear a best-effort publisher, a transient-local one not
         a volatile publisher)."""
         for name, types in self.get_topic_names_and_types():
-            if (not name.startswith(self.ns + "/") or name in self.topics or not types
+            if (not name.startswith(self.ns + "/") or (name in self.topics and self.topics[name] is None) or not types
+                    or name == self.status_topic   # recorded from its stream (above)
                     or name[len(self.ns) + 1:] in EXCLUDED_TOPICS or "/_" in name):
                 continue
-            offers = [o.qos_profile for o in self.get_publishers_info_by_topic(name)]
-            if not offers:
-                continue
-            reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offers)
-            latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offers)
-            self.subscribe(name, types[0], QoSProfile(
-                depth=SUBSCRIPTION_DEPTH,
-                reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-                durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE))
+            offers = [(o.qos_profile.reliability == ReliabilityPolicy.RELIABLE,
+                       o.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL)
+                      for o in self.get_publishers_info_by_topic(name)]
+            have = self.readers.setdefault(name, set())
+            for reliable, latched in sorted(samples.reader_kinds(offers) - have, reverse=True):
+                self.subscribe(name, types[0], QoSProfile(
+                    depth=SUBSCRIPTION_DEPTH,
+                    reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+                    durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE))
+                if self.topics.get(name) is None:
+                    break   # cannot be recorded
+                have.add((reliable, latched))
 
     def describe(self, topic):
         return self.topics[topic], offered_qos(self.get_publishers_info_by_topic(topic))

@@ -205,6 +205,10 @@ def _add_outcome(settings, run):
     client's (run.json). Returns whether it completed."""
     if run is not None and settings["outcome"] == outcomes.UNFINISHED and run.get("outcome") in NAMES:
         settings["outcome"], settings["detail"] = NAMES[run["outcome"]], run.get("detail", "")
+    elif (run or {}).get("ended_by_unsent_request_at_step") is not None:
+        # The bag says the client ended it (the request carried its token); the client knows it sent none.
+        settings["outcome"] = outcomes.ENDED_BY_UNSENT_REQUEST
+        settings["detail"] = outcomes.unsent_end(run["ended_by_unsent_request_at_step"])
     return settings["outcome"] == outcomes.COMPLETED
 
 

@@ -406,7 +406,7 @@ class SimulatorNode(Node):
                 "./robotarium end --force." % (self.run_id, self.config.client_lease))
             self.get_logger().warning("refused to end %s: the request does not carry its token" % self.run_id)
             return response
-        reason = ("ended by its client at step %d" if request.token == self.token
+        reason = (outcomes.ENDED_BY_ITS_CLIENT + " at step %d" if request.token == self.token
                   else "ended by an operator (end --force) at step %d") % self.testbed.steps
         outcome, detail = outcomes.of_request(request.outcome), request.detail
         if request.token != self.token and request.outcome == outcomes.NONE:
