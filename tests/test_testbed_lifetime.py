@@ -290,7 +290,7 @@ def test_stop_mid_run_names_the_stopped_testbed_first(lab):
         assert "could not end the experiment" not in out and "Traceback" not in out, out
         causes = [line for line in out.splitlines() if "gone" in line or "stopped at step" in line]
         assert causes and "the testbed stopped at step" in causes[0], out
-        assert "hint: " in out and "fix it" not in out, out
+        assert "hint: the testbed ended the experiment (it was stopped" in out and "fix it" not in out, out
     finally:
         if run is not None:
             run.close()

@@ -340,6 +340,12 @@ HINTS = {
 }
 
 
+# A run the testbed ended (it was stopped, or an operator's end --force: outcomes.ENDED_BY_TESTBED in its detail).
+HINT_ENDED_BY_TESTBED = ("the testbed ended the experiment (it was stopped, or an operator ran ./robotarium end "
+                         "--force); the results cover the steps that ran; ./robotarium status shows whether a testbed "
+                         "answers now")
+
+
 def new_run_folder(results_dir, name):
     """results/<name>_<YYYYmmdd-HHMMSS>[_k]: a fresh folder for a run that has no recording here."""
     os.makedirs(results_dir, exist_ok=True)
@@ -535,6 +541,8 @@ def print_summary(run_dir, run, cwd):
     say(first)
     if "no testbed was started" in run.get("detail", ""):
         say("hint: fix the line named above and run it again (nothing ran)")
+    elif run["outcome"] == "interrupted" and outcomes.ENDED_BY_TESTBED in run.get("detail", ""):
+        say("hint: " + HINT_ENDED_BY_TESTBED)
     elif run["outcome"] != "completed" and run["outcome"] in HINTS:
         say("hint: " + HINTS[run["outcome"]])
     elif outcomes.recording_stopped(run):

@@ -506,8 +506,8 @@ class Robotarium(RobotariumABC):
             return
         if not self._ended:
             self._failure_kind = self._failure_kind if self._failure is not None else EndedByTestbed
-            self._failure = self._failure if self._failure is not None else ("The experiment was ended by the testbed: %s." % (
-                msg.end_reason or "no reason given"))
+            self._failure = self._failure if self._failure is not None else ("%s%s." % (
+                outcomes.ENDED_BY_TESTBED, msg.end_reason or "no reason given"))
 
     def _check_testbed(self):
         """Raise RuntimeError when the experiment cannot go on (a node lost, ended by someone else)."""

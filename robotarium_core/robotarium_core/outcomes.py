@@ -77,6 +77,7 @@ def step_of_end_reason(end_reason, default=0):
 ENDED_BY_ITS_CLIENT = "ended by its client"   # the simulator's end_reason for an end request with the token
 
 
+ENDED_BY_TESTBED = "The experiment was ended by the testbed: "   # the client's words for a run the testbed ended
 RECORDER_GONE = "the recorder is gone"   # why a recording stopped, when its recorder is lost
 
 
