@@ -1,6 +1,7 @@
 """The command line as people expect it: --help on every command, an unknown command lists them
 all, `shell -c CMD` runs CMD, and `report` on the committed sample leaves nothing for git."""
 import os
+import shutil
 import subprocess
 
 import pytest
@@ -132,3 +133,25 @@ def test_an_unwritable_results_folder_is_one_line_and_exit_2_before_anything_run
     full = "is on a full disk (No space left on device)" in lines[0] or "less than results_min_free" in lines[0]
     assert full if how == "full" else "is not writable" in lines[0], lines[0]
     assert not os.path.exists(tmp_path / "bags"), done.stdout   # no testbed was started, nothing recorded
+
+
+def test_setup_help_and_a_wrong_option_make_nothing(tmp_path):
+    """`setup --browser` is documented in its help; --help (anywhere among the options) and an
+    unknown option make nothing: the script is run from a bare copy, where setup would make .venv and
+    log/. An unknown option exits 2 with one line of usage."""
+    shutil.copy(ROBOTARIUM, tmp_path / "robotarium")
+    bare = str(tmp_path / "robotarium")
+
+    def run(*args):
+        return subprocess.run([bare, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=60,
+                              cwd=str(tmp_path))
+    for args in (("--help",), ("--browser", "--help")):
+        helped = run("setup", *args)
+        assert helped.returncode == 0 and "usage: ./robotarium setup [--browser]" in helped.stdout, helped
+        assert "Chromium" in helped.stdout, helped.stdout
+    wrong = run("setup", "--frobnicate")
+    assert wrong.returncode == 2, wrong
+    assert wrong.stderr.splitlines() == [
+        "[robotarium] error: unknown option --frobnicate; usage: ./robotarium setup [--browser] (--help says more)"]
+    assert run("test", "--help").returncode == 0
+    assert sorted(os.listdir(tmp_path)) == ["robotarium"]   # nothing made

@@ -57,7 +57,7 @@ class Stack:
                                     ros_args=["-p", "bags_dir:=%s" % self.bags_dir])
         node = self.probe.node
         ready = lambda: (self.cmd.get_subscription_count() >= 2 and node.count_subscribers(NS + "/pose_array") >= 1  # noqa: E731
-                         and node.count_subscribers(NS + "/status") >= 1)
+                         and node.count_subscribers(NS + "/_status/stream") >= 1)
         assert self.probe.spin_until(ready, 30), "recorder did not come up:\n%s" % self.recorder.output()
         self.probe.spin_for(0.5)   # let the simulator see the recorder's pose_array subscription too
 

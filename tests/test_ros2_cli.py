@@ -224,3 +224,34 @@ def test_ros2_launch_starts_the_testbed_that_robotarium_run_uses(ros2, tmp_path)
     finally:
         cli.close()
 
+
+
+def test_ros2_topic_echo_once_shows_the_newest_status(ros2, tmp_path):
+    """The status is the testbed's state (issue 23): after two runs, `ros2 topic echo --once` prints
+    the second run's end, not a status from before it (the topic kept a history of 50, and a late
+    joiner got its oldest)."""
+    from robotarium_msgs.srv import EndExperiment, StartExperiment
+    domain = unique_domain_id()
+    cli = Cli(ros2, domain)
+    probe = RosProbe(domain)
+    try:
+        for package, executable in (("robotarium_sim", "simulator"), ("robotarium_safety", "safety")):
+            cli.start("run", package, executable, "--ros-args", "--params-file", PARAMS,
+                      log=tmp_path / ("%s.log" % executable))
+        run_ids = []
+        for name in ("first", "second"):
+            started = probe.hold_client_presence(probe.call(
+                StartExperiment, "/robotarium/start_experiment",
+                StartExperiment.Request(name=name, number_of_robots=2, real_time=False, x=[-0.5, 0.5], y=[0.0, 0.0],
+                                        theta=[0.0, 0.0]), timeout=60))
+            assert started.success, started.message
+            ended = probe.call(EndExperiment, "/robotarium/end_experiment", EndExperiment.Request(token=started.token))
+            assert ended.success, ended.message
+            run_ids.append(started.run_id)
+        # as echo matches a latched publisher it has discovered: transient local, reliable
+        echoed = cli.run("topic", "echo", "--once", "--qos-durability", "transient_local", "--qos-reliability",
+                         "reliable", "/robotarium/status", "robotarium_msgs/msg/TestbedStatus")
+        assert "run_id: %s" % run_ids[1] in echoed and "state: 0" in echoed, echoed   # IDLE after the second run
+    finally:
+        probe.close()
+        cli.close()

@@ -136,6 +136,31 @@ def test_how_a_run_ended_is_in_the_closing_status_and_only_a_completed_run_is_es
         end(probe, following)
 
 
+def test_a_late_joiner_gets_only_the_newest_status_and_the_stream_every_one(testbed):
+    """<ns>/status is the testbed's state (issue 23): a subscriber that joins after two runs (as
+    `ros2 topic echo --once` does) gets the newest status first, never one from before the last run
+    (it got the oldest of a history of 50). The hidden stream, subscribed throughout, got every status
+    of both runs, as the recorder needs: the first RUNNING, the final RUNNING and the closing IDLE."""
+    from robotarium_core.topics import STATUS_STREAM
+    _, probe, _ = testbed
+    stream = probe.collect(TestbedStatus, "%s/%s" % (NS, STATUS_STREAM))
+    runs = []
+    for name in ("first", "second"):
+        started = start(probe, n=2, poses=LINE[:, :2], name=name)
+        assert started.success, started.message
+        assert end(probe, started).success
+        runs.append(started.run_id)
+    idle, running = TestbedStatus.STATE_IDLE, TestbedStatus.STATE_RUNNING
+    assert probe.spin_until(lambda: any(s.run_id == runs[1] and s.state == idle for s in stream), 10)
+    for run_id in runs:
+        states = [s.state for s in stream if s.run_id == run_id]
+        closing = states.index(idle)
+        assert states[0] == running and closing >= 2 and states[closing - 1] == running, (run_id, states)
+    late = probe.collect(TestbedStatus, NS + "/status")   # the testbed's QoS: transient local, a history of 50
+    assert probe.spin_until(lambda: late, 10), "the late joiner got no status"
+    assert (late[0].run_id, late[0].state) == (runs[1], idle), [(s.run_id, s.state) for s in late]
+
+
 @pytest.mark.parametrize("n, poses, words", [
     (0, None, "number_of_robots"),
     (51, None, "number_of_robots"),

@@ -235,6 +235,70 @@ def test_status_lists_local_testbeds_and_stop_and_end_get_rid_of_them(lab):
         up.wait()
 
 
+def test_a_testbed_without_a_safety_node_is_incomplete_not_a_script_error(lab):
+    """A simulator and a recorder answer, no safety node does (issue 23): `status` says the testbed
+    is incomplete, and `run` refuses with exit 4 and one line naming what is missing, with a hint
+    about the testbed: never a traceback or "fix it" (the script is fine)."""
+    from robotarium_client.testbed import LocalTestbed
+    ns = "/incomplete"
+    saved = dict(os.environ)
+    os.environ.update(lab["env"])
+    try:
+        testbed = LocalTestbed(ns=ns, bags_dir=lab["bags"], log_dir=str(lab["root"] / "incomplete_logs"))
+        testbed.names = ["simulator", "recorder"]   # everything `up` starts but the safety node
+        testbed.start()
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
+    try:
+        status = cli(lab, "status", ns=ns)
+        assert status.returncode == 0, status.stderr
+        here = [line for line in status.stdout.splitlines() if line.startswith("On ROS_DOMAIN_ID")]
+        assert here and "a testbed answers, incomplete: no safety node" in here[0], status.stdout
+        script = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "two_robots_to_goals.py")
+        run = cli(lab, "run", "--no-video", "--bags-dir", lab["bags"], script, ns=ns, timeout=180)
+        out = run.stdout + run.stderr
+        assert run.returncode == 4, out
+        assert "Traceback" not in out and "fix it" not in out, out
+        assert ("The testbed in %s on ROS_DOMAIN_ID %s is incomplete: no safety node answers" % (ns, lab["domain"])
+                in out), out
+        assert "hint: the testbed has no safety node (nothing ran)" in out, out
+        assert not testbed.failed(), testbed.failed()   # the testbed itself goes on
+    finally:
+        testbed.stop()
+
+
+def test_stop_mid_run_names_the_stopped_testbed_first(lab):
+    """`./robotarium stop` of an `up` testbed while a run goes on (issue 23): the run ends with exit 4,
+    the first cause it prints is the real one (the testbed was stopped), in one line (no traceback:
+    the script is fine), and no "could not end the experiment" line follows (the testbed ended it
+    itself)."""
+    ns = "/stopped"
+    env = dict(lab["env"], ROBOTARIUM_NAMESPACE=ns)
+    up = subprocess.Popen([sys.executable, "-m", "robotarium_client.cli", "up", "--bags-dir", lab["bags"]],
+                          env=env, cwd=str(lab["root"]), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                          start_new_session=True)
+    run = None
+    try:
+        run = CliRun(["--no-local-testbed", "--no-video", "--bags-dir", lab["bags"], lab["script"]], env,
+                     cwd=str(lab["root"]))
+        assert run.wait_for("RUNNING", timeout=120), run.output()
+        stopped = cli(lab, "stop", ns=ns)
+        assert stopped.returncode == 0, stopped.stderr
+        assert run.wait(timeout=60) == 4, run.output()
+        out = run.output()
+        assert "could not end the experiment" not in out and "Traceback" not in out, out
+        causes = [line for line in out.splitlines() if "gone" in line or "stopped at step" in line]
+        assert causes and "the testbed stopped at step" in causes[0], out
+        assert "hint: the testbed ended the experiment (it was stopped" in out and "fix it" not in out, out
+    finally:
+        if run is not None:
+            run.close()
+        if up.poll() is None:
+            os.killpg(up.pid, signal.SIGKILL)
+        up.wait()
+
+
 def test_every_new_command_has_help():
     from robotarium_client import cli as robotarium_cli
     for command in ("status", "stop", "end", "run", "up"):

@@ -335,6 +335,8 @@ HINTS = {
                                 "on the domain) or use DDS Security (sros2/README.md), then run the script again"),
     "testbed_busy": ("the testbed was busy with another experiment (nothing ran): run again without --no-wait to wait in "
                      "line for it; ./robotarium status shows who holds it"),
+    "testbed_incomplete": ("the testbed has no safety node (nothing ran): start one in its namespace, or stop the "
+                           "testbed and start a whole one with ./robotarium up; ./robotarium status shows what runs"),
 }
 
 
@@ -375,6 +377,12 @@ def check_run_folders(folders, config_file=None):
                 "another folder (--results-dir, --bags-dir)." % problem)
             return outcomes.USAGE_ERROR
     return None
+
+
+# A run the testbed ended (it was stopped, or an operator's end --force: outcomes.ENDED_BY_TESTBED in its detail).
+HINT_ENDED_BY_TESTBED = ("the testbed ended the experiment (it was stopped, or an operator ran ./robotarium end "
+                         "--force); the results cover the steps that ran; ./robotarium status shows whether a testbed "
+                         "answers now")
 
 
 def new_run_folder(results_dir, name):
@@ -572,6 +580,8 @@ def print_summary(run_dir, run, cwd):
     say(first)
     if "no testbed was started" in run.get("detail", ""):
         say("hint: fix the line named above and run it again (nothing ran)")
+    elif run["outcome"] == "interrupted" and outcomes.ENDED_BY_TESTBED in run.get("detail", ""):
+        say("hint: " + HINT_ENDED_BY_TESTBED)
     elif run["outcome"] != "completed" and run["outcome"] in HINTS:
         say("hint: " + HINTS[run["outcome"]])
     elif outcomes.recording_stopped(run):
@@ -925,7 +935,7 @@ def cmd_verify(args):
         if run["outcome"] in ("interrupted",):
             say("no verdict: the verification was interrupted")
             return code or 130
-        if run["outcome"] in ("testbed_lost", "client_lost", "unfinished"):
+        if run["outcome"] in ("testbed_lost", "client_lost", "unfinished", "testbed_incomplete"):
             say("no verdict: the testbed failed (%s); see the testbed's logs in log/testbed/ and run verify again"
                 % run.get("detail", run["outcome"]))
             return outcomes.TESTBED_PROBLEM
@@ -969,11 +979,20 @@ def _ago(seconds):
     return "%.1f h ago" % (seconds / 3600)
 
 
-def _describe_status(msg):
-    """One line on what a testbed's status says, and the same as a dict (--json)."""
+INCOMPLETE = "incomplete: no safety node"   # what status says of a testbed whose safety node does not answer
+
+
+def _describe_status(msg, safety=True):
+    """One line on what a testbed's status says, and the same as a dict (--json); safety: whether
+    its safety node answers (without it nothing can run there)."""
     from robotarium_msgs.msg import TestbedStatus
     if msg is None:
         return "no testbed answers", None
+    if not safety and msg.state != TestbedStatus.STATE_RUNNING:
+        return ("a testbed answers, %s (no experiment can run: start one there, or ./robotarium stop it and "
+                "./robotarium up a whole one)" % INCOMPLETE,
+                {"running": False, "incomplete": INCOMPLETE, "last_run_id": msg.run_id,
+                 "last_end_reason": msg.end_reason})
     if msg.state != TestbedStatus.STATE_RUNNING:
         last = " (the last, %s, %s)" % (msg.run_id, msg.end_reason) if msg.run_id and msg.end_reason else ""
         return ("a testbed answers: no experiment is running%s" % last,
@@ -1007,14 +1026,19 @@ def cmd_status(args):
     # only where a simulator runs can a testbed answer (a probe that gets no answer waits the whole timeout)
     targets = [(t["domain"], t["namespace"], t.get("discovery_range")) for t in found
                if t["domain"] != "?" and any(name.startswith("simulator") for name in t["nodes"])]
-    statuses = testbed_status(targets + [(here[0], here[1], None)], timeout=args.timeout)
+    # A safety node in this machine's process table is there; for the others its presence decides.
+    safety = {(t["domain"], t["namespace"]): True for t in found if any(name.startswith("safety") for name in t["nodes"])}
+    statuses = testbed_status(targets + [(here[0], here[1], None)], timeout=args.timeout, safety=safety)
+
+    def described(key):
+        return _describe_status(statuses.get(key), safety.get(key, True))
     if args.json:
         listed = [{k: v for k, v in t.items() if not k.startswith("_")} for t in found]
         for t in listed:
-            t["experiment"] = _describe_status(statuses.get((t["domain"], t["namespace"])))[1]
+            t["experiment"] = described((t["domain"], t["namespace"]))[1]
         print(json.dumps({"local_testbeds": listed, "here": {
             "domain": here[0], "namespace": here[1], "answers": statuses.get(here) is not None,
-            "experiment": _describe_status(statuses.get(here))[1]}}, indent=2))
+            "experiment": described(here)[1]}}, indent=2))
         return 0
     if not found:
         print("No testbed runs on this machine.")
@@ -1033,12 +1057,12 @@ def cmd_status(args):
         print("      nodes: %s" % (", ".join("%s %d" % item for item in sorted(t["nodes"].items())) or "none left"))
         if t.get("log_dir"):
             print("      logs:  %s" % t["log_dir"])
-        print("      %s" % (_describe_status(statuses.get((t["domain"], t["namespace"])))[0]
+        print("      %s" % (described((t["domain"], t["namespace"]))[0]
                              if "simulator" in t["nodes"] else "no simulator: nothing can run here"))
         print("      stop it: ./robotarium stop --domain %s --namespace %s" % (t["domain"], t["namespace"]))
     local_here = local_testbeds.matching(found, here[1], here[0])
     print("On ROS_DOMAIN_ID %s, namespace %s (this shell's, where ./robotarium run goes): %s%s" % (
-        here[0], here[1], _describe_status(statuses.get(here))[0],
+        here[0], here[1], described(here)[0],
         "" if local_here or statuses.get(here) is None else " (not started on this machine)"))
     return 0
 

@@ -62,6 +62,18 @@ class TestbedBusy(RuntimeError):
     """The testbed is busy with another experiment and this client would not wait (--no-wait)."""
 
 
+class TestbedIncomplete(RuntimeError):
+    """The testbed answers but lacks a node an experiment needs (no safety node: nothing could move)."""
+
+
+def incomplete_testbed_message(ns):
+    """What a client says of a testbed in `ns` whose safety node does not answer (one line)."""
+    return ("The testbed in %s on ROS_DOMAIN_ID %s is incomplete: no safety node answers, and without it the robots "
+            "cannot move. Start one there (ros2 run robotarium_safety safety --ros-args -r __ns:=%s), or stop this "
+            "testbed (./robotarium stop) and start a whole one (./robotarium up)."
+            % (ns, os.environ.get("ROS_DOMAIN_ID", "0").strip() or "0", ns))
+
+
 LINE_POLL = 0.5         # s between a waiting client's asks (well within the testbed's line_lease)
 LINE_REPORT = 10.0      # s between lines saying who holds the testbed, when nothing else changed
 
@@ -209,6 +221,17 @@ class Robotarium(RobotariumABC):
                                           ("actuator", response.actuator_limit_iterations)) if v}
         return report
 
+    def _finish(self, outcome, detail=""):
+        """As RobotariumABC._finish; but an experiment that the testbed ended itself (an operator, a
+        stopped testbed) or whose simulator or safety node is gone has nothing left to end here: the
+        script was stopped with that cause, which was printed, and a second line ("could not end the
+        experiment") would only repeat it as if something else had failed. ./robotarium run makes the
+        results from the recording."""
+        if self._failure is not None:
+            self._ended = True
+            return None
+        return super()._finish(outcome, detail)
+
     def _announced_recording(self):
         """The recorder's folder for this run if it announced one (its name starts with the run id)."""
         ok = self._run_id and os.path.basename(self._recording).startswith(self._run_id)
@@ -256,7 +279,8 @@ class Robotarium(RobotariumABC):
         from std_msgs.msg import String
 
         from robotarium_core.topics import (CMD_REQUESTED, CONFIG, DRAWING, DRAWING_QOS, END_EXPERIMENT, LATCHED, POSES,
-                                            RECORDING, RECORDING_ERROR, START_EXPERIMENT, STATUS, TESTBED_QOS)
+                                            RECORDING, RECORDING_ERROR, START_EXPERIMENT, STATUS, STATUS_QOS,
+                                            TESTBED_QOS)
         from robotarium_msgs.msg import RobotPoses, TestbedStatus, TwistArray
         from robotarium_msgs.srv import EndExperiment, StartExperiment
 
@@ -286,7 +310,7 @@ class Robotarium(RobotariumABC):
         self._command_pub = self._node.create_publisher(TwistArray, CMD_REQUESTED, TESTBED_QOS)
         self._poses_subscription = self._node.create_subscription(RobotPoses, POSES, self._on_poses, TESTBED_QOS,
                                                                   raw=True)
-        self._node.create_subscription(TestbedStatus, STATUS, self._on_status, TESTBED_QOS)
+        self._node.create_subscription(TestbedStatus, STATUS, self._on_status, STATUS_QOS)
         # Made now, not at the first drawing: the recorder discovers it while the experiment starts.
         self._drawing_pub = self._node.create_publisher(String, DRAWING, DRAWING_QOS)
         self._drawing_message = String()
@@ -369,8 +393,9 @@ class Robotarium(RobotariumABC):
         if not response.success:
             incomplete = not self._watches["safety"].seen   # the testbed's fault, not the request's
             self._shutdown()
-            raise (RuntimeError if incomplete else RobotariumError)(
-                "The testbed refused to start the experiment: %s" % response.message)
+            if incomplete:   # the simulator waited for the safety node in vain: say so, as the testbed's problem
+                raise TestbedIncomplete(incomplete_testbed_message(self._ns))
+            raise RobotariumError("The testbed refused to start the experiment: %s" % response.message)
         self._run_id = response.run_id
         self._token = response.token
         session.note_started(self.partial_run_info())
@@ -385,8 +410,7 @@ class Robotarium(RobotariumABC):
         # so now rather than at the first step's timeout.
         if not self._spin_until(self._safety_node_matched, STEP_TIMEOUT):
             self._end_quietly()
-            raise RuntimeError("No safety node listens on %s/cmd_requested: without it the robots cannot move. "
-                               "Is the testbed complete (./robotarium up starts all of it)?" % self._ns)
+            raise TestbedIncomplete(incomplete_testbed_message(self._ns))
         # Until the simulator follows our presence, a crash of this process would free the testbed
         # only after its discovery wait (10 s) instead of client_lease: wait for it (it takes moments).
         if self._spin_until(lambda: self._presence.publisher.get_subscription_count() > 0, STEP_TIMEOUT):
@@ -482,8 +506,8 @@ class Robotarium(RobotariumABC):
             return
         if not self._ended:
             self._failure_kind = self._failure_kind if self._failure is not None else EndedByTestbed
-            self._failure = self._failure if self._failure is not None else ("The experiment was ended by the testbed: %s." % (
-                msg.end_reason or "no reason given"))
+            self._failure = self._failure if self._failure is not None else ("%s%s." % (
+                outcomes.ENDED_BY_TESTBED, msg.end_reason or "no reason given"))
 
     def _check_testbed(self):
         """Raise RuntimeError when the experiment cannot go on (a node lost, ended by someone else)."""

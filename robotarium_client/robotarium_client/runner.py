@@ -98,7 +98,7 @@ def where_in_script(exc, script):
 
 def run(script, script_args):
     """Run the script; returns (outcome, detail, exit code)."""
-    from robotarium_client.robotarium import EndedByTestbed, TestbedBusy
+    from robotarium_client.robotarium import EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete
     sys.argv = [script, *script_args]
     sys.path.insert(0, os.path.dirname(script))
     for signum in (signal.SIGTERM, signal.SIGHUP):
@@ -115,7 +115,8 @@ def run(script, script_args):
             code = 1
         return None, "", code or 0
     except BaseException as exc:   # noqa: BLE001 - every way a script can end is reported
-        if isinstance(exc, TestbedBusy):   # not the script's fault: one line, no traceback
+        if (isinstance(exc, (TestbedBusy, TestbedIncomplete, EndedByTestbed))
+                and not isinstance(exc, EndedByUnsentRequest)):   # the testbed's doing, not the script's: one line
             print("[robotarium] %s" % exc, file=sys.stderr, flush=True)
         else:
             print_traceback(exc, script)
@@ -123,7 +124,7 @@ def run(script, script_args):
         if orphaned and isinstance(exc, KeyboardInterrupt):
             exc = session.Interrupted("the loss of ./robotarium run (its lifeline closed)")
         outcome, detail = session.failure_of(exc, step, where_in_script(exc, script))
-        if isinstance(exc, (EndedByTestbed, TestbedBusy)):   # not a signal here: the testbed's doing
+        if isinstance(exc, (EndedByTestbed, TestbedBusy, TestbedIncomplete)):   # not a signal here: the testbed's doing
             code = outcomes.EXIT_CODES[outcomes.TESTBED_LOST]
         elif outcome == outcomes.INTERRUPTED:   # 128 + the signal, as a shell reports it
             code = 128 + getattr(signal, getattr(exc, "signal_name", "SIGINT"), signal.SIGKILL)

@@ -142,7 +142,8 @@ def describe_exception(exc):
 def failure_of(exc, step, where=""):
     """(outcome, detail) of a run that an exception ended at `step` (robotarium_core.outcomes);
     `where` says where in the script, e.g. "line 57 of go.py"."""
-    from robotarium_client.robotarium import EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedLost
+    from robotarium_client.robotarium import (EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete,
+                                              TestbedLost)
     from robotarium_core import outcomes
     at = "at step %d%s" % (step, " (%s)" % where if where else "")
     if isinstance(exc, EndedByUnsentRequest):   # a process holding the run's token ended it
@@ -155,6 +156,8 @@ def failure_of(exc, step, where=""):
         return outcomes.INTERRUPTED, "interrupted %s: %s" % (at, str(exc).rstrip("."))
     if isinstance(exc, TestbedBusy):
         return outcomes.TESTBED_BUSY, str(exc).rstrip(".")
+    if isinstance(exc, TestbedIncomplete):
+        return outcomes.TESTBED_INCOMPLETE, str(exc).split(", and without")[0].rstrip(".")
     if isinstance(exc, TestbedLost):
         return outcomes.TESTBED_LOST, "the testbed was lost %s: %s" % (at, str(exc).split(". ")[0])
     return outcomes.SCRIPT_ERROR, "the script raised %s %s" % (describe_exception(exc), at)

@@ -295,25 +295,31 @@ def _private_context(domain=None, discovery_range=None):
     return context
 
 
-def testbed_status(targets, timeout=3.0):
+SAFETY_PRESENCE_WAIT = 2.0   # s a testbed that answers has to show its safety node's presence (testbed_status)
+
+
+def testbed_status(targets, timeout=3.0, safety=None):
     """The newest status of the testbed in each (domain, namespace, discovery range) of `targets`:
     {(domain, namespace): robotarium_msgs TestbedStatus, or None where no testbed answered within
     `timeout` seconds}. The status topic keeps its last messages (transient local), so a testbed
-    answers as soon as discovery matched it; all domains are probed at once."""
+    answers as soon as discovery matched it; all domains are probed at once.
+
+    safety: a dict {(domain, namespace): whether its safety node is there} to complete: a key set
+    True already (a safety node in this machine's process table) is taken as it is; the others get
+    whether the safety node's presence (robotarium_core.presence) was seen, a testbed that answers
+    being given at least SAFETY_PRESENCE_WAIT s for it (discovery of another process may take that
+    long on a loaded machine), so an incomplete one takes that long."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-
-    from robotarium_core.topics import STATUS
+    from robotarium_core import presence
+    from robotarium_core.config import DEFAULT
+    from robotarium_core.topics import STATUS, STATUS_QOS
     from robotarium_msgs.msg import TestbedStatus
 
-    # The testbed's status QoS, but keeping only the newest message of the history handed over.
-    NEWEST_ONLY = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
     newest = {}
+    watches = {}   # (domain, namespace): presence.Watch of its safety node
     probes = []   # (context, executor, node)
     by_domain = {}
     for domain, ns, discovery_range in targets:   # one probe per domain (the first discovery range given)
@@ -334,9 +340,20 @@ def testbed_status(targets, timeout=3.0):
                     stamp = (msg.header.stamp.sec, msg.header.stamp.nanosec)
                     if old is None or stamp >= (old.header.stamp.sec, old.header.stamp.nanosec):
                         newest[key] = msg
-                node.create_subscription(TestbedStatus, "%s/%s" % (ns.rstrip("/"), STATUS), keep, NEWEST_ONLY)
-        deadline = time.monotonic() + timeout
-        while any(v is None for v in newest.values()) and time.monotonic() < deadline:
+                node.create_subscription(TestbedStatus, "%s/%s" % (ns.rstrip("/"), STATUS), keep, STATUS_QOS)
+                if safety is not None and not safety.get((domain, ns)):
+                    watches[(domain, ns)] = presence.Watch(
+                        node, "%s/%s" % (ns.rstrip("/"), presence.alive_topic(presence.SAFETY)), DEFAULT.node_lease)
+
+        start = time.monotonic()
+        deadline, safety_deadline = start + timeout, start + max(timeout, SAFETY_PRESENCE_WAIT)
+
+        def waiting():
+            now = time.monotonic()
+            return any((v is None and now < deadline)
+                       or (v is not None and key in watches and not watches[key].seen and now < safety_deadline)
+                       for key, v in newest.items())
+        while waiting():
             for _, executor, _ in probes:
                 executor.spin_once(timeout_sec=0.02)
         # a moment more, for anything newer still on its way
@@ -344,6 +361,8 @@ def testbed_status(targets, timeout=3.0):
         while time.monotonic() < settle:
             for _, executor, _ in probes:
                 executor.spin_once(timeout_sec=0.02)
+        if safety is not None:
+            safety.update({key: watch.seen for key, watch in watches.items()})
     finally:
         for context, executor, node in probes:
             executor.shutdown()

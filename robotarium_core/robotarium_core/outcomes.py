@@ -8,14 +8,16 @@ because only the report can tell it: a recording that ends while its experiment 
 NONE, COMPLETED, SCRIPT_ERROR, INTERRUPTED, NO_END, TIME_LIMIT, CLIENT_LOST, TESTBED_LOST = range(8)
 UNFINISHED = 100     # the recording ends while the experiment was still running
 TESTBED_BUSY = 101   # the experiment never started: the testbed was busy and the client would not wait (--no-wait)
+TESTBED_INCOMPLETE = 102   # the experiment never started: the testbed has no safety node (nothing could move)
 # An end request with the run's token that its script did not send (a process that copied the token
 # off the wire: without SROS2 it is no secret). Only the client can tell: to the testbed it is its client's.
-ENDED_BY_UNSENT_REQUEST = 102
+ENDED_BY_UNSENT_REQUEST = 103
 
 # Short names (run.json's "outcome") and what each means, for people.
 NAMES = {COMPLETED: "completed", SCRIPT_ERROR: "script_error", INTERRUPTED: "interrupted", NO_END: "no_end",
          TIME_LIMIT: "time_limit", CLIENT_LOST: "client_lost", TESTBED_LOST: "testbed_lost",
-         UNFINISHED: "unfinished", TESTBED_BUSY: "testbed_busy", ENDED_BY_UNSENT_REQUEST: "ended_by_unsent_request"}
+         UNFINISHED: "unfinished", TESTBED_BUSY: "testbed_busy",
+         TESTBED_INCOMPLETE: "testbed_incomplete", ENDED_BY_UNSENT_REQUEST: "ended_by_unsent_request"}
 PHRASES = {
     COMPLETED: "completed: the script called call_at_scripts_end()",
     SCRIPT_ERROR: "the script raised an exception",
@@ -26,6 +28,7 @@ PHRASES = {
     TESTBED_LOST: "the testbed was lost",
     UNFINISHED: "the recording ends while the experiment was still running (its client or the testbed went away)",
     TESTBED_BUSY: "the testbed was busy with another experiment",
+    TESTBED_INCOMPLETE: "the testbed is incomplete: no safety node answers",
     ENDED_BY_UNSENT_REQUEST: "the experiment was ended by an end request this script did not send (a process holding "
                              "its token)",
 }
@@ -33,7 +36,7 @@ PHRASES = {
 # Exit codes of `./robotarium run` (README): 0 only for a completed run. An interrupted run exits
 # with 128 + the signal's number, as a shell reports it (130 for Ctrl-C); EXIT_CODES has SIGINT's.
 EXIT_CODES = {COMPLETED: 0, SCRIPT_ERROR: 1, NO_END: 3, TESTBED_LOST: 4, CLIENT_LOST: 4, UNFINISHED: 4,
-              TESTBED_BUSY: 4, ENDED_BY_UNSENT_REQUEST: 4, TIME_LIMIT: 5, INTERRUPTED: 130}
+              TESTBED_BUSY: 4, TESTBED_INCOMPLETE: 4, ENDED_BY_UNSENT_REQUEST: 4, TIME_LIMIT: 5, INTERRUPTED: 130}
 USAGE_ERROR = 2   # the command line itself was wrong (no such script, a bad option)
 # Exit codes of `./robotarium verify` (README): 0 the script is accepted, VERIFY_REJECTED it is
 # rejected (a rule is broken: --json names each), USAGE_ERROR a bad command line, TESTBED_PROBLEM
@@ -74,6 +77,7 @@ def step_of_end_reason(end_reason, default=0):
 ENDED_BY_ITS_CLIENT = "ended by its client"   # the simulator's end_reason for an end request with the token
 
 
+ENDED_BY_TESTBED = "The experiment was ended by the testbed: "   # the client's words for a run the testbed ended
 RECORDER_GONE = "the recorder is gone"   # why a recording stopped, when its recorder is lost
 
 

@@ -4,9 +4,17 @@ DDS discovery is asymmetric: a reader may know a writer well before the writer k
 reader, and a reliable writer delivers nothing to readers it does not know yet. With slow
 discovery (a loaded 2-core machine takes seconds) a message published too early is lost.
 
-Outputs (poses, status, cmd_safe, safety_report, ...) are reliable and transient-local with a
-history of 50 (`TESTBED_QOS`): a writer keeps its last 50 samples and hands them to a reader as
-soon as it matches, so a late viewer or recorder still gets the current poses and status.
+Outputs (poses, cmd_safe, safety_report, ...) are reliable and transient-local with a history of 50
+(`TESTBED_QOS`): a writer keeps its last 50 samples and hands them to a reader as soon as it
+matches, so a late viewer or recorder still gets the current poses.
+
+The status is a state, not a stream: `<ns>/status` keeps only its newest message (`STATUS_QOS`,
+depth 1), so a late joiner (`ros2 topic echo --once`, ./robotarium status) gets what holds now,
+never a status from before the last run. A keep-last-1 writer may replace a sample a reliable
+reader has not acknowledged yet (the final RUNNING status with the run's counters is followed at
+once by IDLE), so every status also goes on the hidden `<ns>/_status/stream` (`STATUS_STREAM_QOS`,
+the outputs' history of 50, transient local so that a recorder matching late still gets the run's
+first RUNNING status), which the recorder records under the name `<ns>/status`.
 
 The two command inputs (the safety node's cmd_requested, the simulator's cmd_safe) subscribe
 reliable and *volatile* (`COMMAND_INPUT_QOS`): a volatile reader matches every reliable writer,
@@ -55,6 +63,9 @@ DRAWING_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliabilit
 
 # A topic that keeps only its last message for late subscribers (announcements, the run's configuration).
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# The testbed's state (status): a late joiner gets only the newest; every status also goes on the stream.
+STATUS_QOS = LATCHED
+STATUS_STREAM_QOS = TESTBED_QOS
 
 # What viewers get (RViz, Foxglove): reliable + volatile, the ROS default.
 VIEWER_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
@@ -64,7 +75,8 @@ CMD_SAFE = "cmd_safe"             # TwistArray: safety node -> simulator
 POSES = "poses"                   # RobotPoses: simulator -> everyone
 POSE_ARRAY = "pose_array"         # geometry_msgs/PoseArray for viewers
 MARKERS = "markers"               # visualization_msgs/MarkerArray for viewers: arena, robots, trails
-STATUS = "status"                 # TestbedStatus
+STATUS = "status"                 # TestbedStatus, latched (STATUS_QOS): the testbed's state now
+STATUS_STREAM = "_status/stream"  # TestbedStatus: every status (STATUS_STREAM_QOS), hidden; recorded as <ns>/status
 SAFETY_REPORT = "safety_report"   # SafetyReport
 RECORDING = "recording"           # std_msgs/String: recorder -> simulator, where the run is recorded
 RECORDING_ERROR = "recording_error"   # std_msgs/String (JSON, latched): recorder -> clients, a run whose recording

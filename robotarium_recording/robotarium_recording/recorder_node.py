@@ -56,7 +56,8 @@ from robotarium_msgs.msg import TestbedStatus
 from robotarium_core import presence
 from robotarium_core.config import DEFAULT, FIELDS
 from robotarium_core.node_tools import declare_parameter, run_node
-from robotarium_core.topics import DEFAULT_NAMESPACE, LATCHED, MARKERS, RECORDING, RECORDING_ERROR
+from robotarium_core.topics import (DEFAULT_NAMESPACE, LATCHED, MARKERS, RECORDING, RECORDING_ERROR, STATUS,
+                                    STATUS_STREAM)
 from robotarium_recording import bag, samples
 
 # Our own announcement is not part of a run; the viewers' markers are drawn from the poses (a subscription
@@ -305,7 +306,13 @@ class RecorderNode(Node):
         self.session.namespace = self.ns or "/"
         self.recording_pub = self.create_publisher(String, RECORDING, LATCHED)
         self.recording_error_pub = self.create_publisher(String, RECORDING_ERROR, LATCHED)
-        self.status_topic = self.ns + "/status"
+        # Every status comes on the hidden stream (<ns>/status keeps only the newest: robotarium_core.topics);
+        # it is recorded under <ns>/status, so bags and their readers see the status topic.
+        self.status_topic = "%s/%s" % (self.ns, STATUS)
+        self.topics[self.status_topic] = "robotarium_msgs/msg/TestbedStatus"   # not subscribed itself (discover)
+        self.create_subscription(TestbedStatus, "%s/%s" % (self.ns, STATUS_STREAM), self.on_status, QoSProfile(
+            depth=SUBSCRIPTION_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL), raw=True)
         self.subscribe("/rosout", "rcl_interfaces/msg/Log", QoSProfile(depth=SUBSCRIPTION_DEPTH))
         self._sim_missing_since = None
         self.create_timer(0.2, self.tick)
@@ -323,9 +330,7 @@ class RecorderNode(Node):
             self.get_logger().warning("cannot record %s (%s): %s" % (topic, type_name, error))
             self.topics[topic] = None
             return
-        if topic == self.status_topic:
-            handle = self.on_status
-        elif topic == "/rosout":
+        if topic == "/rosout":
             handle = self.on_rosout
         else:
             def handle(data, topic=topic, leading_stamp=leading_stamp):
@@ -345,6 +350,7 @@ class RecorderNode(Node):
         a volatile publisher)."""
         for name, types in self.get_topic_names_and_types():
             if (not name.startswith(self.ns + "/") or (name in self.topics and self.topics[name] is None) or not types
+                    or name == self.status_topic   # recorded from its stream (above)
                     or name[len(self.ns) + 1:] in EXCLUDED_TOPICS or "/_" in name):
                 continue
             offers = [(o.qos_profile.reliability == ReliabilityPolicy.RELIABLE,

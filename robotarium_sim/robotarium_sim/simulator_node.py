@@ -11,7 +11,10 @@ Topics (relative to the node's namespace, /robotarium by default):
   markers         visualization_msgs/MarkerArray out: the arena, robots (footprint, heading, id) and their
                                                     trails (robotarium_core.markers), at `viewer_rate` Hz
                                                     while someone listens (RViz, Foxglove: frame `arena`)
-  status          robotarium_msgs/TestbedStatus out: every step, and once a second while idle or in lockstep
+  status          robotarium_msgs/TestbedStatus out: every step, and once a second while idle or in lockstep;
+                                                    latched, the newest only (a late joiner gets the state now)
+  _status/stream  robotarium_msgs/TestbedStatus out: the same messages with a history (hidden; the recorder
+                                                    records every status from it, as <ns>/status)
   sensors         robotarium_msgs/SensorReadings out: every step of a 2.x experiment (robotarium_core.sensors)
   robot_<i>/imu   sensor_msgs/Imu              out: the same sensors per robot on standard types, for ROS tools
   robot_<i>/mag   sensor_msgs/MagneticField         (rviz, Foxglove, ros2 topic echo) and the bag: 2.x experiments,
@@ -75,7 +78,8 @@ from robotarium_core.line import Line
 from robotarium_core.node_tools import declare_config, run_node, take_waiting
 from robotarium_core.topics import (CMD_SAFE, command_input_qos, CONFIG, DEFAULT_NAMESPACE, END_EXPERIMENT, EXPERIMENT,
                                     LATCHED, MARKERS, OBSTACLES, POSE_ARRAY, POSES, RECORDING, SAFETY_ARM, SAFETY_REPORT,
-                                    SENSORS, START_EXPERIMENT, STATUS, TESTBED_QOS, VIEWER_QOS, warn_on_incompatible_qos)
+                                    SENSORS, START_EXPERIMENT, STATUS, STATUS_QOS, STATUS_STREAM, STATUS_STREAM_QOS,
+                                    TESTBED_QOS, VIEWER_QOS, warn_on_incompatible_qos)
 from robotarium_sim import rps2_io
 from robotarium_sim.hardware import HardwareTestbed
 
@@ -166,7 +170,8 @@ class SimulatorNode(Node):
         # Viewers get the scene at viewer_rate, not every step (lockstep runs hundreds a second).
         self.markers_pub = self.create_publisher(MarkerArray, MARKERS, VIEWER_QOS)
         self.trails = scene.Trails(self.config.trail_length, self.config.time_step)
-        self.status_pub = self.create_publisher(TestbedStatus, STATUS, TESTBED_QOS)
+        self.status_pub = self.create_publisher(TestbedStatus, STATUS, STATUS_QOS)   # the newest only
+        self.status_stream_pub = self.create_publisher(TestbedStatus, STATUS_STREAM, STATUS_STREAM_QOS)   # every one
         # The configuration of the running experiment, for the recorder and the report.
         self.config_pub = self.create_publisher(String, CONFIG, LATCHED)
         # The 2.x API's extras (robotarium_sim.rps2_io): sensors, the experiment's settings, obstacles.
@@ -458,7 +463,8 @@ class SimulatorNode(Node):
             steps = self.testbed.steps
             self.end_experiment("the testbed stopped at step %d (%s)" % (steps, reason), outcome=outcomes.INTERRUPTED,
                                 detail="interrupted: the testbed was stopped at step %d (%s)" % (steps, reason))
-            self.status_pub.wait_for_all_acked(Duration(seconds=1.0))
+            self.status_stream_pub.wait_for_all_acked(Duration(seconds=1.0))
+            self.status_pub.wait_for_all_acked(Duration(seconds=0.2))
         return None
 
     # -- commands ----------------------------------------------------------------------------
@@ -594,6 +600,7 @@ class SimulatorNode(Node):
             msg.number_of_robots = tb.number_of_robots
             msg.step = tb.steps
             copy_counters(tb, msg, self.tally)
+        self.status_stream_pub.publish(msg)
         self.status_pub.publish(msg)
 
 
