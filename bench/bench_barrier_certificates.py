@@ -22,9 +22,10 @@ import numpy as np
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
-from robotarium_safety import barrier_certificates as bc  # noqa: E402
-from devtools.reference import reference_available, run_reference  # noqa: E402
 import test_barrier_dense_qp as dense  # noqa: E402
+
+from devtools.reference import reference_available, run_reference  # noqa: E402
+from robotarium_safety import barrier_certificates as bc  # noqa: E402
 
 DT = 0.033
 PROJECTION = 0.05

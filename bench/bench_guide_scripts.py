@@ -38,7 +38,6 @@ RUN_SEEDED = os.path.join(REPO, "devtools", "run_seeded.py")
 from devtools.reference import REFERENCE_PYTHON, _reference_env  # noqa: E402
 from devtools.rosutil import node_env, unique_domain_id  # noqa: E402
 
-
 REFERENCE_COMPAT = """
 import runpy, sys
 import matplotlib

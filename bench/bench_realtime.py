@@ -28,9 +28,9 @@ import tempfile
 import time
 
 import numpy as np
+from bench_scaling import ROBOTS_IN_PACKAGED_ARENA, arena_for, cpu_seconds, grid, write_config  # noqa: E402
 
 from devtools.rosutil import unique_domain_id
-from bench_scaling import ROBOTS_IN_PACKAGED_ARENA, arena_for, cpu_seconds, grid, write_config  # noqa: E402
 
 BUSY = "while True: pass"
 

@@ -18,12 +18,13 @@ import platform
 import tempfile
 import time
 
-from devtools.rosutil import NodeProcess, RosProbe, SafetyStandIn, unique_domain_id  # noqa: E402
 from geometry_msgs.msg import Twist  # noqa: E402
+
+from devtools.rosutil import NodeProcess, RosProbe, SafetyStandIn, unique_domain_id  # noqa: E402
+from robotarium_core.topics import TESTBED_QOS  # noqa: E402
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray  # noqa: E402
 from robotarium_msgs.srv import EndExperiment, StartExperiment  # noqa: E402
 from robotarium_recording.bag import Bag  # noqa: E402
-from robotarium_core.topics import TESTBED_QOS  # noqa: E402
 
 NS = "/robotarium"
 

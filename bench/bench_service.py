@@ -28,7 +28,7 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, REPO)
 
 from devtools.postgres import PostgreSQL, server_binaries  # noqa: E402
-from devtools.service import HOLD, HEARTBEAT, Service  # noqa: E402
+from devtools.service import HEARTBEAT, HOLD, Service  # noqa: E402
 
 WAIT = 1800.0   # s for one experiment at most: a loaded machine is slow, and the benchmark says how slow
 # 300 steps, the robots on a grid turning in place (no collision, nobody leaves the arena).

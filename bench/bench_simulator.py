@@ -17,13 +17,13 @@ import platform
 import time
 
 import numpy as np
+from rclpy.impl.implementation_singleton import rclpy_implementation  # noqa: E402
 
 from devtools.rosutil import NodeProcess, RosProbe, SafetyStandIn, unique_domain_id  # noqa: E402
-from rclpy.impl.implementation_singleton import rclpy_implementation  # noqa: E402
-from robotarium_msgs.msg import RobotPoses  # noqa: E402
-from robotarium_msgs.srv import EndExperiment, StartExperiment  # noqa: E402
 from robotarium_core import cdr, model  # noqa: E402
 from robotarium_core.topics import TESTBED_QOS  # noqa: E402
+from robotarium_msgs.msg import RobotPoses  # noqa: E402
+from robotarium_msgs.srv import EndExperiment, StartExperiment  # noqa: E402
 
 NS = "/robotarium"
 

@@ -23,7 +23,6 @@ import numpy as np
 from robotarium_client import session
 from robotarium_client.robotarium_abc import RobotariumABC
 
-
 OUTCOME_LINE = re.compile(r"^\[outcome\] steps=(\d+) goal_error=(\S+) \((.*)\) finished=(yes|no)$", re.MULTILINE)
 
 

@@ -6,6 +6,7 @@ unchanged on the Robotarium simulator and through this stack, and prints one lin
 import time
 
 import numpy as np
+
 import rps.robotarium as robotarium
 
 N = 3

@@ -26,8 +26,8 @@ import time
 
 import numpy as np
 import rclpy
-from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.duration import Duration
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 

@@ -30,8 +30,9 @@ def main():
     os.environ["ROBOTARIUM_RPS"] = "guide"
     os.environ["ROBOTARIUM_NAMESPACE"] = "/profile"
     import bench_scaling
-    from robotarium_core import lifeline
+
     from robotarium_client.testbed import LocalTestbed, node_command
+    from robotarium_core import lifeline
 
     work = tempfile.mkdtemp(prefix="robotarium-profile-")
     config = bench_scaling.write_config(work, robots=args.robots)

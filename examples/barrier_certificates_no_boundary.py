@@ -17,13 +17,13 @@ there (about 500 iterations; 1500 at most) and prints a final line such as
 
 Run:  ./robotarium run examples/barrier_certificates_no_boundary.py
 """
-import rps.robotarium as robotarium
-from rps.utilities.transformations import *
-from rps.utilities.barrier_certificates import *
-from rps.utilities.misc import *
-from rps.utilities.controllers import *
-
 import numpy as np
+
+import rps.robotarium as robotarium
+from rps.utilities.barrier_certificates import *
+from rps.utilities.controllers import *
+from rps.utilities.misc import *
+from rps.utilities.transformations import *
 
 N = 8
 SHOW_FIGURE = True        # False: no window (r.axes is then unavailable)

@@ -14,14 +14,14 @@ prints a final line such as "goal reached: all 8 robots within 0.45 m of their c
 
 Run:  ./robotarium run examples/consensus.py
 """
-import rps.robotarium as robotarium
-from rps.utilities.graph import *
-from rps.utilities.transformations import *
-from rps.utilities.barrier_certificates import *
-from rps.utilities.misc import *
-from rps.utilities.controllers import *
-
 import numpy as np
+
+import rps.robotarium as robotarium
+from rps.utilities.barrier_certificates import *
+from rps.utilities.controllers import *
+from rps.utilities.graph import *
+from rps.utilities.misc import *
+from rps.utilities.transformations import *
 
 N = 8
 SHOW_FIGURE = True        # False: no window (r.axes is then unavailable)

@@ -14,14 +14,14 @@ as the rectangle is formed (about 250 iterations; 1000 at most) and prints a fin
 
 Run:  ./robotarium run examples/formation_control.py
 """
-import rps.robotarium as robotarium
-from rps.utilities.transformations import *
-from rps.utilities.graph import *
-from rps.utilities.barrier_certificates import *
-from rps.utilities.misc import *
-from rps.utilities.controllers import *
-
 import numpy as np
+
+import rps.robotarium as robotarium
+from rps.utilities.barrier_certificates import *
+from rps.utilities.controllers import *
+from rps.utilities.graph import *
+from rps.utilities.misc import *
+from rps.utilities.transformations import *
 
 N = 6
 SHOW_FIGURE = True        # False: no window (r.axes is then unavailable)

@@ -22,13 +22,13 @@ Run:  ./robotarium run examples/go_to_point.py            (single integrator)
 """
 import sys
 
-import rps.robotarium as robotarium
-from rps.utilities.transformations import *
-from rps.utilities.barrier_certificates import *
-from rps.utilities.misc import *
-from rps.utilities.controllers import *
-
 import numpy as np
+
+import rps.robotarium as robotarium
+from rps.utilities.barrier_certificates import *
+from rps.utilities.controllers import *
+from rps.utilities.misc import *
+from rps.utilities.transformations import *
 
 MODEL = sys.argv[1] if len(sys.argv) > 1 else "single_integrator"
 assert MODEL in ("single_integrator", "unicycle"), "usage: go_to_point.py [single_integrator|unicycle]"

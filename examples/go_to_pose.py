@@ -14,13 +14,13 @@ a final line such as "goal reached: all 5 robots within 0.05 m and 0.2 rad of th
 
 Run:  ./robotarium run examples/go_to_pose.py
 """
-import rps.robotarium as robotarium
-from rps.utilities.transformations import *
-from rps.utilities.barrier_certificates import *
-from rps.utilities.misc import *
-from rps.utilities.controllers import *
-
 import numpy as np
+
+import rps.robotarium as robotarium
+from rps.utilities.barrier_certificates import *
+from rps.utilities.controllers import *
+from rps.utilities.misc import *
+from rps.utilities.transformations import *
 
 N = 5                    # number of robots
 SHOW_FIGURE = True       # False: no window (r.axes is then unavailable)

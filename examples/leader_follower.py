@@ -15,14 +15,14 @@ such as "goal reached: leader visited all 4 waypoints, formation distances withi
 
 Run:  ./robotarium run examples/leader_follower.py
 """
-import rps.robotarium as robotarium
-from rps.utilities.transformations import *
-from rps.utilities.graph import *
-from rps.utilities.barrier_certificates import *
-from rps.utilities.misc import *
-from rps.utilities.controllers import *
-
 import numpy as np
+
+import rps.robotarium as robotarium
+from rps.utilities.barrier_certificates import *
+from rps.utilities.controllers import *
+from rps.utilities.graph import *
+from rps.utilities.misc import *
+from rps.utilities.transformations import *
 
 N = 4                          # robot 0 leads, robots 1-3 follow
 SHOW_FIGURE = True             # False: no window (r.axes is then unavailable)

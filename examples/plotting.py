@@ -18,13 +18,13 @@ there (about 350 iterations; 1000 at most) and prints a final line such as
 
 Run:  ./robotarium run examples/plotting.py
 """
-import rps.robotarium as robotarium
-from rps.utilities.transformations import *
-from rps.utilities.barrier_certificates import *
-from rps.utilities.misc import *
-from rps.utilities.controllers import *
-
 import numpy as np
+
+import rps.robotarium as robotarium
+from rps.utilities.barrier_certificates import *
+from rps.utilities.controllers import *
+from rps.utilities.misc import *
+from rps.utilities.transformations import *
 
 N = 5
 GOAL_TOLERANCE = 0.05     # m

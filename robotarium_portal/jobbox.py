@@ -398,7 +398,7 @@ class JobBox:
         if tasks[0] >= self.limits.processes:
             return ("the script reached the job's limit of %d processes and threads; all %d of its processes "
                     "were stopped" % (self.limits.processes, kill_account(self.uid)))
-        for pid, parent in pids.items():
+        for _pid, parent in pids.items():
             try:
                 if parent not in pids and os.getpgid(parent) == job_pid:
                     return None   # the leader still runs

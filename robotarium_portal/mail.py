@@ -9,7 +9,6 @@ from django.urls import reverse
 from django.utils.encoding import force_bytes
 from django.utils.http import urlsafe_base64_encode
 
-
 logger = logging.getLogger("robotarium_portal")
 
 

@@ -166,7 +166,7 @@ def cancel(experiment, by):
 
 def free_domain():
     sys.path.insert(0, str(REPOSITORY))
-    from devtools.rosutil import unique_domain_id   # a file lock held while this process lives
+    from devtools.rosutil import unique_domain_id  # a file lock held while this process lives
     return unique_domain_id()
 
 
@@ -357,9 +357,8 @@ def setup_django(data, database):
 
 def check_database(what):
     """The database answers and has the service's tables, else a clear error."""
-    from django.db import DatabaseError
+    from django.db import DatabaseError, connection
     from django.db.migrations.executor import MigrationExecutor
-    from django.db import connection
     try:
         pending = MigrationExecutor(connection).migration_plan(MigrationExecutor(connection).loader.graph.leaf_nodes())
     except DatabaseError as error:

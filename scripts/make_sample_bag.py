@@ -24,12 +24,13 @@ import numpy as np
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, REPO)
-from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id  # noqa: E402
 from geometry_msgs.msg import Twist  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
+
+from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id  # noqa: E402
+from robotarium_core.topics import LATCHED, TESTBED_QOS  # noqa: E402
 from robotarium_msgs.msg import RobotPoses, TwistArray  # noqa: E402
 from robotarium_msgs.srv import EndExperiment, StartExperiment  # noqa: E402
-from robotarium_core.topics import LATCHED, TESTBED_QOS  # noqa: E402
 
 NS = "/robotarium"
 N = 6

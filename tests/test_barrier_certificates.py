@@ -10,12 +10,12 @@ import zlib
 
 import numpy as np
 import pytest
+import test_barrier_dense_qp as dense
 
+from devtools.reference import reference_available, run_reference
+from robotarium_core.model import TIME_STEP, RobotariumError
 from robotarium_safety import barrier_certificates as bc
 from robotarium_safety import barrier_qp
-from robotarium_core.model import RobotariumError, TIME_STEP
-import test_barrier_dense_qp as dense
-from devtools.reference import reference_available, run_reference
 
 L = 0.05  # projection distance (rps default)
 WHEEL_R, BASE, WHEEL_LIMIT = 0.016, 0.105, 12.5
@@ -183,7 +183,7 @@ def _dd_kwargs(name):
 def test_obstacles_match_an_independent_exact_solution(name):
     rng = np.random.default_rng(7)
     f = getattr(bc, name)()
-    for trial in range(6):
+    for _trial in range(6):
         points = spaced_points(rng, 14, 0.3)
         x = np.vstack([points[:, :10], rng.uniform(-np.pi, np.pi, 10)])
         obstacles = points[:, 10:]
@@ -234,7 +234,7 @@ def test_pruning_leaves_the_answer_unchanged(monkeypatch):
         full = getattr(bc, name)(**kw)
         monkeypatch.setattr(bc, "PRUNING", True)
         n, spacing = (40, 0.27) if kw else (80, 0.2)  # the robust rows need the points ahead >= 0.17 apart
-        for trial in range(3):
+        for _trial in range(3):
             request, state = scene(name, rng, n, spacing=spacing)
             a = call(pruned, name, request, state)
             pairs_kept = pruned.info["num_pairs"]
@@ -255,7 +255,7 @@ def test_pruning_widens_when_an_answer_is_faster_than_assumed(monkeypatch):
     f = bc.create_single_integrator_barrier_certificate()
     rng = np.random.default_rng(5)
     widened = 0
-    for trial in range(4):
+    for _trial in range(4):
         dxi, x = scene("create_single_integrator_barrier_certificate", rng, 30, spacing=0.2)
         np.testing.assert_allclose(f(dxi, x), dense.si_exact(dxi, x), atol=1e-4)
         widened += f.info["widenings"] > 0

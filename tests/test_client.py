@@ -5,11 +5,11 @@ import re
 import numpy as np
 import pytest
 
+from devtools.rosutil import NodeProcess, unique_domain_id
+from robotarium_client.session import RunOptions
 from robotarium_core import model
 from robotarium_core.config import DEFAULT
-from robotarium_client.session import RunOptions
 from robotarium_core.model import RobotariumError
-from devtools.rosutil import NodeProcess, unique_domain_id
 
 pytestmark = pytest.mark.node   # real testbed nodes in subprocesses
 
@@ -168,7 +168,7 @@ def test_hardware_like_lockstep_through_the_stack_is_repeatable(testbed, capsys,
         monkeypatch.setattr(session, "options", RunOptions(local_testbed=False, hardware=True, seed=seed))
         r = robotarium(number_of_robots=3, initial_conditions=LINE.copy())
         trace = []
-        for k in range(40):
+        for _k in range(40):
             trace.append(r.get_poses())
             r.set_velocities(np.arange(3), np.array([[0.1, 0.05, 0.1], [0.5, -1.0, 0.0]]))
             r.step()

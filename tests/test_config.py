@@ -10,13 +10,12 @@ import pytest
 import yaml
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import DescribeParameters, SetParameters
+from test_recorder import NS, Stack
 
 from robotarium_core import config, model
 from robotarium_core.config import DEFAULT, ConfigError, TestbedConfig
 from robotarium_recording import results
 from robotarium_recording.bag import Bag
-
-from test_recorder import NS, Stack
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

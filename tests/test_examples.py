@@ -13,9 +13,11 @@ import sys
 
 import pytest
 
-# imported under another name: pytest would collect a module-level test_* function as a test
-from robotarium_client.testbed import LocalTestbed, testbed_answers as answers_in_namespace
 from devtools.rosutil import REPO, node_env, unique_domain_id
+
+# imported under another name: pytest would collect a module-level test_* function as a test
+from robotarium_client.testbed import LocalTestbed
+from robotarium_client.testbed import testbed_answers as answers_in_namespace
 
 pytestmark = pytest.mark.e2e   # every example script through ./robotarium run
 
@@ -86,7 +88,7 @@ def run(env, script, *args, timeout=600):
             os.killpg(process.pid, signal.SIGKILL)
             out, err = process.communicate()
         raise AssertionError("%s did not finish within %d s:\n%s%s\n%s" % (script_args or script, timeout, out, err,
-                                                                        logs_of_the_testbed()))
+                                                                        logs_of_the_testbed())) from None
     if process.returncode != 0:
         err += "\n" + logs_of_the_testbed()
     return subprocess.CompletedProcess(process.args, process.returncode, out, err)

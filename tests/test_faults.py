@@ -563,6 +563,7 @@ def test_a_lost_recorder_is_reported_and_its_bag_recovered(healthy, capsys):
     printed "recorded in ..." as if nothing happened) and the run goes on; recovery makes the bag's
     metadata agree with its file and leaves no temporary file."""
     from mcap.reader import make_reader
+
     from robotarium_recording.bag import Bag, recover_bag
     lab = healthy
     r = client(LINE3, real_time=True)

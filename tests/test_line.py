@@ -12,8 +12,10 @@ import time
 import pytest
 
 from devtools.rosutil import REPO, node_env, unique_domain_id
+
 # imported under another name: pytest would collect a module-level test_* function as a test
-from robotarium_client.testbed import LocalTestbed, testbed_answers as answers_in_namespace
+from robotarium_client.testbed import LocalTestbed
+from robotarium_client.testbed import testbed_answers as answers_in_namespace
 from robotarium_core.line import Line
 
 DATA = os.path.join(REPO, "tests", "data")

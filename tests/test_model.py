@@ -4,11 +4,9 @@ import math
 import numpy as np
 import pytest
 
+from devtools.reference import reference_available, run_reference
 from robotarium_core import model
 from robotarium_core.model import RobotariumError
-
-
-from devtools.reference import reference_available, run_reference
 
 
 def one_robot(x=0.0, y=0.0, theta=0.0):
@@ -113,7 +111,7 @@ def test_large_crowds_count_collisions_as_every_pair_would():
     # all-pairs count exactly, borderline distances (exactly one diameter, in x and diagonally) included.
     rng = np.random.default_rng(3)
     n = model.SWEEP_MIN_ROBOTS + 50
-    for trial in range(30):
+    for _trial in range(30):
         poses = rng.uniform(-1, 1, (3, n)) * np.array([[3.0], [2.0], [3.0]]) * rng.uniform(0.05, 1.0)
         poses[:, 1] = poses[:, 0] + [0.11, 0.0, 0.0]                          # exactly a diameter apart in x
         poses[:, 3] = poses[:, 2] + [0.11 / np.sqrt(2), 0.11 / np.sqrt(2), 0.0]   # and on a diagonal

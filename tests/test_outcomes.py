@@ -1,6 +1,6 @@
 """How a run ended: the plain module's numbers are the messages' constants, and its words."""
-from robotarium_msgs.msg import TestbedStatus
 from robotarium_core import model, outcomes
+from robotarium_msgs.msg import TestbedStatus
 
 
 def test_outcome_numbers_are_the_message_constants():

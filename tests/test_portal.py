@@ -502,7 +502,7 @@ class Serve:
             except subprocess.TimeoutExpired:
                 os.killpg(self.process.pid, signal.SIGKILL)
                 self.process.wait()
-                raise AssertionError("serve did not stop within 120 s:\n" + "\n".join(self.lines))
+                raise AssertionError("serve did not stop within 120 s:\n" + "\n".join(self.lines)) from None
         return self.process.returncode
 
 

@@ -18,12 +18,12 @@ from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from std_msgs.msg import String
 
+from devtools.rosutil import NodeProcess, RosProbe, SafetyStandIn, unique_domain_id
+from robotarium_core.topics import LATCHED
 from robotarium_msgs.msg import RobotPoses, TwistArray
 from robotarium_msgs.srv import EndExperiment, StartExperiment
 from robotarium_recording import bag as bagmod
-from robotarium_core.topics import LATCHED
 from robotarium_recording.recorder_node import RunRecorder
-from devtools.rosutil import NodeProcess, RosProbe, SafetyStandIn, unique_domain_id
 
 pytestmark = pytest.mark.node   # real testbed nodes in subprocesses
 

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 from std_srvs.srv import SetBool
 
+from devtools.rosutil import REPO, NodeProcess, RosProbe, unique_domain_id
 from robotarium_msgs.msg import RobotPoses, TestbedStatus
 from robotarium_recording.bag import Bag
 from robotarium_recording.replay_node import ReplayClock, publisher_qos
-from devtools.rosutil import REPO, NodeProcess, RosProbe, unique_domain_id
 
 pytestmark = pytest.mark.node   # real testbed nodes in subprocesses
 

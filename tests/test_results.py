@@ -9,12 +9,12 @@ import imageio_ffmpeg
 import matplotlib.image
 import numpy as np
 import pytest
+from test_recorder import stack  # noqa: F401  (fixture: simulator + recorder on a private domain)
 
+from devtools.rosutil import REPO
 from robotarium_core import model
 from robotarium_recording import pictures, results
 from robotarium_recording.bag import Bag
-from devtools.rosutil import REPO
-from test_recorder import stack  # noqa: F401  (fixture: simulator + recorder on a private domain)
 
 SAMPLE = os.path.join(REPO, "bags", "sample_consensus")
 

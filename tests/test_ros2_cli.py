@@ -15,8 +15,8 @@ import time
 import numpy as np
 import pytest
 
-from robotarium_msgs.msg import RobotPoses
 from devtools.rosutil import REPO, RosProbe, node_env, unique_domain_id
+from robotarium_msgs.msg import RobotPoses
 
 pytestmark = pytest.mark.e2e   # the real ros2 CLI against a launched testbed
 
@@ -67,7 +67,7 @@ class Cli:
                     for other in running.values():
                         other.kill()
                         other.wait()
-                    raise AssertionError("ros2 %s did not finish within %g s" % (" ".join(commands[k]), timeout))
+                    raise AssertionError("ros2 %s did not finish within %g s" % (" ".join(commands[k]), timeout)) from None
                 if process.returncode == 0 or "Node not found" not in out or time.monotonic() > deadline:
                     assert process.returncode == 0, "ros2 %s failed (%d):\n%s" % (
                         " ".join(commands[k]), process.returncode, out)

@@ -20,6 +20,7 @@ import pytest
 from devtools.rosutil import REPO
 from robotarium_core import model, rps2, sensors
 from robotarium_core.config import DEFAULT
+
 # The guide's, imported before the rps2_utilities fixture puts the 2.x modules first.
 from rps.utilities.misc import generate_initial_conditions as guide_generate_initial_conditions
 
@@ -461,8 +462,10 @@ def test_2x_controllers_and_transformations_match_the_reference(rps2_utilities):
 
 
 def test_2x_barrier_certificates_keep_robots_apart(rps2_utilities):
-    from rps.utilities.barrier_certificates import create_si_barrier_certificate_with_boundary, \
-        create_uni_barrier_certificate_with_boundary
+    from rps.utilities.barrier_certificates import (
+        create_si_barrier_certificate_with_boundary,
+        create_uni_barrier_certificate_with_boundary,
+    )
     x = np.array([[-0.2, 0.2], [0.0, 0.0], [0.0, np.pi]])
     towards = np.array([[0.2, 0.2], [0.0, 0.0]])
     safe = create_uni_barrier_certificate_with_boundary()(towards, x)

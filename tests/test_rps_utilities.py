@@ -16,16 +16,27 @@ import pytest  # noqa: E402
 from devtools.reference import reference_available, run_reference  # noqa: E402
 from robotarium_core.model import RobotariumError  # noqa: E402
 from rps.utilities.controllers import (  # noqa: E402
-    create_clf_unicycle_pose_controller, create_clf_unicycle_position_controller,
-    create_hybrid_unicycle_pose_controller, create_si_position_controller)
+    create_clf_unicycle_pose_controller,
+    create_clf_unicycle_position_controller,
+    create_hybrid_unicycle_pose_controller,
+    create_si_position_controller,
+)
 from rps.utilities.graph import (  # noqa: E402
-    completeGL, cycle_GL, delta_disk_neighbors, lineGL, random_connectedGL, randomGL,
-    topological_neighbors)
-from rps.utilities.misc import (  # noqa: E402
-    at_pose, at_position, determine_font_size, determine_marker_size, generate_initial_conditions)
+    completeGL,
+    cycle_GL,
+    delta_disk_neighbors,
+    lineGL,
+    random_connectedGL,
+    randomGL,
+    topological_neighbors,
+)
+from rps.utilities.misc import at_pose, at_position, determine_font_size, determine_marker_size, generate_initial_conditions  # noqa: E402
 from rps.utilities.transformations import (  # noqa: E402
-    create_si_to_uni_dynamics, create_si_to_uni_dynamics_with_backwards_motion,
-    create_si_to_uni_mapping, create_uni_to_si_dynamics)
+    create_si_to_uni_dynamics,
+    create_si_to_uni_dynamics_with_backwards_motion,
+    create_si_to_uni_mapping,
+    create_uni_to_si_dynamics,
+)
 
 PI = np.pi
 

@@ -21,8 +21,9 @@ import time
 import numpy as np
 import pytest
 
-from robotarium_client.testbed import LocalTestbed, testbed_answers as answers_in_namespace
 from devtools.rosutil import REPO, node_env, unique_domain_id
+from robotarium_client.testbed import LocalTestbed
+from robotarium_client.testbed import testbed_answers as answers_in_namespace
 
 pytestmark = pytest.mark.e2e   # whole runs through ./robotarium
 
@@ -86,7 +87,7 @@ def finish(process, timeout=180):
     except subprocess.TimeoutExpired:
         os.killpg(process.pid, signal.SIGKILL)
         out, _ = process.communicate()
-        raise AssertionError("./robotarium run did not finish within %d s:\n%s" % (timeout, out))
+        raise AssertionError("./robotarium run did not finish within %d s:\n%s" % (timeout, out)) from None
     return process.returncode, out
 
 
@@ -296,8 +297,8 @@ def test_the_results_page_in_a_real_browser(testbed):
 
 
 def test_replay_plays_a_lockstep_run_in_experiment_time_and_refuses_a_live_testbed(testbed, tmp_path):
-    from robotarium_msgs.msg import RobotPoses
     from devtools.rosutil import RosProbe
+    from robotarium_msgs.msg import RobotPoses
     bag = testbed["runs"].get("fails")
     if bag is None:
         pytest.skip("needs the run of test_a_script_that_raises_mid_run")

@@ -3,13 +3,13 @@ import time
 
 import numpy as np
 import pytest
+from test_simulator_node import as_array, command, lockstep
 
+from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id
+from robotarium_core import model
+from robotarium_core.topics import TESTBED_QOS, readers_matched
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
 from robotarium_msgs.srv import ArmSafety, EndExperiment, StartExperiment
-from robotarium_core import model
-from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id
-from robotarium_core.topics import TESTBED_QOS, readers_matched
-from test_simulator_node import as_array, command, lockstep
 
 pytestmark = pytest.mark.node   # real testbed nodes in subprocesses
 

@@ -25,7 +25,7 @@ import pytest
 
 from devtools.postgres import PostgreSQL, server_binaries
 from devtools.rosutil import processes_with_env
-from devtools.service import (HOLD, HOST_ADDRESS, SECOND_HOST, SHORT, TIMEOUT, Service, run_quietly)
+from devtools.service import HOLD, HOST_ADDRESS, SECOND_HOST, SHORT, TIMEOUT, Service, run_quietly
 
 pytestmark = pytest.mark.e2e
 @pytest.fixture(scope="module")

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from geometry_msgs.msg import Twist
 
-from robotarium_msgs.msg import RobotPoses, TestbedStatus, TwistArray
-from robotarium_msgs.srv import EndExperiment, StartExperiment
-from robotarium_core import model
 from devtools.rosutil import REPO, NodeProcess, RosProbe, SafetyStandIn, node_env, unique_domain_id
+from robotarium_core import model
 from robotarium_core.config import DEFAULT
 from robotarium_core.topics import TESTBED_QOS
+from robotarium_msgs.msg import RobotPoses, TestbedStatus, TwistArray
+from robotarium_msgs.srv import EndExperiment, StartExperiment
 
 pytestmark = pytest.mark.node   # real testbed nodes in subprocesses
 
@@ -355,6 +355,7 @@ def test_installed_for_ros2_run():
 
 def test_viewers_get_the_scene_at_the_viewer_rate_not_every_step(testbed):
     from visualization_msgs.msg import Marker, MarkerArray
+
     from robotarium_core.config import DEFAULT
     from robotarium_core.topics import VIEWER_QOS
     _, probe, safety = testbed

@@ -16,11 +16,11 @@ import yaml
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, MagneticField, Range
 
-from robotarium_msgs.msg import SensorReadings
-from robotarium_msgs.srv import StartExperiment
 from robotarium_core import rps2
 from robotarium_core.config import DEFAULT
 from robotarium_core.sensors import GRAVITY
+from robotarium_msgs.msg import SensorReadings
+from robotarium_msgs.srv import StartExperiment
 from robotarium_sim import rps2_io
 from tests.test_recorder import NS, Stack, rosbags_messages
 

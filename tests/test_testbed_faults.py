@@ -147,8 +147,9 @@ def test_a_full_disk_stops_the_recording_not_the_run_nor_the_testbed(testbed, tm
         with open(os.path.join(folder, "index.html")) as f:
             assert "Recording stopped at step %d: disk full" % k in f.read()
         # What was recorded reads back with an independent reader, up to step k.
-        from rosbags.highlevel import AnyReader
         from pathlib import Path
+
+        from rosbags.highlevel import AnyReader
         with AnyReader([Path(info["recording"])]) as reader:
             poses = [c for c in reader.connections if c.topic == NAMESPACE + "/poses"]
             steps = [reader.deserialize(raw, c.msgtype).step for c, _, raw in reader.messages(connections=poses)]

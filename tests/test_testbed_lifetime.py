@@ -83,11 +83,10 @@ def wait_until_gone(domain, timeout=20.0):
 
 def read_back(folder):
     """The run's bag through two independent readers; returns (poses count, last status state)."""
+    import yaml
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
     from rosbags.rosbag2 import Reader
-
-    import yaml
     with open(os.path.join(folder, "metadata.yaml")) as f:   # closed by the recorder, not recovered
         assert yaml.safe_load(f)["rosbag2_bagfile_information"]["custom_data"]["complete"] == "true"
     with Reader(folder) as reader:

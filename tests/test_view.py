@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message
 
+from devtools.foxglove_client import SUBPROTOCOL, FoxgloveClient
+from devtools.rosutil import REPO, NodeProcess, node_env, unique_domain_id
 from robotarium_msgs.msg import RobotPoses, TestbedStatus, TwistArray
 from robotarium_recording import foxglove_scene
 from robotarium_recording.bag import Bag
 from robotarium_recording.view_node import LAYOUT_FILE, READY, SCENE, SCENE_DRAWING, layout_text
-from devtools.foxglove_client import SUBPROTOCOL, FoxgloveClient
-from devtools.rosutil import REPO, NodeProcess, node_env, unique_domain_id
 
 pytestmark = pytest.mark.node   # real testbed nodes in subprocesses
 

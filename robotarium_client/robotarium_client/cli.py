@@ -365,7 +365,7 @@ def check_run_folders(folders, config_file=None):
     """One line and USAGE_ERROR when a run's folder could not be written (results_folder_problem),
     else None: said before a testbed starts or a robot moves, not as a traceback after the run."""
     from robotarium_core import outcomes
-    from robotarium_core.config import ConfigError, DEFAULT, TestbedConfig
+    from robotarium_core.config import DEFAULT, ConfigError, TestbedConfig
     try:
         min_free = (TestbedConfig.load(config_file) if config_file else DEFAULT).results_min_free
     except (OSError, ConfigError):
@@ -909,7 +909,7 @@ def cmd_verify(args):
     """./robotarium verify: see robotarium_client.verify."""
     from robotarium_client import verify
     from robotarium_core import outcomes
-    from robotarium_core.config import ConfigError, DEFAULT, TestbedConfig
+    from robotarium_core.config import DEFAULT, ConfigError, TestbedConfig
     try:
         config = TestbedConfig.load(args.config) if args.config else DEFAULT
     except (OSError, ConfigError) as error:

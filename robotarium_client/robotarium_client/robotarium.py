@@ -272,15 +272,25 @@ class Robotarium(RobotariumABC):
         import rclpy
         from rclpy.context import Context
         from rclpy.node import Node
-
-        from robotarium_core.executor import LeanExecutor
-
-        from robotarium_client.testbed import LocalTestbed, security_enabled
         from std_msgs.msg import String
 
-        from robotarium_core.topics import (CMD_REQUESTED, CONFIG, DRAWING, DRAWING_QOS, END_EXPERIMENT, LATCHED, POSES,
-                                            RECORDING, RECORDING_ERROR, START_EXPERIMENT, STATUS, STATUS_QOS,
-                                            TESTBED_QOS)
+        from robotarium_client.testbed import LocalTestbed, security_enabled
+        from robotarium_core.executor import LeanExecutor
+        from robotarium_core.topics import (
+            CMD_REQUESTED,
+            CONFIG,
+            DRAWING,
+            DRAWING_QOS,
+            END_EXPERIMENT,
+            LATCHED,
+            POSES,
+            RECORDING,
+            RECORDING_ERROR,
+            START_EXPERIMENT,
+            STATUS,
+            STATUS_QOS,
+            TESTBED_QOS,
+        )
         from robotarium_msgs.msg import RobotPoses, TestbedStatus, TwistArray
         from robotarium_msgs.srv import EndExperiment, StartExperiment
 

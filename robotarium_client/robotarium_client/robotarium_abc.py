@@ -202,9 +202,9 @@ class RobotariumABC(abc.ABC):
     def _end(self, outcome=outcomes.COMPLETED, detail=""):
         """End the experiment saying how it ended (robotarium_core.outcomes); return the debug report text."""
 
-    def _publish_drawing(self, message):
+    def _publish_drawing(self, message):   # noqa: B027 (optional hook: a no-op by default)
         """Keep a DrawingWatcher message (what the script drew) with the run; a backend without a
         recording may ignore it."""
 
-    def _after_report(self):
+    def _after_report(self):   # noqa: B027 (optional hook: a no-op by default)
         """What a backend prints after the debug report (e.g. where the run was recorded)."""

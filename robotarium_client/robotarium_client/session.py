@@ -142,8 +142,7 @@ def describe_exception(exc):
 def failure_of(exc, step, where=""):
     """(outcome, detail) of a run that an exception ended at `step` (robotarium_core.outcomes);
     `where` says where in the script, e.g. "line 57 of go.py"."""
-    from robotarium_client.robotarium import (EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete,
-                                              TestbedLost)
+    from robotarium_client.robotarium import EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete, TestbedLost
     from robotarium_core import outcomes
     at = "at step %d%s" % (step, " (%s)" % where if where else "")
     if isinstance(exc, EndedByUnsentRequest):   # a process holding the run's token ended it

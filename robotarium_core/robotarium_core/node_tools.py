@@ -12,12 +12,13 @@ import sys
 import time
 
 import rclpy
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 
-from robotarium_core import claim as claims, lifeline
+from robotarium_core import claim as claims
+from robotarium_core import lifeline
 from robotarium_core.config import DEFAULT, FIELDS, TestbedConfig
 from robotarium_core.executor import LeanExecutor
 from robotarium_core.topics import DEFAULT_NAMESPACE

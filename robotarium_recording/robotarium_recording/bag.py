@@ -19,11 +19,11 @@ tail and metadata.yaml so that other readers open it too (like `ros2 bag reindex
 Messages decode with a rosbags typestore: Jazzy's standard types plus the schemas stored in the
 bag itself (so an old bag still decodes after our .msg files change).
 """
+import errno
 import functools
 import glob
 import hashlib
 import os
-import errno
 import re
 import struct
 import time

@@ -32,7 +32,7 @@ FORMAT = 1
 
 def _rgba(colours):
     if not (isinstance(colours, np.ndarray) and colours.ndim == 2 and colours.shape[1] == 4):
-        from matplotlib.colors import to_rgba_array   # names, tuples: resolved once here
+        from matplotlib.colors import to_rgba_array  # names, tuples: resolved once here
         colours = to_rgba_array(colours)
     return np.round(colours, 4).tolist()
 

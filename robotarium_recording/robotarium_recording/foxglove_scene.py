@@ -15,8 +15,8 @@ robotarium_recording.view_node, is the thin shell that feeds this from the testb
 import numpy as np
 from foxglove.messages import (
     Color,
-    CylinderPrimitive,
     CubePrimitive,
+    CylinderPrimitive,
     Grid,
     KeyValuePair,
     LinePrimitive,

@@ -45,19 +45,17 @@ import sys
 import time
 from collections import deque
 
-from rclpy.node import Node
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
-                       ReliabilityPolicy)
-from rclpy.serialization import deserialize_message
 from rcl_interfaces.msg import Log
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
 
-from robotarium_msgs.msg import TestbedStatus
 from robotarium_core import presence
 from robotarium_core.config import DEFAULT, FIELDS
 from robotarium_core.node_tools import declare_parameter, run_node
-from robotarium_core.topics import (DEFAULT_NAMESPACE, LATCHED, MARKERS, RECORDING, RECORDING_ERROR, STATUS,
-                                    STATUS_STREAM)
+from robotarium_core.topics import DEFAULT_NAMESPACE, LATCHED, MARKERS, RECORDING, RECORDING_ERROR, STATUS, STATUS_STREAM
+from robotarium_msgs.msg import TestbedStatus
 from robotarium_recording import bag, samples
 
 # Our own announcement is not part of a run; the viewers' markers are drawn from the poses (a subscription

@@ -35,22 +35,32 @@ import sys
 import threading
 import time
 
-import foxglove
 import foxglove.websocket
 from foxglove.channels import GridChannel, SceneUpdateChannel
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from rclpy.utilities import remove_ros_args
-from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
 from std_msgs.msg import String
 from visualization_msgs.msg import Marker
 
+import foxglove
 from robotarium_core import cdr, lifeline, scene
 from robotarium_core.config import DEFAULT, ConfigError, TestbedConfig
 from robotarium_core.node_tools import run_node
-from robotarium_core.topics import (CMD_REQUESTED, CMD_SAFE, CONFIG, DEFAULT_NAMESPACE, DRAWING, LATCHED, OBSTACLES,
-                                    POSES, SAFETY_REPORT, STATUS)
+from robotarium_core.topics import (
+    CMD_REQUESTED,
+    CMD_SAFE,
+    CONFIG,
+    DEFAULT_NAMESPACE,
+    DRAWING,
+    LATCHED,
+    OBSTACLES,
+    POSES,
+    SAFETY_REPORT,
+    STATUS,
+)
+from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
 from robotarium_recording import drawing, foxglove_scene
 from robotarium_recording.bag import message_definition
 

@@ -42,11 +42,18 @@ import numpy as np
 
 from robotarium_core.config import DEFAULT
 from robotarium_core.model import (
-    ARENA_X_MAX, ARENA_X_MIN, ARENA_Y_MAX, ARENA_Y_MIN, BASE_LENGTH, MAX_LINEAR_VELOCITY,
-    MAX_WHEEL_VELOCITY, WHEEL_RADIUS, RobotariumError)
+    ARENA_X_MAX,
+    ARENA_X_MIN,
+    ARENA_Y_MAX,
+    ARENA_Y_MIN,
+    BASE_LENGTH,
+    MAX_LINEAR_VELOCITY,
+    MAX_WHEEL_VELOCITY,
+    WHEEL_RADIUS,
+    RobotariumError,
+)
 
-from .barrier_qp import (
-    NeighbourCache, QPSolver, Rows, cubic_cutoff_distance, end_call, new_info, reset_info)
+from .barrier_qp import NeighbourCache, QPSolver, Rows, cubic_cutoff_distance, end_call, new_info, reset_info
 
 __all__ = [
     "create_single_integrator_barrier_certificate",

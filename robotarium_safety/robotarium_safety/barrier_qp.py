@@ -88,7 +88,7 @@ def pairs_within(points, radius):
         pairs = all_pairs(n)
         diff = points[pairs[:, 0]] - points[pairs[:, 1]]
         return pairs[np.einsum("ij,ij->i", diff, diff) <= radius * radius]
-    from scipy.spatial import cKDTree   # here, not at import: scipy.spatial takes ~0.5 s to import
+    from scipy.spatial import cKDTree  # here, not at import: scipy.spatial takes ~0.5 s to import
     pairs = cKDTree(points).query_pairs(radius, output_type="ndarray").astype(np.intp)
     # query_pairs gives no order; sort so the same set always gives the same matrix pattern.
     return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]

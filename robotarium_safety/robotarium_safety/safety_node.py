@@ -65,24 +65,35 @@ STATUS_STOP_NO_POSES with its pose_age; the simulator's status counts them as st
 and logged: the first of a spell at once, then at most once a second, and the spell's end.
 """
 import sys
-from itertools import chain
 import time
 from collections import deque
+from itertools import chain
 
 import numpy as np
 import yaml
 from rclpy.node import Node
 from std_msgs.msg import String
 
+from robotarium_core import cdr, model, presence, rps2
+from robotarium_core.node_tools import declare_config, run_node, take_waiting
+from robotarium_core.topics import (
+    CMD_REQUESTED,
+    CMD_SAFE,
+    DEFAULT_NAMESPACE,
+    EXPERIMENT,
+    LATCHED,
+    POSES,
+    SAFETY_ARM,
+    SAFETY_REPORT,
+    TESTBED_QOS,
+    command_input_qos,
+    readers_matched,
+    warn_on_incompatible_qos,
+)
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TwistArray
 from robotarium_msgs.srv import ArmSafety
 from robotarium_safety.barrier_certificates import create_unicycle_barrier_certificate_with_centre_boundary
 from robotarium_safety.guard import Guard, filter_commands
-from robotarium_core import cdr, model, presence, rps2
-from robotarium_core.node_tools import declare_config, run_node, take_waiting
-from robotarium_core.topics import (CMD_REQUESTED, CMD_SAFE, command_input_qos, DEFAULT_NAMESPACE, EXPERIMENT, LATCHED,
-                                    POSES, SAFETY_ARM, SAFETY_REPORT, TESTBED_QOS, readers_matched,
-                                    warn_on_incompatible_qos)
 
 STALE_LOG_INTERVAL = 1.0   # s between log lines while poses stay too old
 

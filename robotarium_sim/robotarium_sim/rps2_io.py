@@ -11,15 +11,15 @@ import struct
 
 import numpy as np
 import yaml
+from geometry_msgs.msg import Point
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, MagneticField, Range
 from visualization_msgs.msg import Marker
-from geometry_msgs.msg import Point
 
-from robotarium_msgs.msg import SensorReadings
 from robotarium_core import cdr, model, rps2
 from robotarium_core.sensors import GRAVITY, NUMBER_OF_DISTANCE_SENSORS
+from robotarium_msgs.msg import SensorReadings
 
 
 def testbed_for(request, poses, config):

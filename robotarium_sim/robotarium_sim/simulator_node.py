@@ -58,8 +58,8 @@ import hashlib
 import re
 import secrets
 import sys
-from itertools import chain
 import time
+from itertools import chain
 
 import numpy as np
 from geometry_msgs.msg import PoseArray
@@ -67,19 +67,39 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.task import Future
-from visualization_msgs.msg import MarkerArray
 from std_msgs.msg import String
-
-from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, SensorReadings, TestbedStatus, TwistArray
-from robotarium_msgs.srv import ArmSafety, EndExperiment, StartExperiment
+from visualization_msgs.msg import MarkerArray
 
 from robotarium_core import cdr, markers, model, outcomes, presence, rps2, scene
 from robotarium_core.line import Line
 from robotarium_core.node_tools import declare_config, run_node, take_waiting
-from robotarium_core.topics import (CMD_SAFE, command_input_qos, CONFIG, DEFAULT_NAMESPACE, END_EXPERIMENT, EXPERIMENT,
-                                    LATCHED, MARKERS, OBSTACLES, POSE_ARRAY, POSES, RECORDING, SAFETY_ARM, SAFETY_REPORT,
-                                    SENSORS, START_EXPERIMENT, STATUS, STATUS_QOS, STATUS_STREAM, STATUS_STREAM_QOS,
-                                    TESTBED_QOS, VIEWER_QOS, warn_on_incompatible_qos)
+from robotarium_core.topics import (
+    CMD_SAFE,
+    CONFIG,
+    DEFAULT_NAMESPACE,
+    END_EXPERIMENT,
+    EXPERIMENT,
+    LATCHED,
+    MARKERS,
+    OBSTACLES,
+    POSE_ARRAY,
+    POSES,
+    RECORDING,
+    SAFETY_ARM,
+    SAFETY_REPORT,
+    SENSORS,
+    START_EXPERIMENT,
+    STATUS,
+    STATUS_QOS,
+    STATUS_STREAM,
+    STATUS_STREAM_QOS,
+    TESTBED_QOS,
+    VIEWER_QOS,
+    command_input_qos,
+    warn_on_incompatible_qos,
+)
+from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, SensorReadings, TestbedStatus, TwistArray
+from robotarium_msgs.srv import ArmSafety, EndExperiment, StartExperiment
 from robotarium_sim import rps2_io
 from robotarium_sim.hardware import HardwareTestbed
 

@@ -18,6 +18,7 @@ certificate (on the Robotarium's simulator too).
 import sys
 
 import numpy as np
+
 import rps.robotarium as robotarium
 from rps.utilities.barrier_certificates import create_single_integrator_barrier_certificate_with_boundary
 from rps.utilities.controllers import create_si_position_controller

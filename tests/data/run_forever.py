@@ -2,6 +2,7 @@
 in circles. Prints RUNNING after five steps. Used by tests/test_testbed_lifetime.py and
 bench/bench_testbed_lifetime.py to stop `./robotarium run` from outside."""
 import numpy as np
+
 import rps.robotarium as robotarium
 
 r = robotarium.Robotarium(number_of_robots=2, show_figure=False, sim_in_real_time=True)

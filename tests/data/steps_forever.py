@@ -4,6 +4,7 @@ tests/test_faults.py and bench/bench_faults.py to kill or interrupt a client mid
 import sys
 
 import numpy as np
+
 import rps.robotarium as robotarium
 
 r = robotarium.Robotarium(number_of_robots=3, show_figure=False, sim_in_real_time="lockstep" not in sys.argv[1:],

@@ -7,6 +7,7 @@ import os
 import sys
 
 import numpy as np
+
 import rps.robotarium as robotarium
 
 steps = int(sys.argv[1]) if len(sys.argv) > 1 else 30

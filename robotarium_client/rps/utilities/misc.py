@@ -16,6 +16,7 @@ import numpy as np
 from robotarium_core.model import MAX_ROBOTS, MIN_ROBOTS
 from rps.utilities import RobotariumError, _check_array, _check_number, _describe
 
+
 def __getattr__(name):
     if name == "plt":   # (PEP 562) imported on first use, then a plain attribute
         import matplotlib.pyplot as plt

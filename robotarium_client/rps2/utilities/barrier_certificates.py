@@ -80,7 +80,7 @@ def create_si_barrier_certificate(safety_radius=0.15, barrier_gain=100.0, magnit
         A2, b2 = _polygon_rows(n, magnitude_limit, True)
         v = _solve_qp(n, dxi, np.vstack([A1, A2]), np.concatenate([b1, b2]))
         if v is None:
-            warnings.warn("create_si_barrier_certificate: QP failed. Commanding zero velocities.")
+            warnings.warn("create_si_barrier_certificate: QP failed. Commanding zero velocities.", stacklevel=2)
             return np.zeros((2, n))
         return v
     return barrier_certificate
@@ -100,7 +100,7 @@ def create_si_barrier_certificate_with_boundary(safety_radius=0.15, barrier_gain
         A3, b3 = _polygon_rows(n, magnitude_limit, False)
         v = _solve_qp(n, dxi, np.vstack([A1, A2, A3]), np.concatenate([b1, b2, b3]))
         if v is None:
-            warnings.warn("create_si_barrier_certificate_with_boundary: QP failed. Commanding zero velocities.")
+            warnings.warn("create_si_barrier_certificate_with_boundary: QP failed. Commanding zero velocities.", stacklevel=2)
             return np.zeros((2, n))
         return v
     return barrier_certificate
@@ -123,7 +123,7 @@ def _unicycle(si_barrier, projection_distance, where):
             warnings.simplefilter("always")
             safe = si_barrier(dxi, xi)
         if any("QP failed" in str(w.message) for w in caught):
-            warnings.warn("%s: Safety QP failed. Commanding zero velocities." % where)
+            warnings.warn("%s: Safety QP failed. Commanding zero velocities." % where, stacklevel=2)
             return np.zeros((2, n))
         return si_to_uni(safe[:, :n], x)
     return barrier_unicycle
