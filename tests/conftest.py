@@ -37,3 +37,13 @@ def pytest_collection_modifyitems(items):
             item.add_marker(pytest.mark.unit)
     rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))   # stable: each module's order kept
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _no_probe_participant_left():
+    """The DDS participant that in-process probes of a module's testbed keep (robotarium_client.testbed's
+    probe contexts) goes with the module, before another module draws its ROS_DOMAIN_ID."""
+    yield
+    testbed = sys.modules.get("robotarium_client.testbed")
+    if testbed is not None:
+        testbed.close_probe_contexts()

@@ -340,12 +340,21 @@ def _script_process(pid):
     raise AssertionError("no script process among %s" % children)
 
 
-def test_a_script_killed_outright_leaves_the_runs_folder(testbed):
+@pytest.mark.parametrize("recorder_late", [False, True], ids=["recorder-on-time", "recorder-late"])
+def test_a_script_killed_outright_leaves_the_runs_folder(testbed, recorder_late):
     """kill -9 of the script's process: it says nothing more, yet ./robotarium run finishes the run's own
-    folder (the recording) from the bag: the report, the video, the page, run.json with the run's steps."""
-    process = start_run(testbed, "endless.py", "--no-local-testbed")
-    head = wait_for_line(process, "running")
-    os.kill(_script_process(process.pid), signal.SIGKILL)
+    folder (the recording) from the bag: the report, the video, the page, run.json with the run's steps.
+    recorder-late: the recorder is frozen (SIGSTOP) until the script is dead, so the script never heard
+    where its run is recorded (a busy machine's recorder opens the bag a few steps late): run asks it."""
+    recorder = testbed["testbed"].processes["recorder"][0]
+    if recorder_late:
+        recorder.send_signal(signal.SIGSTOP)
+    try:
+        process = start_run(testbed, "endless.py", "--no-local-testbed")
+        head = wait_for_line(process, "running")
+        os.kill(_script_process(process.pid), signal.SIGKILL)
+    finally:
+        recorder.send_signal(signal.SIGCONT)
     code, out = finish(process)
     out = head + out
     assert code == 128 + signal.SIGKILL, out

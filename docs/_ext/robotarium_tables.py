@@ -66,6 +66,9 @@ TOPICS = [
      "the run's settings (YAML: api, obstacles, drive-on goals)"),
     ("topics:RECORDING", "std_msgs/msg/String", [("", "topics:LATCHED")],
      "where the run is recorded (recorder to simulator and client)"),
+    ("topics:RECORDED_RUNS", "std_msgs/msg/String", [("", "topics:RECORDED_RUNS_QOS")],
+     "hidden: the last runs' folders as their recordings opened (JSON: run_id, path), so `./robotarium run` "
+     "finds the recording of a script killed before it heard `recording`"),
     ("topics:RECORDING_ERROR", "std_msgs/msg/String", [("", "topics:LATCHED")],
      "a run whose recording stopped (JSON: run_id, path, why, e.g. disk full; recorder to client)"),
 ]

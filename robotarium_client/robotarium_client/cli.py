@@ -20,7 +20,14 @@ import threading
 import time
 
 from robotarium_client import session
-from robotarium_client.testbed import LocalTestbed, namespace, repository_root, running_testbed, testbed_answers
+from robotarium_client.testbed import (
+    LocalTestbed,
+    announced_recording,
+    namespace,
+    repository_root,
+    running_testbed,
+    testbed_answers,
+)
 from robotarium_core import lifeline, model, outcomes, script_box
 
 DEMO_SCRIPT = os.path.join("examples", "barrier_certificates.py")  # 8 robots swap places through the middle
@@ -826,6 +833,12 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
         # A very short run can end before the recorder's announcement of its folder arrived.
         guess = os.path.join(bags_dir or os.path.join(repository_root(), "bags"), info["run_id"])
         run_dir = guess if os.path.isdir(guess) else ""
+        if not run_dir and died and interruption is not None and results:
+            # Killed before its client heard the announcement: the testbed, which ends the run only
+            # after the client's lease, is recording it still; ask its recorder.
+            if not quiet:
+                say("asking the testbed's recorder where run %s is recorded (up to 10 s)" % info["run_id"])
+            run_dir = announced_recording(info["run_id"], namespace(), timeout=10.0)
     recorded = bool(run_dir) and os.path.isdir(run_dir) and results
     bag_dir = run_dir if recorded else ""
     stopped = outcomes.recording_stopped(run)
@@ -1372,4 +1385,9 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    code = main()
+    # Leave without tearing down the DDS participant the probes kept (testbed._probe_context): Fast DDS
+    # can deadlock destroying one while discovery callbacks run. Everything of ours is closed by now.
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code if isinstance(code, int) else 0 if code is None else 1)

@@ -215,23 +215,56 @@ def _kill_group(process):
 
 def testbed_answers(ns=None, timeout=3.0):
     """True when a simulator on this DDS domain offers <ns>/start_experiment within `timeout`."""
-    import rclpy
-    from rclpy.context import Context
     from rclpy.node import Node
 
     from robotarium_core.node_tools import wait_for_service
     from robotarium_msgs.srv import StartExperiment
 
-    context = Context()
-    rclpy.init(context=context, args=[])
+    node = Node("robotarium_probe_%d" % os.getpid(), context=_probe_context())
     try:
-        node = Node("robotarium_probe_%d" % os.getpid(), context=context)
         client = node.create_client(StartExperiment, "%s/start_experiment" % (ns or namespace()))
-        found = wait_for_service(client, timeout)
-        node.destroy_node()
-        return found
+        return wait_for_service(client, timeout)
     finally:
-        rclpy.try_shutdown(context=context)
+        node.destroy_node()
+
+
+def announced_recording(run_id, ns=None, timeout=10.0):
+    """The folder the recorder of `ns` recorded run `run_id` in (its hidden <ns>/_recording/runs), waiting
+    up to `timeout` seconds for it: a script killed outright may die before its own client heard the
+    announcement (a busy recorder opens the bag a few steps late), and a recorder starved of CPU
+    answers discovery seconds late, after the run closed. "" when none announced it in time."""
+    import json
+
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from std_msgs.msg import String
+
+    from robotarium_core.topics import RECORDED_RUNS, RECORDED_RUNS_QOS
+
+    context = _probe_context()
+    # Named as the client's nodes are: SROS2's policy lets them read the recorder's announcements.
+    node = Node("robotarium_client_%d_recorded_runs" % os.getpid(), context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    found = []
+
+    def heard(msg):
+        try:
+            run = json.loads(msg.data)
+            if run["run_id"] == run_id and run["path"]:
+                found.append(str(run["path"]))
+        except (ValueError, TypeError, KeyError):
+            pass   # not an announcement
+    try:
+        node.create_subscription(String, "%s/%s" % ((ns or namespace()).rstrip("/"), RECORDED_RUNS), heard,
+                                 RECORDED_RUNS_QOS)
+        deadline = time.monotonic() + timeout
+        while not found and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        return found[-1] if found else ""
+    finally:
+        executor.shutdown()
+        node.destroy_node()
 
 
 def running_testbed(ns=None, timeout=3.0):
@@ -239,7 +272,6 @@ def running_testbed(ns=None, timeout=3.0):
     the first of its simulator, safety node or recorder heard within `timeout` seconds, or
     {"who": "testbed", ...} with what is known where only a simulator without a claim answers; None
     when nothing answered (then it took the whole timeout)."""
-    import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
     from std_msgs.msg import String
@@ -249,7 +281,7 @@ def running_testbed(ns=None, timeout=3.0):
     from robotarium_msgs.srv import StartExperiment
 
     ns = (ns or namespace()).rstrip("/")
-    context = _private_context()
+    context = _probe_context()
     node = Node("robotarium_claims_%d" % os.getpid(), context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
@@ -272,14 +304,27 @@ def running_testbed(ns=None, timeout=3.0):
     finally:
         executor.shutdown()
         node.destroy_node()
-        rclpy.try_shutdown(context=context)
 
 
-def _private_context(domain=None, discovery_range=None):
-    """An initialised rclpy context on `domain` (default: ROS_DOMAIN_ID) with the given discovery
-    range (default: ROS_AUTOMATIC_DISCOVERY_RANGE), which rcl reads when the context starts."""
+_probe_contexts = {}   # (domain, discovery range) -> (context, its anchor node)
+
+
+def _probe_context(domain=None, discovery_range=None):
+    """The rclpy context this process looks at the DDS graph from, on `domain` (default:
+    ROS_DOMAIN_ID) with the given discovery range (default: ROS_AUTOMATIC_DISCOVERY_RANGE, which rcl
+    reads when the context starts). Made once and kept for the process's life, with an anchor node:
+    rmw destroys a context's DDS participant with its last node, and Fast DDS 2.14 can deadlock
+    destroying a participant while discovery callbacks run, spinning for ever (a ./robotarium run
+    once spun at 100 % CPU for 28 minutes in rcl_node_fini right after a probe, under load). The
+    probes' own nodes come and go; the command ends with os._exit (cli.py), never tearing it down."""
     import rclpy
     from rclpy.context import Context
+    from rclpy.node import Node
+    # What rcl will read: the environment's, unless given (a test changes ROS_DOMAIN_ID in process).
+    key = (str(domain) if domain is not None else os.environ.get("ROS_DOMAIN_ID", "").strip() or "0",
+           discovery_range or os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", ""))
+    if key in _probe_contexts:
+        return _probe_contexts[key][0]
     saved = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE")
     if discovery_range:
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = discovery_range
@@ -292,7 +337,19 @@ def _private_context(domain=None, discovery_range=None):
                 os.environ.pop("ROS_AUTOMATIC_DISCOVERY_RANGE", None)
             else:
                 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = saved
+    anchor = Node("robotarium_graph_%d_%d" % (os.getpid(), len(_probe_contexts)), context=context,
+                  start_parameter_services=False)
+    _probe_contexts[key] = (context, anchor)
     return context
+
+
+def close_probe_contexts():
+    """Tear down the probe contexts (for a long-lived process that leaves a domain, such as the tests)."""
+    import rclpy
+    while _probe_contexts:
+        _, (context, anchor) = _probe_contexts.popitem()
+        anchor.destroy_node()
+        rclpy.try_shutdown(context=context)
 
 
 SAFETY_PRESENCE_WAIT = 2.0   # s a testbed that answers has to show its safety node's presence (testbed_status)
@@ -309,7 +366,6 @@ def testbed_status(targets, timeout=3.0, safety=None):
     whether the safety node's presence (robotarium_core.presence) was seen, a testbed that answers
     being given at least SAFETY_PRESENCE_WAIT s for it (discovery of another process may take that
     long on a loaded machine), so an incomplete one takes that long."""
-    import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
@@ -327,7 +383,7 @@ def testbed_status(targets, timeout=3.0, safety=None):
         probe[1].add(ns)
     try:
         for domain, (discovery_range, namespaces) in by_domain.items():
-            context = _private_context(domain, discovery_range)
+            context = _probe_context(domain, discovery_range)
             node = Node("robotarium_status_%d_%s" % (os.getpid(), domain), context=context)
             executor = SingleThreadedExecutor(context=context)
             executor.add_node(node)
@@ -364,10 +420,9 @@ def testbed_status(targets, timeout=3.0, safety=None):
         if safety is not None:
             safety.update({key: watch.seen for key, watch in watches.items()})
     finally:
-        for context, executor, node in probes:
+        for _, executor, node in probes:
             executor.shutdown()
             node.destroy_node()
-            rclpy.try_shutdown(context=context)
     return newest
 
 
@@ -376,7 +431,6 @@ def end_experiment(ns=None, timeout=10.0, force=False, outcome=0, detail=""):
     testbed answers). Without `force` the testbed refuses: an experiment is ended by its own client
     (with its token), or by an operator who says so. `outcome` and `detail`: how the run ended, as
     its recording will say (robotarium_core.outcomes; 0: the testbed says an operator ended it)."""
-    import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
@@ -384,7 +438,7 @@ def end_experiment(ns=None, timeout=10.0, force=False, outcome=0, detail=""):
     from robotarium_msgs.srv import EndExperiment
 
     ns = ns or namespace()
-    context = _private_context()
+    context = _probe_context()
     node = Node("robotarium_end_%d" % os.getpid(), context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
@@ -400,4 +454,3 @@ def end_experiment(ns=None, timeout=10.0, force=False, outcome=0, detail=""):
     finally:
         executor.shutdown()
         node.destroy_node()
-        rclpy.try_shutdown(context=context)

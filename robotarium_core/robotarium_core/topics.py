@@ -66,6 +66,10 @@ LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability
 # The testbed's state (status): a late joiner gets only the newest; every status also goes on the stream.
 STATUS_QOS = LATCHED
 STATUS_STREAM_QOS = TESTBED_QOS
+# The recent runs' folders (recorder -> ./robotarium run): `recording` keeps only the newest, which is ""
+# once a run closed, so a command that asks late still finds the folder of a run it knows the id of.
+RECORDED_RUNS_QOS = QoSProfile(depth=20, reliability=ReliabilityPolicy.RELIABLE,
+                               durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 # What viewers get (RViz, Foxglove): reliable + volatile, the ROS default.
 VIEWER_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
@@ -79,6 +83,8 @@ STATUS = "status"                 # TestbedStatus, latched (STATUS_QOS): the tes
 STATUS_STREAM = "_status/stream"  # TestbedStatus: every status (STATUS_STREAM_QOS), hidden; recorded as <ns>/status
 SAFETY_REPORT = "safety_report"   # SafetyReport
 RECORDING = "recording"           # std_msgs/String: recorder -> simulator, where the run is recorded
+RECORDED_RUNS = "_recording/runs"   # std_msgs/String (JSON: run_id, path), RECORDED_RUNS_QOS, hidden: each run's
+                                    # folder as its recording opened
 RECORDING_ERROR = "recording_error"   # std_msgs/String (JSON, latched): recorder -> clients, a run whose recording
                                       # stopped: {"run_id", "path", "why", "write_errors"}
 CONFIG = "config"                 # std_msgs/String, latched: the running experiment's TestbedConfig as YAML

@@ -8,7 +8,8 @@ the IDLE status that follows (the simulator publishes a last RUNNING status with
 counters first). Each run goes to <bags_dir>/<run_id>/ (see robotarium_recording.bag for the format and
 why a killed recorder still leaves a readable bag); its absolute path is announced on
 <ns>/recording (std_msgs/String, reliable + transient local), which the simulator hands back in
-end_experiment's `recording`, and an empty string is announced when the run is closed.
+end_experiment's `recording`, and an empty string is announced when the run is closed. The hidden
+<ns>/_recording/runs keeps the last runs' {"run_id", "path"}, for a command that asks after the close.
 
 Subscriptions: a topic is subscribed once it has publishers, with one reader per kind of publisher
 it has (robotarium_recording.samples): reliable transient-local for the testbed's own (robotarium_core.topics),
@@ -54,7 +55,17 @@ from std_msgs.msg import String
 from robotarium_core import presence
 from robotarium_core.config import DEFAULT, FIELDS
 from robotarium_core.node_tools import declare_parameter, run_node
-from robotarium_core.topics import DEFAULT_NAMESPACE, LATCHED, MARKERS, RECORDING, RECORDING_ERROR, STATUS, STATUS_STREAM
+from robotarium_core.topics import (
+    DEFAULT_NAMESPACE,
+    LATCHED,
+    MARKERS,
+    RECORDED_RUNS,
+    RECORDED_RUNS_QOS,
+    RECORDING,
+    RECORDING_ERROR,
+    STATUS,
+    STATUS_STREAM,
+)
 from robotarium_msgs.msg import TestbedStatus
 from robotarium_recording import bag, samples
 
@@ -304,6 +315,7 @@ class RecorderNode(Node):
         self.session.namespace = self.ns or "/"
         self.recording_pub = self.create_publisher(String, RECORDING, LATCHED)
         self.recording_error_pub = self.create_publisher(String, RECORDING_ERROR, LATCHED)
+        self.recorded_runs_pub = self.create_publisher(String, RECORDED_RUNS, RECORDED_RUNS_QOS)
         # Every status comes on the hidden stream (<ns>/status keeps only the newest: robotarium_core.topics);
         # it is recorded under <ns>/status, so bags and their readers see the status topic.
         self.status_topic = "%s/%s" % (self.ns, STATUS)
@@ -395,6 +407,7 @@ class RecorderNode(Node):
 
     def announce_start(self, path):
         self.recording_pub.publish(String(data=path))
+        self.recorded_runs_pub.publish(String(data=json.dumps({"run_id": self.session.run_id, "path": path})))
 
     def announce_write_error(self, run_id, path, why):
         """The run's client reports "recording stopped at step k: why" (robotarium_client)."""
