@@ -369,8 +369,6 @@ def test_a_script_killed_outright_leaves_the_runs_folder(testbed, recorder_late)
     assert "running" in log
 
 
-@pytest.mark.xfail(strict=False, reason="failed 1 of 5 times run alone at the end of the 2026-11-26 session (and in a "
-                   "parallel suite run); cause not diagnosed yet (issue 23)")
 def test_a_run_command_killed_outright_is_finished_by_the_next_command(testbed, tmp_path):
     """kill -9 of ./robotarium run itself: the orphaned script ends its experiment, and the next
     ./robotarium status (or run, or report) finishes the run folder that run could not."""
