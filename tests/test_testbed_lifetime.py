@@ -238,7 +238,7 @@ def test_a_testbed_without_a_safety_node_is_incomplete_not_a_script_error(lab):
     """A simulator and a recorder answer, no safety node does (issue 23): `status` says the testbed
     is incomplete, and `run` refuses with exit 4 and one line naming what is missing, with a hint
     about the testbed: never a traceback or "fix it" (the script is fine)."""
-    from robotarium_client.testbed import LocalTestbed
+    from robotarium_client.testbed import LocalTestbed, testbed_answers
     ns = "/incomplete"
     saved = dict(os.environ)
     os.environ.update(lab["env"])
@@ -246,6 +246,8 @@ def test_a_testbed_without_a_safety_node_is_incomplete_not_a_script_error(lab):
         testbed = LocalTestbed(ns=ns, bags_dir=lab["bags"], log_dir=str(lab["root"] / "incomplete_logs"))
         testbed.names = ["simulator", "recorder"]   # everything `up` starts but the safety node
         testbed.start()
+        # Its simulator answers before `status` looks (on a loaded machine it took more than 5 s to come up).
+        assert testbed_answers(ns, timeout=60), "the simulator did not come up: %s" % testbed.failed()
     finally:
         os.environ.clear()
         os.environ.update(saved)
