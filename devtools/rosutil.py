@@ -126,6 +126,7 @@ class RosProbe:
         self.executor.add_node(self.node)
         self._subscriptions = []
         self._presences = []
+        self._clients = {}
 
     def spin_for(self, seconds):
         end = time.monotonic() + seconds
@@ -142,24 +143,37 @@ class RosProbe:
 
     def call(self, srv_type, name, request, timeout=10.0, resend=None):
         """The service's answer to `request`. With `resend` (seconds; only for a request that is the
-        same however often it is done, as ArmSafety is) it is sent again while unanswered, as the
-        simulator does: a service found a moment ago may not yet have matched this client's reply
-        reader, and rmw_fastrtps then drops the reply (seen on a loaded machine: no answer in 10 s)."""
-        client = self.node.create_client(srv_type, name)
-        try:
-            if not client.wait_for_service(timeout_sec=timeout):
-                raise TimeoutError("service %s did not appear within %.0f s" % (name, timeout))
-            deadline = time.monotonic() + timeout
-            while True:
-                future = client.call_async(request)
-                wait = deadline - time.monotonic() if resend is None else min(resend, deadline - time.monotonic())
-                if self.spin_until(future.done, max(wait, 0.0)):
-                    return future.result()
-                client.remove_pending_request(future)
-                if time.monotonic() >= deadline:
-                    raise TimeoutError("service %s did not answer within %.0f s" % (name, timeout))
-        finally:
-            self.node.destroy_client(client)
+        same however often it is done, as ArmSafety or a refused start is) it is sent again while
+        unanswered, as the simulator does: a service found a moment ago may not yet have matched this
+        client's reply reader, and rmw_fastrtps then drops the reply (it waits 100 ms for that match;
+        seen on a loaded machine: no answer in 10 s). One client per service is kept, so that a reply
+        path matched once (see match_replies) stays matched for the calls after it."""
+        key = (srv_type, name)
+        if key not in self._clients:
+            self._clients[key] = self.node.create_client(srv_type, name)
+        client = self._clients[key]
+        if not client.wait_for_service(timeout_sec=timeout):
+            raise TimeoutError("service %s did not appear within %.0f s" % (name, timeout))
+        deadline = time.monotonic() + timeout
+        while True:
+            future = client.call_async(request)
+            wait = deadline - time.monotonic() if resend is None else min(resend, deadline - time.monotonic())
+            if self.spin_until(future.done, max(wait, 0.0)):
+                return future.result()
+            client.remove_pending_request(future)
+            if time.monotonic() >= deadline:
+                raise TimeoutError("service %s did not answer within %.0f s" % (name, timeout))
+
+    def start_experiment(self, request, namespace="/robotarium"):
+        """Start an experiment as its client (see hold_client_presence). A successful start must not be
+        sent twice, so its reply must not be dropped (see call): the first time, a start the simulator
+        refuses however often it comes (an invalid name) is sent until answered, which leaves this
+        probe's reply reader matched for the real one."""
+        from robotarium_msgs.srv import StartExperiment
+        service = namespace.rstrip("/") + "/start_experiment"
+        if (StartExperiment, service) not in self._clients:
+            self.call(StartExperiment, service, StartExperiment.Request(name="!"), timeout=30.0, resend=1.0)
+        return self.hold_client_presence(self.call(StartExperiment, service, request))
 
     def hold_client_presence(self, response):
         """Be the client of the experiment a StartExperiment `response` started: hold the presence

@@ -65,7 +65,7 @@ class Stack:
         request = StartExperiment.Request(name=name, number_of_robots=n, real_time=real_time, seed=seed)
         if poses is not None:
             request.x, request.y, request.theta = (list(map(float, row)) for row in poses)
-        response = self.probe.hold_client_presence(self.probe.call(StartExperiment, NS + "/start_experiment", request))
+        response = self.probe.start_experiment(request, NS)
         assert response.success, response.message
         self.run_id = response.run_id
         self.token = response.token

@@ -21,7 +21,7 @@ pytestmark = pytest.mark.node   # real testbed nodes in subprocesses
 
 NS = "/robotarium"
 SAMPLE = os.path.join(REPO, "bags", "sample_consensus")
-DELAY = 3.0   # seconds the replay waits before publishing, so that the probe is matched
+DELAY = 3.0   # seconds the replay waits before publishing; --wait-for-subscriber then waits for the probe's match
 
 
 @pytest.fixture
@@ -37,7 +37,8 @@ def replay(tmp_path, bag, *args):
     received = []
     probe.node.create_subscription(RobotPoses, NS + "/poses", lambda m: received.append((time.monotonic(), m)), 200)
     statuses = probe.collect(TestbedStatus, NS + "/status", 200)
-    process = NodeProcess("robotarium_recording.replay_node", domain, args=[bag, "--delay", str(DELAY), *args],
+    process = NodeProcess("robotarium_recording.replay_node", domain,
+                          args=[bag, "--delay", str(DELAY), "--wait-for-subscriber", *args],
                           log_path=tmp_path / "replay.log")
     return probe, process, received, statuses
 

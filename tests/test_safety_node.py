@@ -35,7 +35,7 @@ def stack(tmp_path):
 def start(probe, poses, real_time=False):
     request = StartExperiment.Request(name="safety", number_of_robots=poses.shape[1], real_time=real_time)
     request.x, request.y, request.theta = (list(map(float, row)) for row in poses)
-    response = probe.hold_client_presence(probe.call(StartExperiment, NS + "/start_experiment", request))
+    response = probe.start_experiment(request, NS)
     assert response.success, response.message
     return response
 

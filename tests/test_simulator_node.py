@@ -36,7 +36,7 @@ def start(probe, n=3, real_time=False, poses=None, name="test", seed=1):
     request = StartExperiment.Request(name=name, number_of_robots=n, real_time=real_time, seed=seed)
     if poses is not None:
         request.x, request.y, request.theta = (list(map(float, row)) for row in poses)
-    return probe.hold_client_presence(probe.call(StartExperiment, NS + "/start_experiment", request))
+    return probe.start_experiment(request, NS)
 
 
 def command(ids, v, w, step=0):

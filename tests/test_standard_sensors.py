@@ -220,7 +220,7 @@ def test_a_2x_experiment_publishes_them_at_the_rate_and_they_are_recorded(tmp_pa
                                           use_distance_sensors=True, sensor_seed=3,
                                           obstacles=[float(v) for v in OBSTACLES.ravel()])
         request.x, request.y, request.theta = (list(map(float, row)) for row in POSES)
-        started = probe.hold_client_presence(probe.call(StartExperiment, NS + "/start_experiment", request))
+        started = probe.start_experiment(request, NS)
         assert started.success, started.message
         stack.run_id, stack.token = started.run_id, started.token
         assert probe.spin_until(lambda: any(p.step == 0 for p in stack.poses), 10)

@@ -41,6 +41,7 @@ SKIPPED_TOPICS = {"/rosout"}
 FIGURE_HZ = 15
 LIVE_CHECK = 3.0   # s to wait for a live testbed's start_experiment service before replaying
 VIEW_MATCH = 15.0  # s to wait for --view's subscriptions to match the replay's publishers
+SUBSCRIBER_WAIT = 60.0   # s --wait-for-subscriber waits for one, at most
 VIEWER_SETTLE = 1.0   # s after a viewer's first subscription: it subscribes to its panels' channels one by one
 
 
@@ -352,6 +353,10 @@ def build_parser():
     add_view_arguments(parser, prefix="view-")
     parser.add_argument("--delay", type=float, default=0.5, help=(
         "seconds to wait before the first message, so that subscribers discover the new publishers (default 0.5)"))
+    parser.add_argument("--wait-for-subscriber", action="store_true", help=(
+        "before the first message, wait (up to %.0f s) until something subscribes to the poses and the replay's "
+        "publisher has matched it: a subscriber started with the replay then gets every message, however long "
+        "discovery takes on a loaded machine (--delay only guesses)" % SUBSCRIBER_WAIT))
     return parser
 
 
@@ -378,6 +383,26 @@ def wait_for_view(node, poses_topic):
             return True
         time.sleep(0.05)
     print("[replay] the view has not subscribed to every topic after %.0f s; replaying anyway" % VIEW_MATCH,
+          file=sys.stderr)
+    return False
+
+
+def wait_for_subscriber(node, poses_topic, timeout=SUBSCRIBER_WAIT):
+    """Until the poses publisher has matched at least one subscriber, and every publisher every
+    reader the graph shows (a reliable writer sends only to the readers it has matched: what it
+    published before is lost to the others)."""
+    from robotarium_core.topics import readers_matched
+    publisher = node.publishers_by_topic.get(poses_topic)
+    if publisher is None:
+        return True
+    print("[replay] waiting for a subscriber to %s" % publisher.topic_name, file=sys.stderr, flush=True)
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if publisher.get_subscription_count() > 0 and all(
+                readers_matched(node, p) for p in node.publishers_by_topic.values()):
+            return True
+        time.sleep(0.05)
+    print("[replay] nothing subscribed to %s after %.0f s; replaying anyway" % (publisher.topic_name, timeout),
           file=sys.stderr)
     return False
 
@@ -424,6 +449,8 @@ def main(argv=None):
                         print("replay: the Foxglove view exited (its message is above)", file=sys.stderr)
                         return 1
                 time.sleep(VIEWER_SETTLE)
+        if args.wait_for_subscriber:
+            wait_for_subscriber(node, poses_topic)
         if args.figure and poses_topic in node.publishers_by_topic:
             figure = Figure(bag, args.figure_file or os.path.join(bag.path, "replay.mp4"))
         keyboard = Keyboard()
