@@ -399,6 +399,10 @@ class Robotarium(RobotariumABC):
         request.x, request.y, request.theta = (row.tolist() for row in self.initial_conditions)
         self._complete_start_request(request)
         request.wait, request.holder = bool(self._options.wait), holder_of_this_process()
+        # rmw_fastrtps drops a reply when the service has not matched the caller's reply reader within
+        # 100 ms (a testbed found a moment ago, a loaded machine), and a start must not be sent twice:
+        # first a start it refuses however often it comes, sent until answered; then the real one.
+        self._call(self._start_client, StartExperiment.Request(name="!"), resend=1.0)
         response = self._wait_in_line(request)
         if not response.success:
             incomplete = not self._watches["safety"].seen   # the testbed's fault, not the request's
@@ -580,14 +584,21 @@ class Robotarium(RobotariumABC):
             self._executor.spin_once(timeout_sec=min(remaining, GRAPH_POLL))
         return True
 
-    def _call(self, client, request, timeout=30.0):
+    def _call(self, client, request, timeout=30.0, resend=None):
+        """The answer to `request`; with `resend` (s; only for a request answered the same however
+        often it comes) sent again while unanswered."""
         from robotarium_core.node_tools import wait_for_service
         if not wait_for_service(client, timeout):
             raise TestbedLost("The testbed's %s service is gone." % client.srv_name)
-        future = client.call_async(request)
-        if not self._spin_until(future.done, timeout):
-            raise TestbedLost("The testbed's %s service did not answer within %.0f s." % (client.srv_name, timeout))
-        return future.result()
+        deadline = time.monotonic() + timeout
+        while True:
+            future = client.call_async(request)
+            if self._spin_until(future.done, min(resend or timeout, max(0.0, deadline - time.monotonic()))):
+                return future.result()
+            client.remove_pending_request(future)
+            if time.monotonic() >= deadline:
+                raise TestbedLost("The testbed's %s service did not answer within %.0f s."
+                                  % (client.srv_name, timeout))
 
     def _end_quietly(self):
         """At exit without call_at_scripts_end (a script run with plain python that raised or just
