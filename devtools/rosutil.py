@@ -22,7 +22,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from devtools import PACKAGE_SOURCES, REPO
-from robotarium_core.topics import CMD_SAFE, SAFETY_ARM, TESTBED_QOS
+from robotarium_core.topics import CMD_SAFE, SAFETY_ARM, SAFETY_REPORT, SAFETY_REPORT_QOS, TESTBED_QOS
 
 # Domain ids 1..101 only: DDS derives its UDP ports from the domain (7400 + 250 x domain + ...), and
 # above 101 they fall in Linux's ephemeral port range (32768-60999), where any process's outgoing
@@ -276,18 +276,19 @@ class CliRun:
 class SafetyStandIn:
     """The safety node's part, played by a probe, for tests that drive the simulator alone: it
     answers <ns>/safety/arm (so the simulator starts experiments and hands it the safety key) and
-    publishes command arrays on cmd_safe carrying that key, as the safety node does. A real-time
-    array sent unnumbered (step 0) is marked as the safety node marks it: the newest poses' step
-    plus one (robotarium_core.model.StepGate takes nothing else)."""
+    publishes command arrays on cmd_safe carrying that key, each with its SafetyReport (a pass-through),
+    as the safety node does. A real-time array sent unnumbered (step 0) is marked as the safety node
+    marks it: the newest poses' step plus one (robotarium_core.model.StepGate takes nothing else)."""
 
     def __init__(self, probe, ns="/robotarium"):
-        from robotarium_msgs.msg import RobotPoses, TwistArray
+        from robotarium_msgs.msg import RobotPoses, SafetyReport, TwistArray
         from robotarium_msgs.srv import ArmSafety
         self.probe = probe
         self.armed = ArmSafety.Request()
         self.arms = []    # every ArmSafety request received
         self.service = probe.node.create_service(ArmSafety, "%s/%s" % (ns, SAFETY_ARM), self._on_arm)
         self.publisher = probe.node.create_publisher(TwistArray, "%s/%s" % (ns, CMD_SAFE), TESTBED_QOS)
+        self.reports = probe.node.create_publisher(SafetyReport, "%s/%s" % (ns, SAFETY_REPORT), SAFETY_REPORT_QOS)
         self.poses_step = -1
         self.poses = probe.node.create_subscription(RobotPoses, "%s/poses" % ns, self._on_poses, TESTBED_QOS, raw=True)
 
@@ -305,12 +306,14 @@ class SafetyStandIn:
         return response
 
     def wait_for_simulator(self, timeout=30.0):
-        """Until the simulator listens on cmd_safe and sees this arm service."""
-        if not self.probe.spin_until(lambda: self.publisher.get_subscription_count() > 0, timeout):
-            raise TimeoutError("the simulator did not subscribe to cmd_safe within %.0f s" % timeout)
+        """Until the simulator listens on cmd_safe and safety_report."""
+        if not self.probe.spin_until(lambda: self.publisher.get_subscription_count() > 0
+                                     and self.reports.get_subscription_count() > 0, timeout):
+            raise TimeoutError("the simulator did not subscribe to cmd_safe and safety_report within %.0f s" % timeout)
 
-    def publish(self, msg):
-        """Publish `msg` (a TwistArray) on cmd_safe with the safety key of the armed experiment."""
+    def publish(self, msg, report=True):
+        """Publish `msg` (a TwistArray) on cmd_safe with the safety key of the armed experiment, and its
+        SafetyReport (without `report`, the test sends it: publish_report)."""
         msg.token = self.armed.safety_key
         if self.armed.real_time and msg.step == 0:
             from robotarium_core.node_tools import take_waiting
@@ -320,3 +323,11 @@ class SafetyStandIn:
                 raise TimeoutError("no poses of the armed experiment within 10 s")
             msg.step = self.poses_step + 1
         self.publisher.publish(msg)
+        if report:
+            self.publish_report(msg.step)
+
+    def publish_report(self, step, status=None, max_change=0.0):
+        """The SafetyReport of the array for `step` (a pass-through unless `status` says otherwise)."""
+        from robotarium_msgs.msg import SafetyReport
+        self.reports.publish(SafetyReport(step=step, max_change=max_change,
+                                          status=SafetyReport.STATUS_PASSTHROUGH if status is None else status))

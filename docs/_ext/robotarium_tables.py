@@ -38,7 +38,7 @@ TOPICS = [
      "step, counters, state, how the last run ended; latched, the newest only: a late joiner gets the state now"),
     ("topics:STATUS_STREAM", "robotarium_msgs/msg/TestbedStatus", [("", "topics:STATUS_STREAM_QOS")],
      "hidden: every status, for the recorder, which records it as `status`"),
-    ("topics:SAFETY_REPORT", "robotarium_msgs/msg/SafetyReport", [("", "topics:TESTBED_QOS")],
+    ("topics:SAFETY_REPORT", "robotarium_msgs/msg/SafetyReport", [("", "topics:SAFETY_REPORT_QOS")],
      "what the safety node changed"),
     ("topics:SENSORS", "robotarium_msgs/msg/SensorReadings", [("", "topics:TESTBED_QOS")],
      "the 2.x API's sensors, each step of a 2.x experiment"),

@@ -85,6 +85,7 @@ from robotarium_core.topics import (
     POSES,
     SAFETY_ARM,
     SAFETY_REPORT,
+    SAFETY_REPORT_QOS,
     TESTBED_QOS,
     command_input_qos,
     readers_matched,
@@ -122,7 +123,7 @@ class SafetyNode(Node):
         self._stale_spell = None     # (first stop's time, stops so far, last log time) while poses stay old
 
         self.safe_pub = self.create_publisher(TwistArray, CMD_SAFE, TESTBED_QOS)
-        self.report_pub = self.create_publisher(SafetyReport, SAFETY_REPORT, TESTBED_QOS)
+        self.report_pub = self.create_publisher(SafetyReport, SAFETY_REPORT, SAFETY_REPORT_QOS)
         # Poses first: the executor serves ready subscriptions in the order they were created.
         self.poses_subscription = self.create_subscription(RobotPoses, POSES, self.on_poses, TESTBED_QOS, raw=True)
         self.requests = self.create_subscription(TwistArray, CMD_REQUESTED, self.on_requests,

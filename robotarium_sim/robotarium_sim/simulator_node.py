@@ -87,6 +87,7 @@ from robotarium_core.topics import (
     RECORDING,
     SAFETY_ARM,
     SAFETY_REPORT,
+    SAFETY_REPORT_QOS,
     SENSORS,
     START_EXPERIMENT,
     STATUS,
@@ -104,7 +105,9 @@ from robotarium_sim import rps2_io
 from robotarium_sim.hardware import HardwareTestbed
 
 SAFETY_WAIT = 10.0          # s a start waits for the safety node to answer (discovery is slow on a loaded machine)
+SAFETY_WAIT_SETTLED = 2.0   # s it waits when the simulator has run longer than SAFETY_WAIT without seeing one
 ARM_RESEND = 1.0            # s before an unanswered ArmSafety request is sent again
+REPORT_WAIT = 3.0           # s an end waits for the safety node's reports of the arrays already applied
 CLIENT_DISCOVERY_WAIT = 10.0  # s after a start for the client's presence to appear before it counts as lost
 
 
@@ -169,6 +172,8 @@ class SimulatorNode(Node):
         self.audit = False           # a verification run: the safety node lets the script's commands through
         self.stale_pose_stops = 0
         self.commands_accepted = 0
+        self.safe_arrays_heard = 0   # arrays with the safety key (each comes with a SafetyReport)
+        self.reports_heard = 0       # SafetyReports of arrays (not STATUS_COUNTS_ONLY)
         self.last_command_step = 0   # the testbed's step when the last command was applied
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
         self.dropped_requested = DropCounts()   # the safety node's, from its safety_report
@@ -203,15 +208,18 @@ class SimulatorNode(Node):
         self.commands = self.create_subscription(TwistArray, CMD_SAFE, self.on_commands,
                                                  command_input_qos(self.config.command_queue_depth), raw=True,
                                                  event_callbacks=warn_on_incompatible_qos(self, CMD_SAFE))
-        self.safety_reports = self.create_subscription(SafetyReport, SAFETY_REPORT, self.on_safety_report, TESTBED_QOS)
+        self.safety_reports = self.create_subscription(SafetyReport, SAFETY_REPORT, self.on_safety_report,
+                                                      SAFETY_REPORT_QOS)
         self.create_subscription(String, RECORDING, self.on_recording, LATCHED)
         # A start waits for the safety node's answer (a coroutine): in a group of its own, so that
         # the node's other callbacks (that answer among them) run meanwhile.
         self.create_service(StartExperiment, START_EXPERIMENT, self.on_start,
                             callback_group=MutuallyExclusiveCallbackGroup())
-        self.create_service(EndExperiment, END_EXPERIMENT, self.on_end)
+        # An end waits for the safety node's last reports (a coroutine): in a group of its own too.
+        self.create_service(EndExperiment, END_EXPERIMENT, self.on_end, callback_group=MutuallyExclusiveCallbackGroup())
         self.arm_client = self.create_client(ArmSafety, SAFETY_ARM)
         self.presence = presence.Presence(self, presence.alive_topic(presence.SIMULATOR), self.config.node_lease)
+        self.ready_at = time.monotonic()
         self.safety_watch = presence.Watch(self, presence.alive_topic(presence.SAFETY), self.config.node_lease,
                                            on_lost=self.on_safety_lost)
         self.create_timer(1.0, self.publish_status_heartbeat)
@@ -319,6 +327,7 @@ class SimulatorNode(Node):
         self.outcome, self.outcome_detail = TestbedStatus.OUTCOME_NONE, ""
         self.stale_pose_stops = 0
         self.commands_accepted = 0
+        self.safe_arrays_heard = self.reports_heard = 0
         self.last_command_step = 0
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
         self.dropped_requested = DropCounts()
@@ -353,13 +362,20 @@ class SimulatorNode(Node):
         """Hand the safety node the experiment to guard; True, or why it could not be done. The
         request is sent again every ARM_RESEND s: a safety node started a moment ago may not have
         matched it yet (and one killed a moment ago may still look present), and arming is the
-        same however often it is done."""
-        deadline = time.monotonic() + SAFETY_WAIT
+        same however often it is done. A simulator up longer than SAFETY_WAIT that sees no safety node
+        alive has given discovery its time: it waits only SAFETY_WAIT_SETTLED (one just started) so
+        that a client of an incomplete testbed hears it in moments, not after 10 s."""
+        now = time.monotonic()
+        settled = now - self.ready_at > SAFETY_WAIT and not self.safety_watch.alive
+        wait = SAFETY_WAIT_SETTLED if settled else SAFETY_WAIT
+        deadline = now + wait
         while not self.arm_client.service_is_ready():
             if time.monotonic() > deadline:
                 return ("no safety node answers on %s within %.0f s: without it the robots cannot move. Is the "
-                        "testbed complete (./robotarium up starts all of it)?" % (self.arm_client.srv_name, SAFETY_WAIT))
+                        "testbed complete (./robotarium up starts all of it)?" % (self.arm_client.srv_name, wait))
             await self.sleep(0.05)
+        if settled:   # one appeared after all: it gets the usual time to answer
+            deadline = time.monotonic() + SAFETY_WAIT
         while time.monotonic() < deadline:
             future = self.arm_client.call_async(request)
             resend = time.monotonic() + ARM_RESEND
@@ -413,7 +429,7 @@ class SimulatorNode(Node):
             self.get_logger().warning("the safety node is gone: every robot stops")
             self.testbed.set_commands(np.arange(self.testbed.number_of_robots), 0.0, 0.0, now=time.monotonic())
 
-    def on_end(self, request, response):
+    async def on_end(self, request, response):
         if self.testbed is None:
             response.success = False
             response.message = "no experiment is running."
@@ -431,7 +447,29 @@ class SimulatorNode(Node):
         outcome, detail = outcomes.of_request(request.outcome), request.detail
         if request.token != self.token and request.outcome == outcomes.NONE:
             outcome, detail = outcomes.INTERRUPTED, "interrupted: %s" % reason
+        run_id = self.run_id
+        await self.wait_for_reports()
+        if self.testbed is None or self.run_id != run_id:   # it ended meanwhile (its client lost, the time limit)
+            response.success = False
+            response.message = "experiment %s ended meanwhile: %s" % (run_id, self.end_reason)
+            return response
         return self.end_experiment(reason, response, outcome, detail)
+
+    async def wait_for_reports(self):
+        """Until the safety node's report of every array it sent has come (each is counted in the
+        run's report), REPORT_WAIT s at most: they travel on a topic of their own and may be a
+        moment behind the arrays, more where a lost packet is being repaired on a loaded machine.
+        Robots stop meanwhile (the end is asked for: no more ticks)."""
+        if self._tick_timer is not None:
+            self.destroy_timer(self._tick_timer)
+            self._tick_timer = None
+        deadline = time.monotonic() + REPORT_WAIT
+        while self.reports_heard < self.safe_arrays_heard and time.monotonic() < deadline:
+            await self.sleep(0.01)
+        if self.reports_heard < self.safe_arrays_heard:
+            self.get_logger().warning("ending %s without the safety node's reports of %d array(s) after %.0f s: its "
+                                      "counts in the report miss them" % (
+                                          self.run_id, self.safe_arrays_heard - self.reports_heard, REPORT_WAIT))
 
     def end_experiment(self, reason, response=None, outcome=outcomes.INTERRUPTED, detail=""):
         """End the running experiment (robots stop, counters frozen, the safety node disarmed) for
@@ -503,6 +541,7 @@ class SimulatorNode(Node):
             msg = cdr.parse_commands(data, tb.number_of_robots, token=self.safety_key)
         except cdr.CdrError as error:
             return self.drop(error.reason, str(error))
+        self.safe_arrays_heard += 1
         problem = model.check_commands(msg.ids, msg.v, msg.omega, tb.number_of_robots)
         if problem is not None:
             return self.drop(problem, "step %d" % msg.step)
@@ -534,6 +573,8 @@ class SimulatorNode(Node):
     def on_safety_report(self, msg):
         if self.testbed is None:
             return
+        if msg.status != SafetyReport.STATUS_COUNTS_ONLY:
+            self.reports_heard += 1
         intervention = is_intervention(msg, self.config.intervention_tolerance)
         if intervention:
             self.safety_interventions += 1
