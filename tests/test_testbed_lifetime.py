@@ -252,7 +252,9 @@ def test_a_testbed_without_a_safety_node_is_incomplete_not_a_script_error(lab):
         os.environ.clear()
         os.environ.update(saved)
     try:
-        status = cli(lab, "status", ns=ns)
+        # (status is a new process: its discovery starts afresh, seconds on a loaded machine; it
+        # answers as soon as the testbed's status comes)
+        status = cli(lab, "status", "--timeout", "30", ns=ns)
         assert status.returncode == 0, status.stderr
         here = [line for line in status.stdout.splitlines() if line.startswith("On ROS_DOMAIN_ID")]
         assert here and "a testbed answers, incomplete: no safety node" in here[0], status.stdout

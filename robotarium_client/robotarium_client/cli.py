@@ -21,6 +21,7 @@ import time
 
 from robotarium_client import session
 from robotarium_client.testbed import (
+    RECORDING_LOOKUP_WAIT,
     LocalTestbed,
     announced_recording,
     namespace,
@@ -833,12 +834,13 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
         # A very short run can end before the recorder's announcement of its folder arrived.
         guess = os.path.join(bags_dir or os.path.join(repository_root(), "bags"), info["run_id"])
         run_dir = guess if os.path.isdir(guess) else ""
-        if not run_dir and died and interruption is not None and results:
-            # Killed before its client heard the announcement: the testbed, which ends the run only
-            # after the client's lease, is recording it still; ask its recorder.
+        if not run_dir and results and run.get("outcome") != outcomes.NAMES[outcomes.COMPLETED]:
+            # Killed, or the testbed lost, before its client heard the announcement (a busy recorder
+            # opens the bag a few steps late, after the client's "running"): ask the recorder.
             if not quiet:
-                say("asking the testbed's recorder where run %s is recorded (up to 10 s)" % info["run_id"])
-            run_dir = announced_recording(info["run_id"], namespace(), timeout=10.0)
+                say("asking the testbed's recorder where run %s is recorded (up to %.0f s)"
+                    % (info["run_id"], RECORDING_LOOKUP_WAIT))
+            run_dir = announced_recording(info["run_id"], namespace())
     recorded = bool(run_dir) and os.path.isdir(run_dir) and results
     bag_dir = run_dir if recorded else ""
     stopped = outcomes.recording_stopped(run)

@@ -10,6 +10,7 @@ closes the recording and exits. Each local testbed logs into its own folder,
 log/testbed/<namespace>_<domain>_<pid>/, and is listed in the registry of the machine's testbeds
 (robotarium_client.local_testbeds) while it runs.
 """
+import contextlib
 import os
 import shutil
 import signal
@@ -215,37 +216,30 @@ def _kill_group(process):
 
 def testbed_answers(ns=None, timeout=3.0):
     """True when a simulator on this DDS domain offers <ns>/start_experiment within `timeout`."""
-    from rclpy.node import Node
-
     from robotarium_core.node_tools import wait_for_service
     from robotarium_msgs.srv import StartExperiment
 
-    node = Node("robotarium_probe_%d" % os.getpid(), context=_probe_context())
-    try:
+    with probe_node("robotarium_probe") as (node, _):
         client = node.create_client(StartExperiment, "%s/start_experiment" % (ns or namespace()))
         return wait_for_service(client, timeout)
-    finally:
-        node.destroy_node()
 
 
-def announced_recording(run_id, ns=None, timeout=10.0):
+RECORDING_LOOKUP_WAIT = 10.0   # s to wait for the recorder to say where a run is recorded (announced_recording)
+RECORDER_SEEN_WAIT = 3.0       # s of it, at most, where the graph shows no recorder at all
+
+
+def announced_recording(run_id, ns=None, timeout=RECORDING_LOOKUP_WAIT):
     """The folder the recorder of `ns` recorded run `run_id` in (its hidden <ns>/_recording/runs), waiting
     up to `timeout` seconds for it: a script killed outright may die before its own client heard the
     announcement (a busy recorder opens the bag a few steps late), and a recorder starved of CPU
-    answers discovery seconds late, after the run closed. "" when none announced it in time."""
+    answers discovery seconds late, after the run closed; the testbed lost, its recorder may still
+    record. "" when none announced it in time, or no recorder shows in RECORDER_SEEN_WAIT s."""
     import json
 
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
     from std_msgs.msg import String
 
     from robotarium_core.topics import RECORDED_RUNS, RECORDED_RUNS_QOS
 
-    context = _probe_context()
-    # Named as the client's nodes are: SROS2's policy lets them read the recorder's announcements.
-    node = Node("robotarium_client_%d_recorded_runs" % os.getpid(), context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
     found = []
 
     def heard(msg):
@@ -255,16 +249,16 @@ def announced_recording(run_id, ns=None, timeout=10.0):
                 found.append(str(run["path"]))
         except (ValueError, TypeError, KeyError):
             pass   # not an announcement
-    try:
-        node.create_subscription(String, "%s/%s" % ((ns or namespace()).rstrip("/"), RECORDED_RUNS), heard,
-                                 RECORDED_RUNS_QOS)
-        deadline = time.monotonic() + timeout
-        while not found and time.monotonic() < deadline:
+    # Named as the client's nodes are (robotarium_client_<pid>...): SROS2's policy lets them read it.
+    with probe_node("robotarium_client_recorded_runs") as (node, executor):
+        topic = "%s/%s" % ((ns or namespace()).rstrip("/"), RECORDED_RUNS)
+        node.create_subscription(String, topic, heard, RECORDED_RUNS_QOS)
+        start = time.monotonic()
+        while not found and time.monotonic() < start + timeout:
+            if time.monotonic() > start + RECORDER_SEEN_WAIT and not node.count_publishers(topic):
+                break   # no recorder (a testbed started with --no-record, or gone with the testbed)
             executor.spin_once(timeout_sec=0.05)
         return found[-1] if found else ""
-    finally:
-        executor.shutdown()
-        node.destroy_node()
 
 
 def running_testbed(ns=None, timeout=3.0):
@@ -272,8 +266,6 @@ def running_testbed(ns=None, timeout=3.0):
     the first of its simulator, safety node or recorder heard within `timeout` seconds, or
     {"who": "testbed", ...} with what is known where only a simulator without a claim answers; None
     when nothing answered (then it took the whole timeout)."""
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
     from std_msgs.msg import String
 
     from robotarium_core import presence
@@ -281,12 +273,8 @@ def running_testbed(ns=None, timeout=3.0):
     from robotarium_msgs.srv import StartExperiment
 
     ns = (ns or namespace()).rstrip("/")
-    context = _probe_context()
-    node = Node("robotarium_claims_%d" % os.getpid(), context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
     heard = []
-    try:
+    with probe_node("robotarium_claims") as (node, executor):
         for who in (presence.SIMULATOR, presence.SAFETY, presence.RECORDER):
             node.create_subscription(String, "%s/%s" % (ns, claim.claim_topic(who)),
                                      lambda msg: heard.append(claim.parse(msg.data)), claim.QOS)
@@ -301,9 +289,6 @@ def running_testbed(ns=None, timeout=3.0):
             return {"who": "simulator", "host": "unknown host", "pid": 0, "since": 0.0, "testbed": 0,
                     "owner": "a version without claims"}
         return None
-    finally:
-        executor.shutdown()
-        node.destroy_node()
 
 
 _probe_contexts = {}   # (domain, discovery range) -> (context, its anchor node)
@@ -352,6 +337,24 @@ def close_probe_contexts():
         rclpy.try_shutdown(context=context)
 
 
+@contextlib.contextmanager
+def probe_node(name, domain=None, discovery_range=None):
+    """A node (with an executor to spin it) named `name`_<pid> on the probe context of `domain` and
+    `discovery_range` (see _probe_context), destroyed again on leaving; the context stays."""
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    context = _probe_context(domain, discovery_range)
+    node = Node("%s_%d" % (name, os.getpid()), context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    try:
+        yield node, executor
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+
+
 SAFETY_PRESENCE_WAIT = 2.0   # s a testbed that answers has to show its safety node's presence (testbed_status)
 
 
@@ -364,34 +367,30 @@ def testbed_status(targets, timeout=3.0, safety=None):
     safety: a dict {(domain, namespace): whether its safety node is there} to complete: a key set
     True already (a safety node in this machine's process table) is taken as it is; the others get
     whether the safety node's presence (robotarium_core.presence) was seen, a testbed that answers
-    being given at least SAFETY_PRESENCE_WAIT s for it (discovery of another process may take that
-    long on a loaded machine), so an incomplete one takes that long."""
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
-
+    being given SAFETY_PRESENCE_WAIT s more for it from its first status (discovery of another process
+    may take that long on a loaded machine), so an incomplete one takes that long."""
     from robotarium_core import presence
     from robotarium_core.config import DEFAULT
     from robotarium_core.topics import STATUS, STATUS_QOS
     from robotarium_msgs.msg import TestbedStatus
 
     newest = {}
+    heard_at = {}  # (domain, namespace): when its first status came
     watches = {}   # (domain, namespace): presence.Watch of its safety node
-    probes = []   # (context, executor, node)
+    executors = []
     by_domain = {}
     for domain, ns, discovery_range in targets:   # one probe per domain (the first discovery range given)
         probe = by_domain.setdefault(str(domain), [discovery_range, set()])
         probe[1].add(ns)
-    try:
+    with contextlib.ExitStack() as probes:
         for domain, (discovery_range, namespaces) in by_domain.items():
-            context = _probe_context(domain, discovery_range)
-            node = Node("robotarium_status_%d_%s" % (os.getpid(), domain), context=context)
-            executor = SingleThreadedExecutor(context=context)
-            executor.add_node(node)
-            probes.append((context, executor, node))
+            node, executor = probes.enter_context(probe_node("robotarium_status_%s" % domain, domain, discovery_range))
+            executors.append(executor)
             for ns in namespaces:
                 newest[(domain, ns)] = None
 
                 def keep(msg, key=(domain, ns)):
+                    heard_at.setdefault(key, time.monotonic())
                     old = newest[key]
                     stamp = (msg.header.stamp.sec, msg.header.stamp.nanosec)
                     if old is None or stamp >= (old.header.stamp.sec, old.header.stamp.nanosec):
@@ -401,28 +400,24 @@ def testbed_status(targets, timeout=3.0, safety=None):
                     watches[(domain, ns)] = presence.Watch(
                         node, "%s/%s" % (ns.rstrip("/"), presence.alive_topic(presence.SAFETY)), DEFAULT.node_lease)
 
-        start = time.monotonic()
-        deadline, safety_deadline = start + timeout, start + max(timeout, SAFETY_PRESENCE_WAIT)
+        deadline = time.monotonic() + timeout
 
         def waiting():
             now = time.monotonic()
             return any((v is None and now < deadline)
-                       or (v is not None and key in watches and not watches[key].seen and now < safety_deadline)
+                       or (v is not None and key in watches and not watches[key].seen
+                           and now < heard_at[key] + SAFETY_PRESENCE_WAIT)
                        for key, v in newest.items())
         while waiting():
-            for _, executor, _ in probes:
+            for executor in executors:
                 executor.spin_once(timeout_sec=0.02)
         # a moment more, for anything newer still on its way
         settle = time.monotonic() + 0.2
         while time.monotonic() < settle:
-            for _, executor, _ in probes:
+            for executor in executors:
                 executor.spin_once(timeout_sec=0.02)
         if safety is not None:
             safety.update({key: watch.seen for key, watch in watches.items()})
-    finally:
-        for _, executor, node in probes:
-            executor.shutdown()
-            node.destroy_node()
     return newest
 
 
@@ -431,18 +426,11 @@ def end_experiment(ns=None, timeout=10.0, force=False, outcome=0, detail=""):
     testbed answers). Without `force` the testbed refuses: an experiment is ended by its own client
     (with its token), or by an operator who says so. `outcome` and `detail`: how the run ended, as
     its recording will say (robotarium_core.outcomes; 0: the testbed says an operator ended it)."""
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
-
     from robotarium_core.topics import END_EXPERIMENT
     from robotarium_msgs.srv import EndExperiment
 
     ns = ns or namespace()
-    context = _probe_context()
-    node = Node("robotarium_end_%d" % os.getpid(), context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    try:
+    with probe_node("robotarium_end") as (node, executor):
         client = node.create_client(EndExperiment, "%s/%s" % (ns.rstrip("/"), END_EXPERIMENT))
         if not client.wait_for_service(timeout_sec=timeout):
             raise TimeoutError("no testbed answers in %s on ROS_DOMAIN_ID %s" % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
@@ -451,6 +439,3 @@ def end_experiment(ns=None, timeout=10.0, force=False, outcome=0, detail=""):
         if not future.done():
             raise TimeoutError("the testbed in %s did not answer end_experiment within %.0f s" % (ns, timeout))
         return future.result()
-    finally:
-        executor.shutdown()
-        node.destroy_node()
