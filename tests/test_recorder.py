@@ -459,6 +459,38 @@ def test_run_recorder_takes_the_messages_of_each_run(tmp_path):
     assert [m.data[4:] for m in bagmod.Bag(started[1]).messages()] == [b"again"]
 
 
+def test_run_recorder_keeps_a_closing_bag_open_until_its_last_poses_came(tmp_path):
+    """A reliable stream delivers in order: one lost packet holds back every later poses message until
+    it is repaired, seconds later for a recorder starved of CPU, and the bag closed at the end of its
+    grace without them (a killed script's run had no poses at all). The bag now waits for the poses
+    of the step the run's last RUNNING status names, catch_up_ns at most, and says what never came."""
+    topics = {"/ns/poses": "robotarium_msgs/msg/RobotPoses", "/ns/status": "robotarium_msgs/msg/TestbedStatus"}
+    started, logs = [], []
+    rec = RunRecorder(tmp_path, lambda t: (topics[t], []), on_started=started.append, log=logs.append, grace_ns=100,
+                      live_after_ns=0, catch_up_ns=1000,
+                      step_of=lambda topic, data: int(data[5:]) if topic == "/ns/poses" else None)   # b"...p<k>"
+    s = 10**9
+    for run, last in (("exp_1", 3), ("exp_2", 2)):
+        t = s * (10 if run == "exp_2" else 1)
+        rec.on_status("/ns/status", b"\x00\x01\x00\x00run", t, t, True, run, step=0)
+        rec.on_message("/ns/poses", b"\x00\x01\x00\x00p0", t + 1, t + 1)
+        rec.on_status("/ns/status", b"\x00\x01\x00\x00last", t + 10, t + 10, True, run, step=last)
+        rec.on_status("/ns/status", b"\x00\x01\x00\x00idle", t + 20, t + 20, False, run, step=0)
+        rec.tick(t + 500)   # the grace is over, the poses of steps 1..last are on their way
+        assert rec.writer is not None
+        if run == "exp_1":
+            for k in range(1, last + 1):
+                rec.on_message("/ns/poses", b"\x00\x01\x00\x00p%d" % k, t + 600, t + 5)
+            rec.tick(t + 700)
+        else:   # they never come: closed catch_up_ns after the grace, saying so
+            rec.tick(t + 1000)
+            assert rec.writer is not None
+            rec.tick(t + 1200)
+        assert rec.writer is None
+    assert [m.data[4:] for m in bagmod.Bag(started[0]).messages()] == [b"run", b"p0", b"last", b"idle", b"p1", b"p2", b"p3"]
+    assert "its poses from step 1 on never came (the last is 2)" in logs[-1]
+
+
 def test_run_recorder_ignores_a_finished_run_handed_over_as_history(tmp_path):
     """Transient-local history arrives when the recorder matches: a run that ended before the
     recorder started is not recorded; one still going is, from its first RUNNING status."""

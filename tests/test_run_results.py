@@ -113,12 +113,20 @@ def run_folder(out):
     return folder
 
 
-def check_folder(folder, cwd, recorded=True):
-    """The files every run folder has; returns (first line of report.txt, report, log, run.json)."""
+def check_folder(folder, cwd, recorded=True, out=""):
+    """The files every run folder has; returns (first line of report.txt, report, log, run.json).
+    `out`: what ./robotarium run printed, shown with the report when a file is missing."""
     folder = os.path.join(cwd, folder)
     names = set(os.listdir(folder))
     want = {"log.txt", "report.txt", "run.json", "index.html"} | ({"trajectories.png", "run.mp4"} if recorded else set())
-    assert want <= names, names
+    if not want <= names:
+        try:
+            with open(os.path.join(folder, "report.txt")) as f:
+                report = f.read()
+        except OSError as error:
+            report = str(error)
+        raise AssertionError("%s missing from %s\n--- run printed:\n%s\n--- report.txt:\n%s"
+                             % (sorted(want - names), sorted(names), out, report))
     with open(os.path.join(folder, "report.txt")) as f:
         report = f.read()
     with open(os.path.join(folder, "log.txt")) as f:
@@ -155,7 +163,7 @@ def test_a_run_interrupted_with_ctrl_c(testbed):
     got, out = finish(process)
     out = head + out
     assert got == code, out
-    first, report, log, run = check_folder(run_folder(out), str(testbed["scripts"]))
+    first, report, log, run = check_folder(run_folder(out), str(testbed["scripts"]), out=out)
     name = signal.Signals(signum).name
     assert first.startswith("Run did not complete: interrupted by ") and name in first, report
     assert "Acceptance" not in report and run["outcome"] == "interrupted" and run["step_calls"] >= 6
@@ -165,7 +173,7 @@ def test_a_run_interrupted_with_ctrl_c(testbed):
 def test_a_script_without_call_at_scripts_end(testbed):
     code, out = finish(start_run(testbed, "no_end.py", "--no-local-testbed"))
     assert code == 3, out
-    first, report, log, run = check_folder(run_folder(out), str(testbed["scripts"]))
+    first, report, log, run = check_folder(run_folder(out), str(testbed["scripts"]), out=out)
     assert first == ("Run did not complete: the script ended without calling r.call_at_scripts_end() "
                      "(step 6)."), report
     assert "Acceptance" not in report and "hint: end the script with r.call_at_scripts_end()" in out
@@ -359,7 +367,7 @@ def test_a_script_killed_outright_leaves_the_runs_folder(testbed, recorder_late)
     out = head + out
     assert code == 128 + signal.SIGKILL, out
     folder = os.path.join(str(testbed["scripts"]), run_folder(out))
-    first, report, log, run = check_folder(folder, "")
+    first, report, log, run = check_folder(folder, "", out=out)
     assert os.path.dirname(folder) == str(testbed["bags"]) and run["run_id"] == os.path.basename(folder), folder
     assert "No experiment ran" not in report and "##### DEBUG OUTPUT #####" in report, report
     # the testbed ended it when the script stopped answering, and the recording says so
@@ -411,7 +419,7 @@ def test_a_testbed_lost_mid_run(testbed):
     code, out = finish(process)
     out = head + out
     assert code == 4, out
-    first, report, log, run = check_folder(run_folder(out), str(testbed["scripts"]))
+    first, report, log, run = check_folder(run_folder(out), str(testbed["scripts"]), out=out)
     assert first.startswith("Run did not complete: the testbed was lost at step "), report
     assert "Acceptance" not in report and run["outcome"] == "testbed_lost" and "TestbedLost" in log
     assert "hint: the testbed stopped answering" in out

@@ -52,13 +52,14 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProf
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
 
-from robotarium_core import presence
+from robotarium_core import cdr, presence
 from robotarium_core.config import DEFAULT, FIELDS
 from robotarium_core.node_tools import declare_parameter, run_node
 from robotarium_core.topics import (
     DEFAULT_NAMESPACE,
     LATCHED,
     MARKERS,
+    POSES,
     RECORDED_RUNS,
     RECORDED_RUNS_QOS,
     RECORDING,
@@ -89,11 +90,17 @@ class RunRecorder:
     describe(topic) -> (type_name, offered_qos_profiles) is asked once per topic per bag.
     on_started(path) / on_finished(path, writer) are called when a bag is opened / closed.
     Times are ns since the epoch (receive and publish times of each message).
+
+    step_of(topic, data) -> the step of a poses message (None for any other): a closing run's bag
+    stays open past grace_ns until it holds the poses of the run's last step (its last RUNNING
+    status says which), catch_up_ns more at most. A reliable stream delivers in order, so one lost
+    packet holds back every later poses message until the writer repairs it, which takes up to its
+    heartbeat period (3 s) when the recorder was starved of CPU: the bag then closed without them.
     """
 
     def __init__(self, bags_dir, describe, on_started=None, on_finished=None, log=None,
                  preroll_ns=3_000_000_000, grace_ns=500_000_000, chunk_seconds=1.0, live_after_ns=None,
-                 on_write_error=None):
+                 on_write_error=None, step_of=None, catch_up_ns=4_000_000_000):
         self.bags_dir = os.path.abspath(bags_dir)
         self.describe = describe
         self.on_started = on_started or (lambda path: None)
@@ -101,6 +108,10 @@ class RunRecorder:
         self.log = log or (lambda text: None)
         self.preroll_ns = preroll_ns
         self.grace_ns = grace_ns
+        self.step_of = step_of or (lambda topic, data: None)
+        self.catch_up_ns = catch_up_ns
+        self.end_step = None          # the current run's step in its last RUNNING status
+        self.poses_step = -1          # the newest poses step in its bag
         self.chunk_seconds = chunk_seconds
         self.preroll = deque()        # (topic, data, recv_ns, pub_ns) received while not recording
         self.writer = None
@@ -128,7 +139,7 @@ class RunRecorder:
             self.preroll.append((topic, data, recv_ns, pub_ns))
             self._prune(recv_ns)
 
-    def on_status(self, topic, data, recv_ns, pub_ns, running, run_id):
+    def on_status(self, topic, data, recv_ns, pub_ns, running, run_id, step=None):
         if running and self._is_new_run(run_id, pub_ns):
             if pub_ns < self.live_after_ns:   # history: wait for a live status of this run
                 self.pending[run_id] = min(pub_ns, self.pending.get(run_id, pub_ns))
@@ -137,6 +148,7 @@ class RunRecorder:
             if self.writer is not None:
                 self.finish("a new run began")
             self._start(run_id, self.pending.pop(run_id, pub_ns))
+            self.end_step = step
             self._write(topic, data, recv_ns, pub_ns)
         elif not running and run_id in self.pending:   # that run ended before we started
             self.finished[run_id] = max(pub_ns, self.pending.pop(run_id))
@@ -144,6 +156,8 @@ class RunRecorder:
         elif self.state == "recording" and run_id == self.run_id:
             self._write(topic, data, recv_ns, pub_ns)
             self.end_ns = pub_ns
+            if running and step is not None:
+                self.end_step = step
             if not running:
                 self.state, self.grace_until = "closing", recv_ns + self.grace_ns
         else:
@@ -168,7 +182,11 @@ class RunRecorder:
             except OSError as error:
                 self._write_failed(error)
         if self.state == "closing" and now_ns >= self.grace_until:
-            self.finish("the experiment ended")
+            if self.end_step is None or self.poses_step >= self.end_step:
+                self.finish("the experiment ended")
+            elif now_ns >= self.grace_until + self.catch_up_ns:
+                self.finish("the experiment ended; its poses from step %d on never came (the last is %d)"
+                            % (self.poses_step + 1, self.end_step))
         elif self.state == "recording" and not simulator_present:
             self.finish("the simulator went away without ending the experiment")
         self._prune(now_ns)
@@ -198,6 +216,7 @@ class RunRecorder:
 
     def _start(self, run_id, start_ns):
         self.run_id, self.end_ns = run_id, start_ns
+        self.end_step, self.poses_step = None, -1
         self.state = "recording"
         self.stopped_path, self.not_recorded = None, 0
         try:
@@ -233,6 +252,9 @@ class RunRecorder:
                 type_name, offered_qos = self.describe(topic)
                 self.writer.add_topic(topic, type_name, offered_qos)
             self.writer.write(topic, data, recv_ns, pub_ns)
+            step = self.step_of(topic, data)
+            if step is not None and step > self.poses_step:
+                self.poses_step = step
             self.writer.maybe_flush()
         except OSError as error:
             self.not_recorded += 1
@@ -311,7 +333,7 @@ class RecorderNode(Node):
         self.topics = {}            # full name -> type name (None: cannot be recorded)
         self.session = RunRecorder(bags_dir, self.describe, self.announce_start, self.announce_end,
                                    self.get_logger().info, chunk_seconds=chunk_seconds,
-                                   on_write_error=self.announce_write_error)
+                                   on_write_error=self.announce_write_error, step_of=self.poses_step_of)
         self.session.namespace = self.ns or "/"
         self.recording_pub = self.create_publisher(String, RECORDING, LATCHED)
         self.recording_error_pub = self.create_publisher(String, RECORDING_ERROR, LATCHED)
@@ -319,6 +341,7 @@ class RecorderNode(Node):
         # Every status comes on the hidden stream (<ns>/status keeps only the newest: robotarium_core.topics);
         # it is recorded under <ns>/status, so bags and their readers see the status topic.
         self.status_topic = "%s/%s" % (self.ns, STATUS)
+        self.poses_topic = "%s/%s" % (self.ns, POSES)
         self.topics[self.status_topic] = "robotarium_msgs/msg/TestbedStatus"   # not subscribed itself (discover)
         self.create_subscription(TestbedStatus, "%s/%s" % (self.ns, STATUS_STREAM), self.on_status, QoSProfile(
             depth=SUBSCRIPTION_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
@@ -386,7 +409,16 @@ class RecorderNode(Node):
         msg = deserialize_message(data, TestbedStatus)
         pub = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec or recv
         self.session.on_status(self.status_topic, data, recv, pub,
-                               msg.state == TestbedStatus.STATE_RUNNING, msg.run_id)
+                               msg.state == TestbedStatus.STATE_RUNNING, msg.run_id, msg.step)
+
+    def poses_step_of(self, topic, data):
+        """The step of a poses message of this namespace (RunRecorder.step_of); None for other topics."""
+        if topic != self.poses_topic:
+            return None
+        try:
+            return cdr.ROBOT_POSES.parse(data).step
+        except cdr.CdrError:
+            return None   # not a RobotPoses (a stray publisher)
 
     def on_rosout(self, data):
         recv = time.time_ns()
