@@ -40,6 +40,15 @@ import time
 import numpy as np
 
 from robotarium_client import session
+from robotarium_client.errors import (  # noqa: F401 - also robotarium_client.robotarium's, as before
+    EXIT_TIME_LIMIT,
+    EndedByTestbed,
+    EndedByUnsentRequest,
+    TestbedBusy,
+    TestbedIncomplete,
+    TestbedLost,
+    TimeLimitReached,
+)
 from robotarium_client.progress import StepProgress
 from robotarium_client.robotarium_abc import RobotariumABC
 from robotarium_core import cdr, model, outcomes
@@ -47,23 +56,9 @@ from robotarium_core.config import DEFAULT, TestbedConfig
 from robotarium_core.model import RobotariumError
 
 STARTUP_WAIT = 60.0   # s for a testbed started here to come up
-EXIT_TIME_LIMIT = 5   # exit code of a script stopped at the time limit (README: exit codes)
 STEP_TIMEOUT = 10.0   # s without poses after a step() before we give up with an explanation
 CONFIG_WAIT = 2.0     # s for the testbed's latched configuration once its services answer
 GRAPH_POLL = 0.01     # s between looks at what only the DDS graph says (a reader matched) while waiting
-
-
-class TestbedLost(RuntimeError):
-    """The testbed stopped answering in the middle of an experiment (a node gone, no poses)."""
-    __test__ = False  # not a pytest class
-
-
-class TestbedBusy(RuntimeError):
-    """The testbed is busy with another experiment and this client would not wait (--no-wait)."""
-
-
-class TestbedIncomplete(RuntimeError):
-    """The testbed answers but lacks a node an experiment needs (no safety node: nothing could move)."""
 
 
 def incomplete_testbed_message(ns):
@@ -87,33 +82,6 @@ def holder_of_this_process():
     except (KeyError, OSError):
         user = "?"
     return "%s@%s pid %d %s" % (user, socket.gethostname(), os.getpid(), os.path.basename(sys.argv[0] or "python"))
-
-
-class EndedByTestbed(RuntimeError):
-    """The testbed ended the experiment (an operator's ./robotarium end --force, a stopped testbed)."""
-
-
-class EndedByUnsentRequest(EndedByTestbed):
-    """An end request with this run's token that this script did not send ended the experiment: a
-    process that copied the token off the wire (without SROS2 it is no secret). Never "completed"."""
-
-    def __init__(self, step):
-        super().__init__(
-            "%s. Stop the process that sends it (./robotarium status lists what runs on the domain), or run the "
-            "testbed with DDS Security (sros2/README.md) so that no other process learns the token; then run the "
-            "script again." % ("T" + outcomes.unsent_end(step)[1:]))
-        self.step = step
-
-
-class TimeLimitReached(SystemExit):
-    """Raised by step() once the experiment reached its time limit (testbed configuration
-    `time_limit`, or ./robotarium run --time-limit): the experiment has been ended and its report
-    printed; the rest of the script does not run. A SystemExit, so that `except Exception` in a
-    script's loop does not keep it going; the process exits with EXIT_TIME_LIMIT."""
-
-    def __init__(self, message):
-        super().__init__(EXIT_TIME_LIMIT)
-        self.message = message
 
 
 class Robotarium(RobotariumABC):

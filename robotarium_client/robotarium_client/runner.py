@@ -36,6 +36,7 @@ import threading
 import traceback
 
 from robotarium_client import session
+from robotarium_client.errors import EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete
 from robotarium_core import lifeline, outcomes
 
 ORPHAN_EXIT = 1.5
@@ -98,7 +99,6 @@ def where_in_script(exc, script):
 
 def run(script, script_args):
     """Run the script; returns (outcome, detail, exit code)."""
-    from robotarium_client.robotarium import EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete
     sys.argv = [script, *script_args]
     sys.path.insert(0, os.path.dirname(script))
     for signum in (signal.SIGTERM, signal.SIGHUP):
@@ -136,7 +136,6 @@ def run(script, script_args):
 
 def finish(outcome, detail, code):
     """End every experiment still running, saying how; returns (outcome, detail, code, runs)."""
-    from robotarium_client.robotarium import EndedByUnsentRequest
     step = session.robotaria[-1]._iterations if session.robotaria else 0
     if outcome is None:   # the script's code ran to its end (or sys.exit)
         if not session.robotaria:

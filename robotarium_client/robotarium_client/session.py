@@ -13,6 +13,8 @@ import os
 import re
 import sys
 
+from robotarium_client.errors import EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete, TestbedLost
+from robotarium_core import outcomes
 from robotarium_core.model import RobotariumError
 from robotarium_core.topics import DEFAULT_NAMESPACE
 
@@ -142,8 +144,6 @@ def describe_exception(exc):
 def failure_of(exc, step, where=""):
     """(outcome, detail) of a run that an exception ended at `step` (robotarium_core.outcomes);
     `where` says where in the script, e.g. "line 57 of go.py"."""
-    from robotarium_client.robotarium import EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete, TestbedLost
-    from robotarium_core import outcomes
     at = "at step %d%s" % (step, " (%s)" % where if where else "")
     if isinstance(exc, EndedByUnsentRequest):   # a process holding the run's token ended it
         return outcomes.ENDED_BY_UNSENT_REQUEST, outcomes.unsent_end(exc.step)
@@ -164,7 +164,6 @@ def failure_of(exc, step, where=""):
 
 def outcome_of_uncaught(step):
     """(outcome, detail) for an experiment still running when the script's process exits."""
-    from robotarium_core import outcomes
     if uncaught is not None:
         return failure_of(uncaught, step)
     return outcomes.NO_END, "the script ended without calling call_at_scripts_end() (step %d)" % step
