@@ -9,6 +9,7 @@ the nodes notice through their lifeline (robotarium_core.lifeline) that the comm
 the same by themselves.
 """
 import argparse
+import dataclasses
 import json
 import os
 import shutil
@@ -606,34 +607,46 @@ def print_summary(run_dir, run, cwd):
     say("results in %s (open %s in a browser)" % (shown, os.path.join(shown, "index.html")))
 
 
-def run_script(script, script_args=(), real_time=None, record=True, bags_dir=None, results=True, video=True,
-               local_testbed=True, config_file=None, time_limit=None, results_dir=None, hardware=False, seed=0,
-               rps_api=None, audit=False, own_testbed=False, wait=True):
-    """Run an experiment script against the testbed (starting one here if none answers and
-    `local_testbed` allows it). Whatever happens, the run folder gets the log, the report, the
-    results page and run.json (with the plot and the video when the run was recorded here); a
-    script that cannot be compiled or imported fails before a testbed is started. SIGINT, SIGTERM
-    and SIGHUP stop the script and this testbed (Interruption); the results are then made as for
-    any run that did not complete.
+@dataclasses.dataclass
+class RunRequest:
+    """What a command (run, verify, demo) asks of one run of a script: where its testbed and results
+    come from and go, and `options`, what the script's Robotarium is told (session.RunOptions: the
+    mode, --config, --time-limit, --hardware, --seed, --rps, audit, waiting in line), carried to the
+    script's process as they are, with the testbed's namespace and the run's name filled in."""
+    script: str
+    script_args: tuple = ()
+    options: session.RunOptions = dataclasses.field(default_factory=session.RunOptions)
+    record: bool = True          # a testbed started here records the run (bags_dir)
+    bags_dir: object = None      # None: <repository>/bags
+    results: bool = True         # the results from the recording (report, plot, page)
+    video: bool = True
+    local_testbed: bool = True   # start a testbed here when none answers (False: wait for one)
+    own_testbed: bool = False    # start one here without looking (verify: a namespace of its own)
+    results_dir: object = None   # None: <repository>/results
 
-    audit: a verification run (./robotarium verify only): the safety node lets the script's own
-    commands through. own_testbed: start a testbed here without looking for one (verify runs in a
-    namespace of its own, where none can answer).
+
+def run_script(request):
+    """Run an experiment script (a RunRequest) against the testbed (starting one here if none
+    answers and `local_testbed` allows it). Whatever happens, the run folder gets the log, the
+    report, the results page and run.json (with the plot and the video when the run was recorded
+    here); a script that cannot be compiled or imported fails before a testbed is started. SIGINT,
+    SIGTERM and SIGHUP stop the script and this testbed (Interruption); the results are then made as
+    for any run that did not complete.
 
     Returns (exit code, run.json dict or None, run folder or None).
     """
     from robotarium_core import outcomes
-    script = os.path.abspath(script)
+    script = request.script = os.path.abspath(request.script)
     if not os.path.isfile(script):
         say("no such script: %s" % script)
         return outcomes.USAGE_ERROR, None, None
     cwd = os.getcwd()
-    results_dir = os.path.abspath(results_dir or os.path.join(repository_root(), "results"))
+    results_dir = request.results_dir = os.path.abspath(request.results_dir or os.path.join(repository_root(), "results"))
     started_at = time.strftime("%Y-%m-%d %H:%M:%S")
     folders = [results_dir]
-    if record and local_testbed:   # a testbed started here records into bags_dir
-        folders.append(os.path.abspath(bags_dir or os.path.join(repository_root(), "bags")))
-    problem = check_run_folders(folders, config_file)
+    if request.record and request.local_testbed:   # a testbed started here records into bags_dir
+        folders.append(os.path.abspath(request.bags_dir or os.path.join(repository_root(), "bags")))
+    problem = check_run_folders(folders, request.options.config_file)
     if problem is not None:
         return problem, None, None
 
@@ -658,9 +671,7 @@ def run_script(script, script_args=(), real_time=None, record=True, bags_dir=Non
 
     interruption = Interruption()
     try:
-        return _run_script(script, script_args, real_time, record, bags_dir, results, video, local_testbed,
-                           config_file, time_limit, hardware, seed, interruption, results_dir, started_at, rps_api,
-                           audit, own_testbed, wait)
+        return _run_script(request, interruption, started_at)
     finally:
         interruption.restore()
 
@@ -702,18 +713,19 @@ def find_or_start_testbed(ns, record, bags_dir, config_file):
     return testbed.open()
 
 
-def _run_script(script, script_args, real_time, record, bags_dir, results, video, local_testbed, config_file,
-                time_limit, hardware, seed, interruption, results_dir, started_at, rps_api=None, audit=False,
-                own_testbed=False, wait=True):
+def _run_script(request, interruption, started_at):
     from robotarium_core import outcomes
+    script, record, bags_dir, results, video, results_dir = (
+        request.script, request.record, request.bags_dir, request.results, request.video, request.results_dir)
+    config_file = request.options.config_file
     ns = namespace()
     testbed = None
     name = session.experiment_name_of(script)
     # Without local_testbed a testbed is known to be up (or coming up): wait for it, never start one.
-    if own_testbed:
+    if request.own_testbed:
         if interruption.signum is None:
             testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file, looked=True).start()
-    elif not local_testbed:
+    elif not request.local_testbed:
         if testbed_answers(ns, timeout=60.0):
             say("using the testbed that answers in %s" % ns)
         else:
@@ -731,11 +743,9 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
     info_path = os.path.join(work, "run.json")
     log_path = os.path.join(work, "log.txt")
     # The testbed is up (found or started above): the script waits for it, never starts another.
-    options = session.RunOptions(real_time=real_time, local_testbed=False, namespace=ns, experiment_name=name,
-                                 progress_interval=session.progress_from_environment(10.0), time_limit=time_limit,
-                                 config_file=os.path.abspath(config_file) if config_file else None,
-                                 hardware=hardware, seed=seed, audit=audit, wait=wait,
-                                 rps_api=rps_api or session.rps_api_from_environment())
+    options = dataclasses.replace(request.options, local_testbed=False, namespace=ns, experiment_name=name,
+                                  progress_interval=session.progress_from_environment(10.0),
+                                  config_file=os.path.abspath(config_file) if config_file else None)
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
         env.setdefault("MPLBACKEND", "Agg")
@@ -743,7 +753,8 @@ def _run_script(script, script_args, real_time, record, bags_dir, results, video
     env, pass_fds = lifeline.for_child(env)
     # In the portal's job box only the script is demoted (its account, its limits); the testbed stays the service's.
     box_options, env = script_box.popen_options(env, writable=[work])
-    command = [sys.executable, "-m", "robotarium_client.runner", options.to_json(), info_path, script, *script_args]
+    command = [sys.executable, "-m", "robotarium_client.runner", options.to_json(), info_path, script,
+               *request.script_args]
 
     cwd = os.getcwd()
     before = _snapshot(cwd)
@@ -911,12 +922,13 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
 
 def cmd_run(args):
     finish_unfinished(args.results_dir)
-    real_time = {"lockstep": False, "real-time": True}.get(args.mode)
-    code, _, _ = run_script(args.script, args.script_args, real_time=real_time, record=not args.no_record,
-                            bags_dir=args.bags_dir, video=not args.no_video,
-                            local_testbed=not args.no_local_testbed, config_file=args.config,
-                            time_limit=args.time_limit, results_dir=args.results_dir, hardware=args.hardware,
-                            seed=args.seed, rps_api=args.rps, wait=not args.no_wait)
+    options = session.RunOptions(real_time={"lockstep": False, "real-time": True}.get(args.mode),
+                                 config_file=args.config, time_limit=args.time_limit, hardware=args.hardware,
+                                 seed=args.seed, rps_api=args.rps or session.rps_api_from_environment(),
+                                 wait=not args.no_wait)
+    code, _, _ = run_script(RunRequest(args.script, args.script_args, options, record=not args.no_record,
+                                       bags_dir=args.bags_dir, video=not args.no_video,
+                                       local_testbed=not args.no_local_testbed, results_dir=args.results_dir))
     return code
 
 
@@ -941,9 +953,10 @@ def cmd_verify(args):
         os.environ["ROBOTARIUM_NAMESPACE"] = "/robotarium_verify_%d" % os.getpid()
         say("verifying %s as the Robotarium does: lockstep, safety node auditing (the script's own commands go "
             "through and every collision counts)" % _shown(script))
-        code, run, run_dir = run_script(script, args.script_args, real_time=False, record=not args.no_record,
-                                        video=False, config_file=args.config, results_dir=args.results_dir,
-                                        rps_api={"1": "guide"}.get(args.rps, args.rps), audit=True, own_testbed=True)
+        options = session.RunOptions(real_time=False, config_file=args.config, audit=True,
+                                     rps_api={"1": "guide"}.get(args.rps, args.rps) or session.rps_api_from_environment())
+        code, run, run_dir = run_script(RunRequest(script, args.script_args, options, record=not args.no_record,
+                                                   video=False, own_testbed=True, results_dir=args.results_dir))
         if run is None:
             say("no verdict: the run did not start (exit code %d)" % code)
             return code if code != outcomes.USAGE_ERROR else outcomes.TESTBED_PROBLEM
@@ -970,7 +983,8 @@ def cmd_verify(args):
 def cmd_demo(args):
     script = os.path.join(repository_root(), DEMO_SCRIPT)
     say("demo: %s, headless, lockstep" % DEMO_SCRIPT)
-    code, info, run_dir = run_script(script, real_time=False, video=not args.no_video)
+    code, info, run_dir = run_script(RunRequest(script, options=session.RunOptions(real_time=False),
+                                                video=not args.no_video))
     if code == 0 and run_dir:
         say("demo done: the results page, the report, trajectories.png and the video of the run are in %s"
             % run_dir)
