@@ -20,6 +20,7 @@ from robotarium_core.topics import DEFAULT_NAMESPACE
 
 
 def namespace_from_environment():
+    """The testbed's namespace: ROBOTARIUM_NAMESPACE with one leading slash, /robotarium by default."""
     return "/" + os.environ.get("ROBOTARIUM_NAMESPACE", DEFAULT_NAMESPACE).strip("/")
 
 

@@ -19,9 +19,9 @@ import sys
 import time
 
 from robotarium_client import local_testbeds
+from robotarium_client.session import namespace_from_environment
 from robotarium_core import claim, lifeline
 from robotarium_core.config import DEFAULT_FILE
-from robotarium_core.topics import DEFAULT_NAMESPACE
 
 NODES = {
     # name: (module, whether it reads the testbed configuration)
@@ -36,9 +36,7 @@ def repository_root():
     return os.environ.get("ROBOTARIUM_ROOT") or os.getcwd()
 
 
-def namespace():
-    ns = os.environ.get("ROBOTARIUM_NAMESPACE", DEFAULT_NAMESPACE).strip("/")
-    return "/" + ns
+namespace = namespace_from_environment   # the testbed's namespace, from ROBOTARIUM_NAMESPACE
 
 
 def node_command(name, ns=None, extra_ros_args=(), config_file=DEFAULT_FILE):
