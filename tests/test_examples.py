@@ -7,17 +7,11 @@ and that the run's bag opens with an independent reader (rosbags) with one poses
 import glob
 import json
 import os
-import signal
-import subprocess
-import sys
 
 import pytest
 
-from devtools.rosutil import REPO, node_env, unique_domain_id
-
-# imported under another name: pytest would collect a module-level test_* function as a test
-from robotarium_client.testbed import LocalTestbed
-from robotarium_client.testbed import testbed_answers as answers_in_namespace
+from devtools.e2e import check_bag, module_testbed, run, run_folder
+from devtools.rosutil import REPO
 
 pytestmark = pytest.mark.e2e   # every example script through ./robotarium run
 
@@ -26,85 +20,10 @@ OUR_EXAMPLES = sorted(p for p in glob.glob(os.path.join(REPO, "examples", "*.py"
 # All of them run in CI (about 5 minutes together in lockstep: 3.3.1, 3.6.1 and 3.8.2 have 5000
 # iterations each).
 GUIDE_EXAMPLES = sorted(glob.glob(os.path.join(REPO, "examples", "guide", "*.py")))
-RUNNING = []   # the module's LocalTestbed while it runs: a failure shows its nodes' logs
-
-
-def logs_of_the_testbed(lines=40):
-    """The end of each testbed node's log and which nodes exited: what a failed run's message
-    needs to tell a testbed fault from a script's (CI keeps no temporary folders)."""
-    text = []
-    for tb in RUNNING:
-        text.append("--- testbed nodes that exited (name: exit code): %s" % (tb.failed() or "none"))
-        for name in tb.names:
-            try:
-                with open(os.path.join(tb.log_dir, name + ".log"), errors="replace") as f:
-                    tail = f.read().splitlines()[-lines:]
-            except OSError as error:
-                tail = ["(no log: %s)" % error]
-            text.append("--- %s.log, last %d lines:\n%s" % (name, lines, "\n".join(tail)))
-    return "\n".join(text)
-
-
 @pytest.fixture(scope="module")
 def testbed(tmp_path_factory):
-    domain = unique_domain_id()
-    bags = tmp_path_factory.mktemp("bags")
-    env = node_env(domain)
-    saved = dict(os.environ)
-    os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
-    tb = LocalTestbed(log_dir=str(tmp_path_factory.mktemp("logs")), bags_dir=str(bags)).start()
-    try:
-        # up before the first run, or `run` would start a second testbed of its own
-        assert answers_in_namespace(timeout=60), "the testbed did not come up: %s" % tb.failed()
-    finally:
-        os.environ.clear()
-        os.environ.update(saved)
-    RUNNING.append(tb)
-    try:
-        yield env, bags
-    finally:
-        RUNNING.remove(tb)
-        tb.stop()
-
-
-def run(env, script, *args, timeout=600):
-    """./robotarium run [flags] SCRIPT [script args] (flags before "--", script args after it); the
-    runs use this module's testbed, never one of their own (--no-local-testbed)."""
-    flags, script_args = (args[:args.index("--")], args[args.index("--") + 1:]) if "--" in args else (args, ())
-    flags = ("--no-local-testbed", *flags)
-    # in the folder of the script that runs (the last .py argument: run_seeded.py runs the one after it)
-    cwd = os.path.dirname(([a for a in (script, *script_args) if str(a).endswith(".py")])[-1])
-    process = subprocess.Popen([sys.executable, "-m", "robotarium_client.cli", "run", *flags, script, *script_args],
-                               env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd,
-                               start_new_session=True)
-    try:
-        out, err = process.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        # SIGINT first: the script's exit handler ends its experiment, which frees the shared testbed
-        os.killpg(process.pid, signal.SIGINT)
-        try:
-            out, err = process.communicate(timeout=15)
-        except subprocess.TimeoutExpired:
-            os.killpg(process.pid, signal.SIGKILL)
-            out, err = process.communicate()
-        raise AssertionError("%s did not finish within %d s:\n%s%s\n%s" % (script_args or script, timeout, out, err,
-                                                                        logs_of_the_testbed())) from None
-    if process.returncode != 0:
-        err += "\n" + logs_of_the_testbed()
-    return subprocess.CompletedProcess(process.args, process.returncode, out, err)
-
-
-def run_folder(bags, output):
-    info = [line for line in output.splitlines() if " recorded in " in line]
-    assert info, "the run was not recorded:\n" + output + "\n" + logs_of_the_testbed()
-    return info[-1].split(" recorded in ")[-1].strip()
-
-
-def check_bag(folder):
-    """Message counts per topic as the rosbags library (an independent reader) sees the bag."""
-    from rosbags.rosbag2 import Reader
-    with Reader(folder) as reader:
-        return {c.topic: c.msgcount for c in reader.connections}
+    with module_testbed(tmp_path_factory) as bed:
+        yield bed
 
 
 @pytest.mark.parametrize("script", OUR_EXAMPLES, ids=os.path.basename)

@@ -11,10 +11,16 @@ import os
 
 import pytest
 
+from devtools.e2e import check_bag, module_testbed, run, run_folder
 from devtools.rosutil import REPO
-from tests.test_examples import check_bag, run, run_folder, testbed  # noqa: F401 (testbed: the module's fixture)
 
 pytestmark = pytest.mark.e2e   # every 2.1.0 example through ./robotarium run
+
+
+@pytest.fixture(scope="module")
+def testbed(tmp_path_factory):
+    with module_testbed(tmp_path_factory) as bed:
+        yield bed
 
 EXAMPLES = os.path.join(REPO, "examples", "rps2")
 ALL = sorted(os.path.relpath(p, EXAMPLES) for p in glob.glob(os.path.join(EXAMPLES, "**", "*.py"), recursive=True)

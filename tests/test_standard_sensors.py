@@ -16,13 +16,13 @@ import yaml
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, MagneticField, Range
 
+from devtools.stack import NS, Stack, rosbags_messages
 from robotarium_core import rps2
 from robotarium_core.config import DEFAULT
 from robotarium_core.sensors import GRAVITY
 from robotarium_msgs.msg import SensorReadings
 from robotarium_msgs.srv import StartExperiment
 from robotarium_sim import rps2_io
-from tests.test_recorder import NS, Stack, rosbags_messages
 
 OBSTACLES = np.array([[[-0.3, -0.6], [-0.3, 0.6]], [[0.3, -0.6], [0.3, 0.6]]])
 POSES = np.array([[-0.8, 0.0, 0.8], [0.0, 0.4, 0.0], [0.0, 1.0, 3.0]])
