@@ -4,6 +4,19 @@ from django.db import models
 from django.utils import timezone
 
 
+def without_nul(value):
+    """`value` (text, or JSON made of dicts, lists and text) with every NUL character as U+FFFD:
+    PostgreSQL's text and jsonb take no NUL, and a job's output may hold some (a run's output
+    file written on past a truncation is zero-filled), which failed the whole job (DataError)."""
+    if isinstance(value, str):
+        return value.replace("\x00", "\ufffd")
+    if isinstance(value, dict):
+        return {without_nul(k): without_nul(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [without_nul(v) for v in value]
+    return value
+
+
 class Profile(models.Model):
     """The guide's sign-up fields, and the two gates before an account may submit."""
     user = models.OneToOneField(settings.AUTH_USER_MODEL, on_delete=models.CASCADE, related_name="profile")
@@ -60,6 +73,11 @@ class Experiment(models.Model):
 
     def __str__(self):
         return "#%d %s (%s)" % (self.pk or 0, self.title, self.state)
+
+    def save(self, *args, **kwargs):
+        # What jobs write comes from files a script's run made: no NUL may reach the database.
+        self.detail, self.verification = without_nul(self.detail), without_nul(self.verification)
+        super().save(*args, **kwargs)
 
     @property
     def folder(self):

@@ -21,7 +21,7 @@ from django_q.tasks import async_task
 from robotarium_portal import jobbox, mail
 from robotarium_portal.files import copy_files
 from robotarium_portal.jobbox import stop_group
-from robotarium_portal.models import Experiment, Worker
+from robotarium_portal.models import Experiment, Worker, without_nul
 from robotarium_portal.workers import database_retry, me
 
 logger = logging.getLogger("robotarium_portal")
@@ -225,7 +225,8 @@ def _queue(experiment, verdict, detail):
     def queue():
         with transaction.atomic():
             if not Experiment.objects.filter(pk=experiment.pk, state=Experiment.VERIFYING, worker=me()).update(
-                    state=Experiment.QUEUED, queued_at=timezone.now(), verification=verdict, detail=detail,
+                    state=Experiment.QUEUED, queued_at=timezone.now(), verification=without_nul(verdict),
+                    detail=without_nul(detail),
                     timings=experiment.timings, worker=None):
                 return False
             enqueue_run()   # in the same transaction: queued and its job, or neither

@@ -336,6 +336,18 @@ def test_the_admin_pages_list_the_workers_and_the_queue():
     assert client_for(make_user()).get("/admin/robotarium_portal/worker/").status_code == 302   # staff only
 
 
+def test_a_jobs_text_with_nul_bytes_is_stored_not_a_database_error():
+    """A run's output with NUL bytes (a file written on past its truncation) failed the run's whole job
+    with PostgreSQL's DataError in a service test; the experiment keeps its text, NUL shown as U+FFFD."""
+    experiment = experiment_of(make_user(), title="Nul")
+    experiment.detail = "Failed: the script raised ValueError\x00\x00 at step 3"
+    experiment.verification = {"rules": [{"rule": "collisions\x00", "count": 1}], "log": ["a\x00b"]}
+    experiment.save()
+    experiment.refresh_from_db()
+    assert experiment.detail == "Failed: the script raised ValueError\ufffd\ufffd at step 3"
+    assert experiment.verification == {"rules": [{"rule": "collisions\ufffd", "count": 1}], "log": ["a\ufffdb"]}
+
+
 def test_an_administrator_cancels_a_queued_or_running_experiment_and_its_page_says_so():
     from robotarium_portal import tasks
     admin_user = make_administrator()
