@@ -1,4 +1,5 @@
-"""The Robotarium simulator node: a thin ROS 2 shell around robotarium_core.model.Testbed.
+"""The Robotarium simulator node: a thin ROS 2 shell around robotarium_core.model.Testbed and
+robotarium_sim.experiment (what a start asks for, the run's id, secrets and counters).
 
 Topics (relative to the node's namespace, /robotarium by default):
   cmd_safe        robotarium_msgs/TwistArray   in:  the safety node's commands (the only command input), read
@@ -54,8 +55,6 @@ In real time a command goes into the hardware-like pipeline at the moment it arr
 current tick; in lockstep at the start of its step, so a seed gives the same run bit for bit.
 """
 import array
-import hashlib
-import re
 import secrets
 import sys
 import time
@@ -102,17 +101,13 @@ from robotarium_core.topics import (
 from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, SensorReadings, TestbedStatus, TwistArray
 from robotarium_msgs.srv import ArmSafety, EndExperiment, StartExperiment
 from robotarium_sim import rps2_io
-from robotarium_sim.hardware import HardwareTestbed
+from robotarium_sim.experiment import Experiment, RunIds, build_testbed
 
 SAFETY_WAIT = 10.0          # s a start waits for the safety node to answer (discovery is slow on a loaded machine)
 SAFETY_WAIT_SETTLED = 2.0   # s it waits when the simulator has run longer than SAFETY_WAIT without seeing one
 ARM_RESEND = 1.0            # s before an unanswered ArmSafety request is sent again
 REPORT_WAIT = 3.0           # s an end waits for the safety node's reports of the arrays already applied
 CLIENT_DISCOVERY_WAIT = 10.0  # s after a start for the client's presence to appear before it counts as lost
-
-
-def sha256(text):
-    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def drop_counts(counts):
@@ -159,36 +154,15 @@ class SimulatorNode(Node):
     def __init__(self):
         super().__init__("simulator", namespace=DEFAULT_NAMESPACE)
         self.config = declare_config(self)
-        self.testbed = None
-        self.real_time = True
-        self.gate = model.StepGate(True)
-        self.experiment = ""
-        self.run_id = ""
-        self._run_ids = set()   # every run id this simulator gave
+        self.testbed = None          # the running experiment's model (None: idle)
+        self.run = Experiment()      # the running experiment, or the last one (how it ended)
+        self.run_ids = RunIds()
         self.recording = ""
-        self.outcome, self.outcome_detail = TestbedStatus.OUTCOME_NONE, ""   # how the last experiment ended
-        self.safety_interventions = 0
-        self.tally = model.RunTally()   # first error steps, how much the safety layer changed and what it prevented
-        self.audit = False           # a verification run: the safety node lets the script's commands through
-        self.stale_pose_stops = 0
-        self.commands_accepted = 0
-        self.safe_arrays_heard = 0   # arrays with the safety key (each comes with a SafetyReport)
-        self.reports_heard = 0       # SafetyReports of arrays (not STATUS_COUNTS_ONLY)
-        self.last_command_step = 0   # the testbed's step when the last command was applied
-        self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
-        self.dropped_requested = DropCounts()   # the safety node's, from its safety_report
-        self._logged_drops = set()
-        self._clock_start = 0.0
-        self._last_tick = 0.0
         self._tick_timer = None
         self._starting = False
-        self.token = self.safety_key = self.poses_key = ""
-        self.end_reason = ""
         self.client_watch = None
         self._client_deadline = None
         self.line = Line(self.config.line_lease)   # clients waiting for the testbed, first come first served
-        self.holder = ""             # who holds the running experiment (StartExperiment.holder)
-        self._started_at = ""
 
         self.poses_pub = self.create_publisher(RobotPoses, POSES, TESTBED_QOS)
         self.pose_array_pub = self.create_publisher(PoseArray, POSE_ARRAY, 10)
@@ -234,7 +208,7 @@ class SimulatorNode(Node):
         """Who holds the testbed, for those waiting: holder, run, since when, step."""
         if self.testbed is None:
             return "an experiment that is starting"
-        return "%s: run %s since %s, step %d" % (self.holder or "a client", self.run_id, self._started_at,
+        return "%s: run %s since %s, step %d" % (self.run.holder or "a client", self.run.run_id, self.run.started_at,
                                                  self.testbed.steps)
 
     async def on_start(self, request, response):
@@ -256,105 +230,49 @@ class SimulatorNode(Node):
                                    self.config.client_lease))
             return response
         self.line.leave(request.ticket)
-        name = request.name or "experiment"
-        if not re.fullmatch(r"[A-Za-z0-9_-]{1,64}", name):
-            response.message = "name %r must be 1 to 64 letters, digits, '-' or '_'." % name
-            return response
         c = self.config
         try:
-            model.validate_number_of_robots(int(request.number_of_robots), c.max_robots)
-            n = int(request.number_of_robots)
-            given = (len(request.x), len(request.y), len(request.theta))
-            if given == (0, 0, 0):
-                seed = request.seed or None
-                poses = model.random_initial_conditions(n, np.random.default_rng(seed))
-            elif given == (n, n, n):
-                poses = np.array([request.x, request.y, request.theta], dtype=float)
-            else:
-                raise model.RobotariumError(
-                    "initial conditions need x, y and theta of length %d each, or all empty for random ones; "
-                    "received lengths %s." % (n, given))
-            if request.api and request.api != rps2.API:
-                raise model.RobotariumError("api must be '' (the guide's) or '%s' (2.x); received %r."
-                                            % (rps2.API, request.api))
-            if request.api == rps2.API and (request.hardware or c.hardware):
-                raise model.RobotariumError(
-                    "the hardware-like mode models the guide's API only, not the 2.x sensors and drive-on phase: "
-                    "run this 2.x script without --hardware, on a testbed started without --hardware.")
-            if request.api == rps2.API:
-                testbed = rps2_io.testbed_for(request, poses, c)
-            elif request.hardware or c.hardware:
-                testbed = HardwareTestbed(poses, c, seed=request.seed or None)
-            else:
-                testbed = model.Testbed(poses, c)
+            name, testbed = build_testbed(request, c)
         except model.RobotariumError as error:
             response.message = str(error)
             return response
-
-        # Two runs of one name started within a second: the second is <name>_<time>_2 (a client must
-        # never take the end of an earlier run for its own, nor the recorder write both to one folder).
-        base = run_id = "%s_%s" % (name, time.strftime("%Y%m%d-%H%M%S"))
-        copies = 1
-        while run_id in self._run_ids:
-            copies += 1
-            run_id = "%s_%d" % (base, copies)
-        self._run_ids.add(run_id)
-        token, safety_key, poses_key = (secrets.token_hex(16) for _ in range(3))
+        n = testbed.number_of_robots
+        run = Experiment.started(self.run_ids.new(name), name, request.real_time, audit=request.audit,
+                                 holder=request.holder)
         self._starting = True
         try:
             armed = await self.arm_safety(ArmSafety.Request(
-                run_id=run_id, number_of_robots=n, real_time=bool(request.real_time), token=token,
-                safety_key=safety_key, poses_key=poses_key, audit=bool(request.audit)))
+                run_id=run.run_id, number_of_robots=n, real_time=run.real_time, token=run.token,
+                safety_key=run.safety_key, poses_key=run.poses_key, audit=run.audit))
         finally:
             self._starting = False
         if armed is not True:
             response.message = armed
             return response
 
-        self.testbed = testbed
-        self.holder = request.holder
-        self._started_at = time.strftime("%H:%M:%S")
-        self.real_time = bool(request.real_time)
-        self.gate = model.StepGate(self.real_time)
-        self.experiment = name
-        self.run_id = run_id
-        self.token, self.safety_key, self.poses_key = token, safety_key, poses_key
-        self.key_hashes = (sha256(poses_key), sha256(safety_key))
-        self.end_reason = ""
-        self.safety_interventions = 0
-        self.tally = model.RunTally()
-        self.audit = bool(request.audit)
-        self.outcome, self.outcome_detail = TestbedStatus.OUTCOME_NONE, ""
-        self.stale_pose_stops = 0
-        self.commands_accepted = 0
-        self.safe_arrays_heard = self.reports_heard = 0
-        self.last_command_step = 0
-        self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
-        self.dropped_requested = DropCounts()
-        self._logged_drops = set()
-        self._clock_start = self._last_tick = time.monotonic()
+        self.testbed, self.run = testbed, run
         self.trails.reset()
-        self.watch_client(run_id)
+        self.watch_client(run.run_id)
         if isinstance(testbed, rps2.Testbed2):
             self.standard_sensors.start(testbed)
-        if self.real_time:
+        if run.real_time:
             self._tick_timer = self.create_timer(1.0 / c.rate, self.tick)
         self.publish_state()
         # After the first RUNNING status, so that the recorder keeps them in the run's bag.
         self.config_pub.publish(String(data=c.to_yaml()))
-        self.experiment_pub.publish(String(data=rps2_io.settings_yaml(self.run_id, request.api, self.testbed)))
+        self.experiment_pub.publish(String(data=rps2_io.settings_yaml(self.run.run_id, request.api, self.testbed)))
         rps2_io.publish_obstacles(self, self.obstacles_pub, self.testbed)
         response.success = True
-        response.run_id = self.run_id
-        response.token = token
-        response.poses_key = poses_key
+        response.run_id = self.run.run_id
+        response.token = run.token
+        response.poses_key = run.poses_key
         response.client_alive_topic = self.client_watch.subscription.topic_name
         response.client_lease = c.client_lease
         response.x, response.y, response.theta = (to_float_array(row) for row in self.testbed.poses)
         response.message = "started %s: %d robots, %s%s%s" % (
-            self.run_id, n, "real time at %g Hz" % c.rate if self.real_time else "lockstep",
+            self.run.run_id, n, "real time at %g Hz" % c.rate if self.run.real_time else "lockstep",
             "" if self.testbed.seed is None else ", hardware-like (seed %d)" % self.testbed.seed,
-            ", audited for verification (the safety node lets the script's commands through)" if self.audit else "")
+            ", audited for verification (the safety node lets the script's commands through)" if self.run.audit else "")
         self.get_logger().info(response.message)
         return response
 
@@ -417,12 +335,12 @@ class SimulatorNode(Node):
             # The step of its last command: where its script stopped (in real time the testbed ticked on).
             self.get_logger().warning("the client of %s is gone (no sign of it for %g s; its last command came at "
                                       "step %d): ending the experiment at step %d" % (
-                                          self.run_id, self.config.client_lease, self.last_command_step,
+                                          self.run.run_id, self.config.client_lease, self.run.last_command_step,
                                           self.testbed.steps))
-            self.end_experiment("client lost at step %d" % self.last_command_step, outcome=outcomes.CLIENT_LOST,
+            self.end_experiment("client lost at step %d" % self.run.last_command_step, outcome=outcomes.CLIENT_LOST,
                                 detail="the testbed ended it at step %d: its client was gone for %g s (its last "
                                 "command came at step %d)" % (self.testbed.steps, self.config.client_lease,
-                                                              self.last_command_step))
+                                                              self.run.last_command_step))
 
     def on_safety_lost(self):
         if self.testbed is not None:
@@ -434,24 +352,24 @@ class SimulatorNode(Node):
             response.success = False
             response.message = "no experiment is running."
             return response
-        if request.token != self.token and not request.force:
+        if request.token != self.run.token and not request.force:
             response.success = False
             response.message = (
                 "experiment %s belongs to the client that started it (this request does not carry its token). "
                 "It ends when that client ends it or is gone for %g s; an operator can end it now with "
-                "./robotarium end --force." % (self.run_id, self.config.client_lease))
-            self.get_logger().warning("refused to end %s: the request does not carry its token" % self.run_id)
+                "./robotarium end --force." % (self.run.run_id, self.config.client_lease))
+            self.get_logger().warning("refused to end %s: the request does not carry its token" % self.run.run_id)
             return response
-        reason = (outcomes.ENDED_BY_ITS_CLIENT + " at step %d" if request.token == self.token
+        reason = (outcomes.ENDED_BY_ITS_CLIENT + " at step %d" if request.token == self.run.token
                   else "ended by an operator (end --force) at step %d") % self.testbed.steps
         outcome, detail = outcomes.of_request(request.outcome), request.detail
-        if request.token != self.token and request.outcome == outcomes.NONE:
+        if request.token != self.run.token and request.outcome == outcomes.NONE:
             outcome, detail = outcomes.INTERRUPTED, "interrupted: %s" % reason
-        run_id = self.run_id
+        run_id = self.run.run_id
         await self.wait_for_reports()
-        if self.testbed is None or self.run_id != run_id:   # it ended meanwhile (its client lost, the time limit)
+        if self.testbed is None or self.run.run_id != run_id:   # it ended meanwhile (its client lost, the time limit)
             response.success = False
-            response.message = "experiment %s ended meanwhile: %s" % (run_id, self.end_reason)
+            response.message = "experiment %s ended meanwhile: %s" % (run_id, self.run.end_reason)
             return response
         return self.end_experiment(reason, response, outcome, detail)
 
@@ -464,12 +382,12 @@ class SimulatorNode(Node):
             self.destroy_timer(self._tick_timer)
             self._tick_timer = None
         deadline = time.monotonic() + REPORT_WAIT
-        while self.reports_heard < self.safe_arrays_heard and time.monotonic() < deadline:
+        while self.run.reports_missing and time.monotonic() < deadline:
             await self.sleep(0.01)
-        if self.reports_heard < self.safe_arrays_heard:
+        if self.run.reports_missing:
             self.get_logger().warning("ending %s without the safety node's reports of %d array(s) after %.0f s: its "
                                       "counts in the report miss them" % (
-                                          self.run_id, self.safe_arrays_heard - self.reports_heard, REPORT_WAIT))
+                                          self.run.run_id, self.run.reports_missing, REPORT_WAIT))
 
     def end_experiment(self, reason, response=None, outcome=outcomes.INTERRUPTED, detail=""):
         """End the running experiment (robots stop, counters frozen, the safety node disarmed) for
@@ -486,27 +404,27 @@ class SimulatorNode(Node):
         # The safety node's reports of the last arrays may still wait in our queue: count them first.
         for msg in take_waiting(self.safety_reports):
             self.on_safety_report(msg)
-        self.end_reason = reason
+        self.run.end_reason = reason
         response.success = True
-        response.run_id = self.run_id
+        response.run_id = self.run.run_id
         response.steps = tb.steps
-        copy_counters(tb, response, self.tally)
-        response.stale_pose_stops = self.stale_pose_stops
+        copy_counters(tb, response, self.run.tally)
+        response.stale_pose_stops = self.run.stale_pose_stops
         response.obstacle_collisions = getattr(tb, "obstacle_hits", 0)
-        response.audit = self.audit
-        response.safety_interventions = self.safety_interventions
+        response.audit = self.run.audit
+        response.safety_interventions = self.run.safety_interventions
         # A verification run's report is the Robotarium's counts alone: nothing was prevented there.
         response.report = tb.report(completed=outcome == outcomes.COMPLETED,
-                                     safety=None if self.audit else self.tally.safety(self.commands_accepted))
+                                     safety=None if self.run.audit else self.run.tally.safety(self.run.commands_accepted))
         response.recording = self.recording
         response.end_reason = reason
-        response.dropped_cmd_safe = drop_counts(self.dropped)
-        response.dropped_cmd_requested = self.dropped_requested
-        response.message = "%s: %s" % (self.run_id, reason)
+        response.dropped_cmd_safe = drop_counts(self.run.dropped)
+        response.dropped_cmd_requested = self.run.dropped_requested or DropCounts()
+        response.message = "%s: %s" % (self.run.run_id, reason)
         self.publish_status()  # the final counters, still marked running, so recorders keep them
         self.testbed = None
-        self.token = self.safety_key = self.poses_key = ""
-        self.outcome, self.outcome_detail = outcome, detail
+        self.run.token = self.run.safety_key = self.run.poses_key = ""
+        self.run.outcome, self.run.outcome_detail = outcome, detail
         self.publish_status()   # IDLE, with who ended the run and how it ended
         self.disarm_safety()
         self.get_logger().info(response.message)
@@ -517,7 +435,7 @@ class SimulatorNode(Node):
         end the running experiment as end_experiment does, and wait until its last statuses reached
         every subscriber, so the recorder records the end and closes the run."""
         if self.testbed is not None:
-            self.get_logger().warning("ending experiment %s: %s" % (self.run_id, reason))
+            self.get_logger().warning("ending experiment %s: %s" % (self.run.run_id, reason))
             steps = self.testbed.steps
             self.end_experiment("the testbed stopped at step %d (%s)" % (steps, reason), outcome=outcomes.INTERRUPTED,
                                 detail="interrupted: the testbed was stopped at step %d (%s)" % (steps, reason))
@@ -538,34 +456,32 @@ class SimulatorNode(Node):
         if tb is None:
             return
         try:
-            msg = cdr.parse_commands(data, tb.number_of_robots, token=self.safety_key)
+            msg = cdr.parse_commands(data, tb.number_of_robots, token=self.run.safety_key)
         except cdr.CdrError as error:
             return self.drop(error.reason, str(error))
-        self.safe_arrays_heard += 1
+        self.run.safe_arrays_heard += 1
         problem = model.check_commands(msg.ids, msg.v, msg.omega, tb.number_of_robots)
         if problem is not None:
             return self.drop(problem, "step %d" % msg.step)
         # Only an array filtered at the poses it will move the robots from (model.StepGate).
-        wrong_step = self.gate.admit(msg.step, tb.steps, stop=not (np.any(msg.v) or np.any(msg.omega)))
+        wrong_step = self.run.gate.admit(msg.step, tb.steps, stop=not (np.any(msg.v) or np.any(msg.omega)))
         if wrong_step is not None:
             return self.drop("stale", wrong_step)
-        self.commands_accepted += 1
-        self.last_command_step = tb.steps + (0 if self.real_time else 1)
+        self.run.commands_accepted += 1
+        self.run.last_command_step = tb.steps + (0 if self.run.real_time else 1)
         now = time.monotonic()
         # Real time: how far into the current tick it came (the hardware-like model sends it then).
-        offset = min(max(now - self._last_tick, 0.0), tb.time_step) if self.real_time else 0.0
+        offset = min(max(now - self.run.last_tick, 0.0), tb.time_step) if self.run.real_time else 0.0
         tb.set_commands(msg.ids, msg.v, msg.omega, now=now, requested_exceeds_limits=msg.requested_exceeds_limits,
                         offset=offset)
-        if not self.real_time:
+        if not self.run.real_time:
             tb.step()
-            self.tally.after_step(tb)
+            self.run.tally.after_step(tb)
             self.publish_state()
 
     def drop(self, reason, detail):
         """Count a dropped array (in status); say so in the log the first time for each reason."""
-        self.dropped[reason] += 1
-        if reason not in self._logged_drops:
-            self._logged_drops.add(reason)
+        if self.run.count_drop(reason):
             self.get_logger().warning(
                 "dropped a command array on cmd_safe: %s (%s). Further drops of this kind are only counted in the "
                 "status topic." % (model.DROP_REASONS[reason], detail))
@@ -573,16 +489,10 @@ class SimulatorNode(Node):
     def on_safety_report(self, msg):
         if self.testbed is None:
             return
-        if msg.status != SafetyReport.STATUS_COUNTS_ONLY:
-            self.reports_heard += 1
-        intervention = is_intervention(msg, self.config.intervention_tolerance)
-        if intervention:
-            self.safety_interventions += 1
-        self.tally.add_safety_report(intervention, msg.max_change, msg.unfiltered_collisions,
-                                     msg.unfiltered_boundary_violations)
-        if msg.status == SafetyReport.STATUS_STOP_NO_POSES:
-            self.stale_pose_stops += 1
-        self.dropped_requested = msg.dropped
+        self.run.count_safety_report(
+            is_intervention(msg, self.config.intervention_tolerance), msg.max_change, msg.unfiltered_collisions,
+            msg.unfiltered_boundary_violations, of_an_array=msg.status != SafetyReport.STATUS_COUNTS_ONLY,
+            stale_stop=msg.status == SafetyReport.STATUS_STOP_NO_POSES, dropped=msg.dropped)
 
     def on_recording(self, msg):
         self.recording = msg.data
@@ -596,10 +506,10 @@ class SimulatorNode(Node):
         # Stamped with the tick's own time: the step's computation (and whatever preempts it) is
         # not the simulated world's, so the poses' stamps are as regular as the timer.
         now = self.get_clock().now()
-        self._last_tick = time.monotonic()
-        tb.expire_commands(self._last_tick, self.config.command_timeout)
+        self.run.last_tick = time.monotonic()
+        tb.expire_commands(self.run.last_tick, self.config.command_timeout)
         tb.step()
-        self.tally.after_step(tb)
+        self.run.tally.after_step(tb)
         self.publish_state(now)
 
     def publish_state(self, now=None):
@@ -608,10 +518,10 @@ class SimulatorNode(Node):
         sec, nanosec = now.seconds_nanoseconds()
         x, y, theta = tb.poses
         self.poses_pub.publish(cdr.ROBOT_POSES.build(
-            sec=sec, nanosec=nanosec, frame_id="arena", run_id=self.run_id, key=self.poses_key, step=tb.steps,
+            sec=sec, nanosec=nanosec, frame_id="arena", run_id=self.run.run_id, key=self.run.poses_key, step=tb.steps,
             sim_time=tb.sim_time, ids=np.arange(tb.number_of_robots), x=x, y=y, theta=theta))
         if isinstance(tb, rps2.Testbed2):
-            self.sensors_pub.publish(rps2_io.sensor_readings(tb, self.run_id, now.to_msg()))
+            self.sensors_pub.publish(rps2_io.sensor_readings(tb, self.run.run_id, now.to_msg()))
             if self.standard_sensors.due(tb):
                 self.standard_sensors.publish(tb, sec, nanosec)
         if self.pose_array_pub.get_subscription_count() > 0:
@@ -631,7 +541,7 @@ class SimulatorNode(Node):
 
     def publish_status_heartbeat(self):
         # Real-time runs publish status every tick; idle and lockstep (which may wait) once a second.
-        if self.testbed is None or not self.real_time:
+        if self.testbed is None or not self.run.real_time:
             self.publish_status()
 
     def publish_status(self, stamp=None):
@@ -639,20 +549,20 @@ class SimulatorNode(Node):
         msg = TestbedStatus()
         msg.header.stamp = stamp or self.get_clock().now().to_msg()
         msg.header.frame_id = "arena"
-        msg.experiment = self.experiment
-        msg.run_id = self.run_id
-        msg.mode = "realtime" if self.real_time else "lockstep"
-        msg.commands_accepted = self.commands_accepted
-        msg.dropped_cmd_safe = drop_counts(self.dropped)
-        msg.dropped_cmd_requested = self.dropped_requested
-        msg.safety_interventions = self.safety_interventions
-        msg.end_reason = self.end_reason
+        msg.experiment = self.run.name
+        msg.run_id = self.run.run_id
+        msg.mode = "realtime" if self.run.real_time else "lockstep"
+        msg.commands_accepted = self.run.commands_accepted
+        msg.dropped_cmd_safe = drop_counts(self.run.dropped)
+        msg.dropped_cmd_requested = self.run.dropped_requested or DropCounts()
+        msg.safety_interventions = self.run.safety_interventions
+        msg.end_reason = self.run.end_reason
         if tb is not None:
-            msg.poses_key_sha256, msg.safety_key_sha256 = self.key_hashes
-        msg.outcome, msg.outcome_detail = self.outcome, self.outcome_detail
-        msg.stale_pose_stops = self.stale_pose_stops
-        msg.audit = self.audit
-        msg.holder = self.holder if tb is not None else ""
+            msg.poses_key_sha256, msg.safety_key_sha256 = self.run.key_hashes
+        msg.outcome, msg.outcome_detail = self.run.outcome, self.run.outcome_detail
+        msg.stale_pose_stops = self.run.stale_pose_stops
+        msg.audit = self.run.audit
+        msg.holder = self.run.holder if tb is not None else ""
         msg.waiting = self.line.holders()
         if tb is None:
             msg.state = TestbedStatus.STATE_IDLE
@@ -660,7 +570,7 @@ class SimulatorNode(Node):
             msg.state = TestbedStatus.STATE_RUNNING
             msg.number_of_robots = tb.number_of_robots
             msg.step = tb.steps
-            copy_counters(tb, msg, self.tally)
+            copy_counters(tb, msg, self.run.tally)
         self.status_stream_pub.publish(msg)
         self.status_pub.publish(msg)
 
