@@ -15,7 +15,8 @@ from std_srvs.srv import SetBool
 from devtools.rosutil import REPO, NodeProcess, RosProbe, unique_domain_id
 from robotarium_msgs.msg import RobotPoses, TestbedStatus
 from robotarium_recording.bag import Bag
-from robotarium_recording.replay_node import ReplayClock, publisher_qos
+from robotarium_recording.replay_node import publisher_qos
+from robotarium_recording.replay_timing import ReplayClock
 
 pytestmark = pytest.mark.node   # real testbed nodes in subprocesses
 

@@ -21,7 +21,6 @@ anyone looked.
 """
 import argparse
 import os
-import select
 import sys
 import time
 
@@ -35,47 +34,15 @@ from std_srvs.srv import SetBool
 
 from robotarium_recording.bag import Bag
 from robotarium_recording.recorder_node import message_class
+from robotarium_recording.replay_display import Figure, Keyboard
+from robotarium_recording.replay_timing import ReplayClock, experiment_times
 from robotarium_recording.view_node import ViewProcess, add_view_arguments
 
 SKIPPED_TOPICS = {"/rosout"}
-FIGURE_HZ = 15
 LIVE_CHECK = 3.0   # s to wait for a live testbed's start_experiment service before replaying
 VIEW_MATCH = 15.0  # s to wait for --view's subscriptions to match the replay's publishers
 SUBSCRIBER_WAIT = 60.0   # s --wait-for-subscriber waits for one, at most
 VIEWER_SETTLE = 1.0   # s after a viewer's first subscription: it subscribes to its panels' channels one by one
-
-
-class ReplayClock:
-    """Maps recorded times (ns) to wall-clock deadlines (time.monotonic), with pause and rate."""
-
-    def __init__(self, rate=1.0):
-        if not rate > 0:
-            raise ValueError("rate must be > 0; received %r" % rate)
-        self.rate = rate
-        self.origin = None
-        self.first_ns = 0
-        self.paused_at = None
-
-    def start(self, first_ns, now):
-        self.first_ns, self.origin = first_ns, now
-        if self.paused_at is not None:
-            self.paused_at = now
-
-    def deadline(self, log_ns):
-        return self.origin + (log_ns - self.first_ns) * 1e-9 / self.rate
-
-    @property
-    def paused(self):
-        return self.paused_at is not None
-
-    def pause(self, now):
-        if self.paused_at is None:
-            self.paused_at = now
-
-    def resume(self, now):
-        if self.paused_at is not None:
-            self.origin += now - self.paused_at   # the paused time does not count
-            self.paused_at = None
 
 
 def publisher_qos(offers):
@@ -157,95 +124,6 @@ class ReplayNode(Node):
         print("[replay] %s" % ("paused (space to resume)" if self.clock.paused else "playing"), file=sys.stderr)
 
 
-class Keyboard:
-    """Single keys from a terminal without Enter (no-op when stdin is not a terminal)."""
-
-    def __init__(self):
-        self.enabled = sys.stdin.isatty()
-        self.saved = None
-        if self.enabled:
-            import termios
-            import tty
-            self.saved = termios.tcgetattr(sys.stdin)
-            tty.setcbreak(sys.stdin.fileno())
-
-    def key(self):
-        if self.enabled and select.select([sys.stdin], [], [], 0)[0]:
-            return sys.stdin.read(1)
-        return None
-
-    def close(self):
-        if self.saved is not None:
-            import termios
-            termios.tcsetattr(sys.stdin, termios.TCSADRAIN, self.saved)
-
-
-class Figure:
-    """The replay drawn as the run's live figure was (arena_figure.ArenaFigure, ids, what the
-    script drew). On a screen: update() moves the artists (cheap) and draw() renders, which play()
-    calls only when the next message is far enough away not to be delayed. Without a display the
-    replayed run is written as a video (pictures.render_video) when the replay ends."""
-
-    def __init__(self, bag, path):
-        from robotarium_recording.arena_figure import is_interactive, pyplot
-        self.plt, self.bag, self.path = pyplot(), bag, path
-        self.interactive = is_interactive(self.plt)
-        self.config = bag.config()
-        self.view = self.painter = None
-        self.state = None
-        self.dirty = False
-        self.last_draw = 0.0
-        if self.interactive:
-            self.plt.ion()
-
-    def update(self, data, type_name):
-        """A replayed poses message."""
-        if not self.interactive:
-            return
-        msg = self.bag.typestore.deserialize_cdr(data, type_name)
-        poses = np.array([msg.x, msg.y, msg.theta])
-        if self.view is None:
-            from robotarium_recording.arena_figure import ArenaFigure
-            from robotarium_recording.drawing import DrawingPainter, DrawingState
-            self.view = ArenaFigure.window(self.config.arena, self.config.robot_radius, poses, self.plt,
-                                           title="replay of %s" % self.bag.name)
-            self.view.draw_obstacles(self.bag.experiment().get("obstacles") or ())   # a 2.x run's walls
-            self.painter, self.state = DrawingPainter(self.view.axes), DrawingState()
-            self.view.figure.show()
-        self.view.update(poses)
-        self.view.set_label("%s   t = %7.2f s   step %5d" % (self.bag.name, msg.sim_time, msg.step))
-        self.dirty = True
-
-    def drawing(self, data, type_name):
-        """A replayed drawing message (what the script drew)."""
-        if self.interactive and self.state is not None:
-            import json
-            try:
-                self.state.apply(json.loads(self.bag.typestore.deserialize_cdr(data, type_name).data))
-            except ValueError:
-                return
-            self.painter.paint(self.state)
-            self.dirty = True
-
-    def draw(self):
-        """Render on screen, at most FIGURE_HZ times a second."""
-        if not (self.dirty and self.interactive) or time.monotonic() - self.last_draw < 1.0 / FIGURE_HZ:
-            return False
-        self.view.show()
-        self.last_draw, self.dirty = time.monotonic(), False
-        return True
-
-    def close(self):
-        if not self.interactive:
-            from robotarium_recording.pictures import render_video
-            folder, name = os.path.split(os.path.abspath(self.path))
-            os.makedirs(folder, exist_ok=True)
-            written = render_video(self.bag.poses(), self.bag.drawings(), self.config, folder, self.bag.name,
-                                   name=os.path.splitext(name)[0], obstacles=self.bag.experiment().get("obstacles") or ())
-            if written:
-                print("[replay] no display: the replay is the video %s" % written, file=sys.stderr)
-
-
 def _layout(definition):
     """A ros2msg definition without its comments and blank lines: what decides the bytes."""
     lines = (line.split("#", 1)[0].strip() for line in definition.splitlines())
@@ -271,20 +149,6 @@ def to_installed(decoded, msg):
             setattr(msg, name, value.tolist() if isinstance(value, np.ndarray) and isinstance(current, list)
                     else value)
     return msg
-
-
-def experiment_times(bag, log_times):
-    """The messages' recorded times (ns) moved to experiment time: each poses message at its step
-    times the time step, the others in between by linear interpolation. A lockstep run is recorded
-    as fast as it ran; replayed this way it plays as its video does, step by step in real time."""
-    track = bag.poses()
-    if len(track.steps) < 2:
-        return list(log_times)
-    order = np.argsort(track.log_ns, kind="stable")
-    recorded = track.log_ns[order].astype(float)
-    experiment = track.log_ns[order][0] + track.steps[order] * bag.config().time_step * 1e9
-    keep = np.concatenate(([True], np.diff(recorded) > 0))   # np.interp needs increasing abscissae
-    return np.interp(np.asarray(log_times, dtype=float), recorded[keep], experiment[keep]).astype(np.int64).tolist()
 
 
 def play(node, keyboard=None, figure=None, poses_topic=None, delay=0.0):
