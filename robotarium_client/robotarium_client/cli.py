@@ -20,6 +20,7 @@ import tempfile
 import threading
 import time
 
+import robotarium_recording as recording
 from robotarium_client import session
 from robotarium_client.testbed import (
     RECORDING_LOOKUP_WAIT,
@@ -137,8 +138,7 @@ def cmd_up(args):
         return claim.REFUSED
     view = None
     if args.view:   # first: a port in use is said before any node starts
-        from robotarium_recording.view_node import ViewProcess
-        view = ViewProcess(ns, args.view_host, args.view_port)
+        view = recording.ViewProcess(ns, args.view_host, args.view_port)
         if not view.wait_ready():
             view.stop()
             say("the Foxglove view could not start (its message is above); no testbed was started")
@@ -204,23 +204,6 @@ def _tee(stream, sinks):
                 sink.flush()
             except OSError:   # our terminal is gone (SIGHUP): keep the log, keep reading
                 sinks.remove(sink)
-
-
-def _import_results(video):
-    """Import what making the results needs (matplotlib, the bag reader's message types, Pillow,
-    ffmpeg's path): done in a thread while the script runs, where the lockstep chain leaves a core
-    mostly idle, rather than after it (about 0.7 s on a quiet machine)."""
-    try:
-        import matplotlib.figure  # noqa: F401
-        from matplotlib.backends import backend_agg  # noqa: F401
-        from rosbags.typesys.stores import ros2_jazzy  # noqa: F401
-
-        from robotarium_recording import page, pictures, results  # noqa: F401
-        if video:
-            import PIL.ImageDraw  # noqa: F401
-            pictures.ffmpeg_path()
-    except Exception:   # noqa: BLE001 - only a head start: the results import for themselves
-        pass
 
 
 def wait_until_recorded(run_dir, timeout=15.0, quiet=False):
@@ -520,7 +503,6 @@ def write_unrecorded_results(run_dir, run, testbed_report=""):
     """report.txt and index.html for a run with no recording here (it never started, or it was
     recorded on another machine): how it ended, and the testbed's debug report if there is one."""
     from robotarium_core import outcomes
-    from robotarium_recording.page import write_page
     outcome = {name: value for value, name in outcomes.NAMES.items()}.get(run["outcome"], outcomes.UNFINISHED)
     lines = [outcomes.first_line(outcome, run.get("detail", "")), ""]
     if testbed_report:
@@ -532,7 +514,7 @@ def write_unrecorded_results(run_dir, run, testbed_report=""):
         lines += [""] + notes
     with open(os.path.join(run_dir, "report.txt"), "w", encoding="utf-8") as f:
         f.write("\n".join(lines) + "\n")
-    write_page(run_dir, run=run)
+    recording.write_page(run_dir, run=run)
 
 
 def finish_run_folder(run_dir, run, script, log_path, saved, cwd, data_limit=None):
@@ -765,7 +747,7 @@ def _run_script(request, interruption, started_at):
                "results_dir": results_dir, "name": name, "video": video, "before": before}
     _write_pending(work, pending)
     if results and record:   # made while the script runs: the results' imports
-        threading.Thread(target=_import_results, args=(video,), daemon=True).start()
+        threading.Thread(target=recording.preload_results, args=(video,), daemon=True).start()
     try:
         if interruption.signum is None:
             with open(log_path, "wb") as log:
@@ -863,16 +845,15 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
     if recorded and stopped:
         # Nothing will close the bag (its recorder is gone, or stopped writing it): make its metadata
         # agree with its file where its disk allows; the step it stopped at is the last it holds.
-        from robotarium_recording.bag import Bag, recover_bag
         if not write_error:   # (a recorder that could not write tidied the bag itself, as far as its disk let it)
             if testbed is not None:
                 testbed.stop()
             try:
-                recover_bag(bag_dir)
+                recording.recover_bag(bag_dir)
             except OSError as error:
                 say("could not tidy the recording in %s (%s); readers scan it as it is" % (bag_dir, error.strerror))
         try:
-            steps = Bag(bag_dir).poses().steps
+            steps = recording.Bag(bag_dir).poses().steps
         except Exception:   # noqa: BLE001 - nothing readable: the client's step stands
             steps = ()
         if len(steps):
@@ -899,15 +880,13 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
             elif not wait_until_recorded(run_dir, timeout, quiet=True):
                 testbed.stop()   # its recorder closes the bag as it stops (or is gone)
                 wait_until_recorded(run_dir, timeout=1.0)
-        from robotarium_recording.results import write_results
         try:
             if died:   # the testbed's steps, as the report counts them (a killed script could not say)
-                from robotarium_recording.bag import Bag
-                recorded_steps = Bag(bag_dir).poses().steps
+                recorded_steps = recording.Bag(bag_dir).poses().steps
                 run["steps"] = int(recorded_steps[-1]) if len(recorded_steps) else 0
                 with open(os.path.join(run_dir, "run.json"), "w") as f:
                     json.dump(run, f, indent=2)
-            write_results(bag_dir, progress=not quiet, video=video, run=run, out_dir=run_dir)
+            recording.write_results(bag_dir, progress=not quiet, video=video, run=run, out_dir=run_dir)
         except Exception as error:   # noqa: BLE001 - say so, keep the folder
             say("could not make the results from the recording (%s); see %s"
                 % (session.describe_exception(error), run_dir))
@@ -1179,20 +1158,17 @@ def cmd_end(args):
 
 
 def cmd_replay(argv):
-    from robotarium_recording.replay_node import main as replay_main
-    return replay_main(argv)
+    return recording.replay_main(argv)
 
 
 def cmd_view(argv):
-    from robotarium_recording.view_node import main as view_main
-    return view_main(argv)
+    return recording.view_main(argv)
 
 
 def cmd_report(argv):
-    from robotarium_recording.results import main as report_main
     if "-h" not in argv and "--help" not in argv:
         finish_unfinished()
-    return report_main(argv)
+    return recording.report_main(argv)
 
 
 # Commands whose own parser (shared with `ros2 run`) reads all their arguments, --help included.
@@ -1260,8 +1236,7 @@ def main(argv=None):
                          "dynamics (the numbers: hardware section of testbed.yaml)")
     up.add_argument("--view", action="store_true",
                     help="also serve the testbed to Foxglove, as ./robotarium view does (--view-host, --view-port)")
-    from robotarium_recording.view_node import add_view_arguments
-    add_view_arguments(up, prefix="view-")
+    recording.add_view_arguments(up, prefix="view-")
     up.set_defaults(func=cmd_up)
 
     run = sub.add_parser("run", help="run a Robotarium script against the testbed", epilog=RUN_EPILOG,

@@ -5,13 +5,15 @@ With no display (or MPLBACKEND=Agg) the figure is built on the Agg backend and n
 step: nobody would see it, and a script's savefig() still renders it fully. What a script draws
 on r.axes is recorded as data for the video (robotarium_recording.drawing), not rendered here.
 """
-from robotarium_recording.arena_figure import ArenaFigure, is_interactive, pyplot
+import robotarium_recording as recording
 
 
-def live_figure(arena, robot_radius, poses, figure_class=ArenaFigure):
-    plt = pyplot()
-    arena_figure = figure_class.live(arena, robot_radius, poses, plt=plt)
-    arena_figure.interactive = is_interactive(plt)
+def live_figure(arena, robot_radius, poses, figure_class=None):
+    """The live figure: `figure_class` (default robotarium_recording's ArenaFigure) shown on a screen,
+    or on the Agg backend."""
+    plt = recording.pyplot()
+    arena_figure = (figure_class or recording.ArenaFigure).live(arena, robot_radius, poses, plt=plt)
+    arena_figure.interactive = recording.is_interactive(plt)
     if arena_figure.interactive:
         plt.ion()
         plt.show()

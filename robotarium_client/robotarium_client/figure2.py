@@ -4,10 +4,10 @@ obstacles and, when the script asks for them, each robot's distance-sensor endpo
 (2.x show_* switches)."""
 import numpy as np
 
-from robotarium_recording.arena_figure import ArenaFigure
+import robotarium_recording as recording
 
 
-class ArenaFigure2(ArenaFigure):
+class ArenaFigure2(recording.ArenaFigure):
     robotarium = None   # set by dress(): until then update() only moves the robots
 
     def dress(self, robotarium):

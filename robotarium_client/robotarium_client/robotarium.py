@@ -39,6 +39,7 @@ import time
 
 import numpy as np
 
+import robotarium_recording as recording
 from robotarium_client import session
 from robotarium_client.errors import (  # noqa: F401 - also robotarium_client.robotarium's, as before
     EXIT_TIME_LIMIT,
@@ -522,9 +523,8 @@ class Robotarium(RobotariumABC):
                                                         step=step, ids=self._ids, twists=cdr.twists(v, w)))
 
     def _publish_drawing(self, message):
-        from robotarium_recording.drawing import encode
         if self._node is not None:
-            self._drawing_message.data = encode(message)
+            self._drawing_message.data = recording.encode_drawing(message)
             self._drawing_pub.publish(self._drawing_message)
 
     def _wait_for_step(self, target):

@@ -11,6 +11,7 @@ import sys
 
 import numpy as np
 
+import robotarium_recording as recording
 from robotarium_core import model, outcomes
 from robotarium_core.config import DEFAULT
 from robotarium_core.model import RobotariumError
@@ -90,10 +91,9 @@ class RobotariumABC(abc.ABC):
         What the script then draws on r.axes is watched, so that the video of the run shows it."""
         self._arena_figure = self._drawing = None
         if self.show_figure:
-            from robotarium_recording.drawing import DrawingWatcher
             self._arena_figure = self._new_arena_figure()
             self.figure, self.axes = self._arena_figure.figure, self._arena_figure.axes
-            self._drawing = DrawingWatcher(self.axes, self._arena_figure.own_artists)
+            self._drawing = recording.DrawingWatcher(self.axes, self._arena_figure.own_artists)
 
     def _new_arena_figure(self):
         """The live figure in rps's layout (a 2.x Robotarium lays it out as 2.x does)."""

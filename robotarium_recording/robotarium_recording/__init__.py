@@ -1,2 +1,38 @@
 """Recording of Robotarium runs: bag I/O (`bag`), the recorder and replay nodes, and the results
-of a run made from its bag alone (`results`)."""
+of a run made from its bag alone (`results`).
+
+What other packages use of it (robotarium_client: the live figure and what a script draws on it,
+a run's bag and results, the replay, view and report commands) is the public API below, imported
+as `import robotarium_recording as recording`. That import costs nothing: each name loads its
+module on first use (matplotlib and the bag reader's types take seconds to import).
+"""
+import importlib
+
+_API = {
+    # name: (module, its name there)
+    "ArenaFigure": ("arena_figure", "ArenaFigure"),              # the one arena drawer
+    "is_interactive": ("arena_figure", "is_interactive"),
+    "pyplot": ("arena_figure", "pyplot"),
+    "DrawingWatcher": ("drawing", "DrawingWatcher"),            # what a script draws on r.axes, as changes
+    "encode_drawing": ("drawing", "encode"),                    # a change as the drawing topic's text
+    "Bag": ("bag", "Bag"),                                      # a recorded run, read
+    "recover_bag": ("bag", "recover_bag"),                      # a bag nothing will close, made readable
+    "write_results": ("results", "write_results"),              # report, plot, video and page of a run's bag
+    "preload_results": ("results", "preload"),                  # their imports, ahead of time
+    "write_page": ("page", "write_page"),                       # the results page of a run folder
+    "ViewProcess": ("view_node", "ViewProcess"),                # the Foxglove view in a process of its own
+    "add_view_arguments": ("view_node", "add_view_arguments"),
+    "replay_main": ("replay_node", "main"),                     # ./robotarium replay
+    "view_main": ("view_node", "main"),                         # ./robotarium view
+    "report_main": ("results", "main"),                         # ./robotarium report
+}
+__all__ = sorted(_API)
+
+
+def __getattr__(name):
+    if name not in _API:
+        raise AttributeError("module %r has no attribute %r" % (__name__, name))
+    module, attribute = _API[name]
+    value = getattr(importlib.import_module("%s.%s" % (__name__, module)), attribute)
+    globals()[name] = value   # once
+    return value
