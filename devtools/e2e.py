@@ -69,9 +69,10 @@ def check_bag(folder):
 
 
 @contextlib.contextmanager
-def module_testbed(tmp_path_factory):
-    """A testbed for a test module's runs (its own domain, bags in a temporary folder), up before
-    the first: yields (env for ./robotarium run on it, bags folder). Use it as the module's fixture."""
+def own_domain_testbed(tmp_path_factory):
+    """A LocalTestbed on a domain of its own (localhost discovery), bags and logs in temporary
+    folders, up before anything runs on it: yields (env for processes on it, bags folder, testbed);
+    stopped on leaving."""
     domain = unique_domain_id()
     bags = tmp_path_factory.mktemp("bags")
     env = node_env(domain)
@@ -79,14 +80,24 @@ def module_testbed(tmp_path_factory):
     os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     tb = LocalTestbed(log_dir=str(tmp_path_factory.mktemp("logs")), bags_dir=str(bags)).start()
     try:
-        # up before the first run, or `run` would start a second testbed of its own
-        assert testbed_answers(timeout=60), "the testbed did not come up: %s" % tb.failed()
+        try:
+            # up before the first run, or `run` would start a second testbed of its own
+            assert testbed_answers(timeout=60), "the testbed did not come up: %s" % tb.failed()
+        finally:
+            os.environ.clear()
+            os.environ.update(saved)
+        yield env, bags, tb
     finally:
-        os.environ.clear()
-        os.environ.update(saved)
-    RUNNING.append(tb)
-    try:
-        yield env, bags
-    finally:
-        RUNNING.remove(tb)
-        tb.stop()
+        tb.stop()   # also when it never came up
+
+
+@contextlib.contextmanager
+def module_testbed(tmp_path_factory):
+    """A testbed for a test module's runs (own_domain_testbed): yields (env for ./robotarium run on
+    it, bags folder). Use it as the module's fixture; a failed run shows its nodes' logs."""
+    with own_domain_testbed(tmp_path_factory) as (env, bags, tb):
+        RUNNING.append(tb)
+        try:
+            yield env, bags
+        finally:
+            RUNNING.remove(tb)

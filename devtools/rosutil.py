@@ -147,7 +147,7 @@ class RosProbe:
         unanswered, as the simulator does: a service found a moment ago may not yet have matched this
         client's reply reader, and rmw_fastrtps then drops the reply (it waits 100 ms for that match;
         seen on a loaded machine: no answer in 10 s). One client per service is kept, so that a reply
-        path matched once (see match_replies) stays matched for the calls after it."""
+        path matched once (see start_experiment) stays matched for the calls after it."""
         key = (srv_type, name)
         if key not in self._clients:
             self._clients[key] = self.node.create_client(srv_type, name)

@@ -21,9 +21,8 @@ import time
 import numpy as np
 import pytest
 
-from devtools.rosutil import REPO, node_env, unique_domain_id
-from robotarium_client.testbed import LocalTestbed
-from robotarium_client.testbed import testbed_answers as answers_in_namespace
+from devtools.e2e import own_domain_testbed
+from devtools.rosutil import REPO
 
 pytestmark = pytest.mark.e2e   # whole runs through ./robotarium
 
@@ -52,25 +51,12 @@ SCRIPTS = {
 
 @pytest.fixture(scope="module")
 def testbed(tmp_path_factory):
-    domain = unique_domain_id()
-    bags = tmp_path_factory.mktemp("bags")
     scripts = tmp_path_factory.mktemp("scripts")
     for name, text in SCRIPTS.items():
         (scripts / name).write_text(text)
-    env = node_env(domain)
-    saved = dict(os.environ)
-    os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
-    tb = LocalTestbed(log_dir=str(tmp_path_factory.mktemp("logs")), bags_dir=str(bags)).start()
-    try:
-        assert answers_in_namespace(timeout=60), "the testbed did not come up: %s" % tb.failed()
-    finally:
-        os.environ.clear()
-        os.environ.update(saved)
-    try:
+    with own_domain_testbed(tmp_path_factory) as (env, bags, tb):
         yield {"env": env, "bags": bags, "scripts": scripts, "testbed": tb,
                "results": tmp_path_factory.mktemp("results"), "runs": {}}
-    finally:
-        tb.stop()
 
 
 def start_run(ctx, script, *flags, env=None):

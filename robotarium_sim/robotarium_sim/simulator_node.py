@@ -373,14 +373,18 @@ class SimulatorNode(Node):
             return response
         return self.end_experiment(reason, response, outcome, detail)
 
+    def stop_ticking(self):
+        """No more real-time ticks: the robots stand where they are."""
+        if self._tick_timer is not None:
+            self.destroy_timer(self._tick_timer)
+            self._tick_timer = None
+
     async def wait_for_reports(self):
         """Until the safety node's report of every array it sent has come (each is counted in the
         run's report), REPORT_WAIT s at most: they travel on a topic of their own and may be a
         moment behind the arrays, more where a lost packet is being repaired on a loaded machine.
         Robots stop meanwhile (the end is asked for: no more ticks)."""
-        if self._tick_timer is not None:
-            self.destroy_timer(self._tick_timer)
-            self._tick_timer = None
+        self.stop_ticking()
         deadline = time.monotonic() + REPORT_WAIT
         while self.run.reports_missing and time.monotonic() < deadline:
             await self.sleep(0.01)
@@ -394,9 +398,7 @@ class SimulatorNode(Node):
         `reason` (who ended it); `outcome` and `detail` say how the run ended (robotarium_core.outcomes),
         in the IDLE status that closes it. Fills and returns an EndExperiment response."""
         response = response or EndExperiment.Response()
-        if self._tick_timer is not None:
-            self.destroy_timer(self._tick_timer)
-            self._tick_timer = None
+        self.stop_ticking()
         if self.client_watch is not None:
             self.client_watch.destroy()
             self.client_watch = None
