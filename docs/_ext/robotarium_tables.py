@@ -51,7 +51,7 @@ TOPICS = [
     ("rps2_io:RANGE", "sensor_msgs/msg/Range", [("", "rps2_io:RANGE_QOS")],
      "robot i's 7 distance sensors, one message each (frame `robot_<i>/distance_<k>`, 2.x's order), -1 as +inf "
      "(REP 117); same rate and stamps; only with `use_distance_sensors`"),
-    ("topics:POSE_ARRAY", "geometry_msgs/msg/PoseArray", [("", "topics:VIEWER_QOS")],
+    ("topics:POSE_ARRAY", "geometry_msgs/msg/PoseArray", [("", "topics:POSE_ARRAY_QOS")],
      "the poses for viewers (only while subscribed)"),
     ("topics:MARKERS", "visualization_msgs/msg/MarkerArray", [("", "topics:VIEWER_QOS")],
      "arena, robots (footprint, heading, id), trails in frame `arena`, at `viewer_rate` (10 Hz; only while "

@@ -4,16 +4,19 @@ DDS discovery is asymmetric: a reader may know a writer well before the writer k
 reader, and a reliable writer delivers nothing to readers it does not know yet. With slow
 discovery (a loaded 2-core machine takes seconds) a message published too early is lost.
 
-Outputs (poses, cmd_safe, safety_report, ...) are reliable and transient-local with a history of 50
-(`TESTBED_QOS`): a writer keeps its last 50 samples and hands them to a reader as soon as it
-matches, so a late viewer or recorder still gets the current poses.
+Outputs (poses, cmd_safe, safety_report, ...) are reliable and transient-local with a history of
+1000 (`TESTBED_QOS`): a writer keeps its last 1000 samples and hands them to a reader as soon as it
+matches, so a late viewer or recorder still gets the current poses. The depth is also how far a
+reader may fall behind: a reliable keep-last writer lets go of samples a reader has not
+acknowledged once its history is full, and a lockstep run makes 200 steps a second, so with 50
+a recorder starved of CPU for a quarter of a second lost 60 steps of poses, commands and status.
 
 The status is a state, not a stream: `<ns>/status` keeps only its newest message (`STATUS_QOS`,
 depth 1), so a late joiner (`ros2 topic echo --once`, ./robotarium status) gets what holds now,
 never a status from before the last run. A keep-last-1 writer may replace a sample a reliable
 reader has not acknowledged yet (the final RUNNING status with the run's counters is followed at
 once by IDLE), so every status also goes on the hidden `<ns>/_status/stream` (`STATUS_STREAM_QOS`,
-the outputs' history of 50, transient local so that a recorder matching late still gets the run's
+the outputs' history, transient local so that a recorder matching late still gets the run's
 first RUNNING status), which the recorder records under the name `<ns>/status`.
 
 The two command inputs (the safety node's cmd_requested, the simulator's cmd_safe) subscribe
@@ -39,8 +42,9 @@ from robotarium_core.config import DEFAULT
 
 DEFAULT_NAMESPACE = "robotarium"
 
-TESTBED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+OUTPUT_HISTORY = 1000   # samples: 5 s of a lockstep run at 200 steps/s, 33 s in real time
+TESTBED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=OUTPUT_HISTORY,
+                         reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 
@@ -57,16 +61,17 @@ def command_input_qos(depth):
 
 COMMAND_INPUT_QOS = command_input_qos(DEFAULT.command_queue_depth)
 # One SafetyReport per array the safety node sends, each counted by the simulator (the report's
-# interventions and what the safety layer prevented). A reliable keep-last writer lets go of
-# samples a reader has not acknowledged once its history is full, and a lost packet holds back
-# every later report until it is repaired: with TESTBED_QOS's 50 (0.4 s of a lockstep run) the
-# simulator counted 172 of 243 interventions while another process flooded the machine's loopback.
-SAFETY_REPORT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=DEFAULT.command_queue_depth,
-                               reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-# What the script drew on r.axes, change by change (robotarium_recording.drawing): a deeper history,
+# interventions and what the safety layer prevented): a lost packet holds back every later report
+# until it is repaired, and with a history of 50 (0.4 s of a lockstep run) the simulator counted 172
+# of 243 interventions while another process flooded the machine's loopback. The outputs' depth.
+SAFETY_REPORT_QOS = TESTBED_QOS
+# What the script drew on r.axes, change by change (robotarium_recording.drawing): the outputs' depth,
 # so that a recorder matching late still gets the first drawing of a fast lockstep run.
-DRAWING_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+DRAWING_QOS = TESTBED_QOS
+# pose_array for viewers: the ROS default (reliable, volatile: no history for a late joiner) with the
+# outputs' depth, so that a recorder that falls behind loses none either.
+POSE_ARRAY_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=OUTPUT_HISTORY,
+                            reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
 
 # A topic that keeps only its last message for late subscribers (announcements, the run's configuration).
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)

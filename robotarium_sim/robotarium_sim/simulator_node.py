@@ -82,6 +82,7 @@ from robotarium_core.topics import (
     MARKERS,
     OBSTACLES,
     POSE_ARRAY,
+    POSE_ARRAY_QOS,
     POSES,
     RECORDING,
     SAFETY_ARM,
@@ -165,7 +166,7 @@ class SimulatorNode(Node):
         self.line = Line(self.config.line_lease)   # clients waiting for the testbed, first come first served
 
         self.poses_pub = self.create_publisher(RobotPoses, POSES, TESTBED_QOS)
-        self.pose_array_pub = self.create_publisher(PoseArray, POSE_ARRAY, 10)
+        self.pose_array_pub = self.create_publisher(PoseArray, POSE_ARRAY, POSE_ARRAY_QOS)
         # Viewers get the scene at viewer_rate, not every step (lockstep runs hundreds a second).
         self.markers_pub = self.create_publisher(MarkerArray, MARKERS, VIEWER_QOS)
         self.trails = scene.Trails(self.config.trail_length, self.config.time_step)
