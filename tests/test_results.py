@@ -106,12 +106,33 @@ def test_actuator_limits_are_counted_from_the_commands_in_force(mode):
         forced = [(v.copy(), f) for v, f in results._commands_in_force_lockstep([over, bad, replaced], 2, 2)]
     else:
         forced = [(v.copy(), f) for v, f in results._commands_in_force_realtime([over, bad, replaced], 2,
-                                                                                 [20, 45, 10**9], model.COMMAND_TIMEOUT)]
+                                                                                 [20, 45, 10**9], model.COMMAND_TIMEOUT,
+                                                                                 lambda c: c.stamp_ns)]
         assert not forced[2][0].any() and forced[2][1] is False     # stopped after the timeout: nothing asked
     assert np.array_equal(forced[0][0], [[0.1, 0.1], [0.0, 5.0]]) and forced[0][1] is False
     assert np.array_equal(forced[1][0], [[0.1, 0.1], [0.0, 0.0]]) and forced[1][1] is True
     counted = [model.is_actuator_limit_iteration(v, f) for v, f in forced]
     assert counted[:2] == [True, True]
+
+
+def test_a_real_time_count_allows_for_when_each_array_reached_the_simulator():
+    """The bag knows when an array was sent, the simulator applied it when it came, up to just before
+    the tick after the one it was filtered for (model.StepGate), and timed it out from then: an
+    over-limit array held 0.2 s counts 6 iterations if it came at once, 7 if it came a tick late.
+    The testbed's 6 or 7 is the bag's count; its 5 is a difference to report."""
+    from types import SimpleNamespace
+
+    from robotarium_recording.bag import Command
+    tick = 33_333_333
+    track = SimpleNamespace(stamp_ns=np.arange(13) * tick)
+    by_step = {s: s for s in range(13)}
+    over = Command(1, 5_000_000, 5_000_000, np.array([0]), np.array([0.1]), np.array([13.8]))
+    ticks, arrivals = results._realtime_arrivals(track, by_step)
+    counts = [sum(model.is_actuator_limit_iteration(v, f) for v, f in
+                  results._commands_in_force_realtime([over], 1, ticks, 0.2, arrival)) for arrival in arrivals]
+    assert counts == [6, 7]
+    assert results._bag_count(counts, 7) == 7 and results._bag_count(counts, 6) == 6
+    assert results._bag_count(counts, 5) == 6 and results._bag_count(counts, None) == 6
 
 
 def test_the_results_page_wraps_long_report_and_log_lines(tmp_path):

@@ -117,20 +117,21 @@ def _commands_in_force_lockstep(commands, n, steps):
     return applied
 
 
-def _commands_in_force_realtime(commands, n, tick_ns, timeout):
+def _commands_in_force_realtime(commands, n, tick_ns, timeout, arrival):
     """(velocities, requested_exceeds_limits) in force at each tick (stamps of the poses it
-    produced), with the simulator's 0.5 s command timeout."""
+    produced), with the simulator's command timeout, for arrays that reached the simulator at
+    `arrival(command)` (ns)."""
     velocities = np.zeros((2, n))
     since = np.full(n, -np.inf)
     flag = False
     valid = [c for c in commands if model.check_commands(c.ids, c.v, c.omega, n) is None]
-    valid.sort(key=lambda c: c.stamp_ns or c.log_ns)
+    valid.sort(key=arrival)
     k = 0
     for t in tick_ns:
-        while k < len(valid) and (valid[k].stamp_ns or valid[k].log_ns) < t:
+        while k < len(valid) and arrival(valid[k]) < t:
             c = valid[k]
             velocities[0, c.ids], velocities[1, c.ids] = c.v, c.omega
-            since[c.ids] = (c.stamp_ns or c.log_ns) * 1e-9
+            since[c.ids] = arrival(c) * 1e-9
             flag = c.requested_exceeds_limits
             k += 1
         stale = (t * 1e-9 - since > timeout) & np.any(velocities != 0, axis=0)
@@ -138,6 +139,38 @@ def _commands_in_force_realtime(commands, n, tick_ns, timeout):
             velocities[:, stale] = 0.0
             flag = False
         yield velocities, flag
+
+
+def _realtime_arrivals(track, by_step):
+    """Real time: the bag knows when an array was sent (its stamp), not when it reached the
+    simulator, which applies it at the next tick and times it out `command_timeout` after it came.
+    model.StepGate takes an array marked step s only while the testbed is at step s - 1 or s, so it
+    came at the earliest when it was sent and at the latest just before the tick that produced step
+    s + 1: on a loaded machine a tick either way. Returns (ticks, (earliest, latest)): the tick
+    stamps of steps 1.. and the two arrival-time functions."""
+    tick_of = {int(s): int(track.stamp_ns[i]) for s, i in by_step.items()}
+    ticks = [tick_of[s] for s in sorted(tick_of) if s >= 1]
+
+    def sent(c):
+        return c.stamp_ns or c.log_ns
+
+    def latest(c):
+        after = tick_of.get(c.step + 1)
+        return sent(c) if after is None else max(sent(c), after - 1)
+    return ticks, (sent, latest)
+
+
+def _bag_count(counts, testbed_count):
+    """One count from those the bag allows (by when arrays arrived): the testbed's where it lies
+    among them (the bag confirms it), else the first (then _cross_check reports the difference)."""
+    if testbed_count is not None and min(counts) <= testbed_count <= max(counts):
+        return testbed_count
+    return counts[0]
+
+
+def _final_count(settings, key):
+    final = settings["final"]
+    return None if final is None else int(getattr(final, key))
 
 
 NAMES = {name: outcome for outcome, name in outcomes.NAMES.items()}
@@ -179,9 +212,12 @@ def recompute(bag, run=None):
     commands = bag.commands("cmd_safe")
     actuator = 0
     if settings["mode"] == "realtime":
-        ticks = [int(track.stamp_ns[by_step[s]]) for s in range(1, steps + 1) if s in by_step]
-        for velocities, requested_over in _commands_in_force_realtime(commands, n, ticks, config.command_timeout):
-            actuator += model.is_actuator_limit_iteration(velocities, requested_over, **config.limits)
+        ticks, arrivals = _realtime_arrivals(track, by_step)
+        actuator = _bag_count(
+            [sum(model.is_actuator_limit_iteration(velocities, requested_over, **config.limits)
+                 for velocities, requested_over in _commands_in_force_realtime(
+                     commands, n, ticks, config.command_timeout, arrival)) for arrival in arrivals],
+            _final_count(settings, "actuator_limit_iterations"))
     else:
         applied = 0
         for velocities, requested_over in _commands_in_force_lockstep(commands, n, steps):
@@ -233,7 +269,7 @@ def _recompute_2x(bag, settings, config, track, n, steps, by_step, notes, experi
         if done_at is None:
             notes.append("the robots never reached their initial conditions: the drive-on phase did not end.")
             done_at = steps
-    too_close = outside = hits = actuator = 0
+    too_close = outside = hits = 0
     for s in range(done_at + 1, steps):
         if s in by_step:
             i = by_step[s]
@@ -241,14 +277,19 @@ def _recompute_2x(bag, settings, config, track, n, steps, by_step, notes, experi
             too_close += rps2.count_too_close(poses, config.collision_diameter, config.collision_offset)
             outside += int(np.any(model.outside_arena(poses, config.arena)))
             hits += rps2.count_obstacle_hits(poses, obstacles, config.collision_diameter, config.collision_offset)
+
+    def count(in_force):
+        return sum(bool(requested_over or rps2.exceeds_wheel_limit(velocities, config))
+                   for step, (velocities, requested_over) in enumerate(in_force, start=1)
+                   if step - 1 > done_at)   # step k moves from the poses of step k - 1
+    commands = bag.commands("cmd_safe")
     if settings["mode"] == "realtime":
-        ticks = [int(track.stamp_ns[by_step[s]]) for s in range(1, steps + 1) if s in by_step]
-        in_force = _commands_in_force_realtime(bag.commands("cmd_safe"), n, ticks, config.command_timeout)
+        ticks, arrivals = _realtime_arrivals(track, by_step)
+        actuator = _bag_count([count(_commands_in_force_realtime(commands, n, ticks, config.command_timeout,
+                                                                 arrival)) for arrival in arrivals],
+                              _final_count(settings, "actuator_limit_iterations"))
     else:
-        in_force = _commands_in_force_lockstep(bag.commands("cmd_safe"), n, steps)
-    for step, (velocities, requested_over) in enumerate(in_force, start=1):
-        if step - 1 > done_at:   # step k moves from the poses of step k - 1
-            actuator += bool(requested_over or rps2.exceeds_wheel_limit(velocities, config))
+        actuator = count(_commands_in_force_lockstep(commands, n, steps))
     safety = safety_summary(bag, config.intervention_tolerance)
     result = {"iterations": steps, "collisions": too_close, "boundary_violations": outside,
               "actuator_limit_iterations": actuator, "obstacle_collisions": hits, "number_of_robots": n,
