@@ -42,7 +42,7 @@ def verify_script(env, tmp_path, script, *args, cwd=None):
     """./robotarium verify SCRIPT ARGS --json: (exit code, the JSON verdict or None, console output)."""
     out = tmp_path / ("verdict_%s.json" % os.path.basename(script))
     completed = run_cli(env, "verify", script, "--json", str(out), "--results-dir", str(tmp_path / "results"),
-                        *args, cwd=cwd)
+                        "--bags-dir", str(tmp_path / "bags"), *args, cwd=cwd)
     text = completed.stdout + completed.stderr
     document = json.loads(out.read_text()) if out.exists() else None
     return completed.returncode, document, text

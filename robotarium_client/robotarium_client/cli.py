@@ -935,7 +935,8 @@ def cmd_verify(args):
         options = session.RunOptions(real_time=False, config_file=args.config, audit=True,
                                      rps_api={"1": "guide"}.get(args.rps, args.rps) or session.rps_api_from_environment())
         code, run, run_dir = run_script(RunRequest(script, args.script_args, options, record=not args.no_record,
-                                                   video=False, own_testbed=True, results_dir=args.results_dir))
+                                                   bags_dir=args.bags_dir, video=False, own_testbed=True,
+                                                   results_dir=args.results_dir))
         if run is None:
             say("no verdict: the run did not start (exit code %d)" % code)
             return code if code != outcomes.USAGE_ERROR else outcomes.TESTBED_PROBLEM
@@ -1290,6 +1291,7 @@ def main(argv=None):
                         help="the Robotarium API the script is written against, as for run (1: the guide's)")
     verify.add_argument("--config", help="the testbed configuration file (default: robotarium_core's testbed.yaml)")
     verify.add_argument("--no-record", action="store_true", help="do not record the run")
+    verify.add_argument("--bags-dir", help="where the run is recorded (default: bags/)")
     verify.add_argument("--results-dir", help="where a run not recorded keeps its results (default: results/)")
     verify.set_defaults(func=cmd_verify)
 
