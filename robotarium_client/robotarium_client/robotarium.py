@@ -252,6 +252,7 @@ class Robotarium(RobotariumABC):
             DRAWING_QOS,
             END_EXPERIMENT,
             LATCHED,
+            OUTPUT_QOS,
             POSES,
             RECORDING,
             RECORDING_ERROR,
@@ -286,7 +287,7 @@ class Robotarium(RobotariumABC):
         self._executor.add_node(self._node)
         self._latest = None
         self._run_id = None
-        self._command_pub = self._node.create_publisher(TwistArray, CMD_REQUESTED, TESTBED_QOS)
+        self._command_pub = self._node.create_publisher(TwistArray, CMD_REQUESTED, OUTPUT_QOS)
         self._poses_subscription = self._node.create_subscription(RobotPoses, POSES, self._on_poses, TESTBED_QOS,
                                                                   raw=True)
         self._node.create_subscription(TestbedStatus, STATUS, self._on_status, STATUS_QOS)

@@ -4,12 +4,13 @@ DDS discovery is asymmetric: a reader may know a writer well before the writer k
 reader, and a reliable writer delivers nothing to readers it does not know yet. With slow
 discovery (a loaded 2-core machine takes seconds) a message published too early is lost.
 
-Outputs (poses, cmd_safe, safety_report, ...) are reliable and transient-local with a history of
-1000 (`TESTBED_QOS`): a writer keeps its last 1000 samples and hands them to a reader as soon as it
-matches, so a late viewer or recorder still gets the current poses. The depth is also how far a
-reader may fall behind: a reliable keep-last writer lets go of samples a reader has not
-acknowledged once its history is full, and a lockstep run makes 200 steps a second, so with 50
-a recorder starved of CPU for a quarter of a second lost 60 steps of poses, commands and status.
+Outputs (poses, cmd_safe, safety_report, ...) are reliable and transient-local (`OUTPUT_QOS`): a
+writer keeps its last 1000 samples and hands them to a reader as soon as it matches, so a late viewer
+or recorder still gets the current poses; a reader asks for the last 50 of them (`TESTBED_QOS`). The
+writers' depth is also how far a reader may fall behind: a reliable keep-last writer lets go of
+samples a reader has not acknowledged once its history is full, and a lockstep run makes 200 steps a
+second, so with 50 a recorder starved of CPU for a quarter of a second lost 60 steps of poses,
+commands and status.
 
 The status is a state, not a stream: `<ns>/status` keeps only its newest message (`STATUS_QOS`,
 depth 1), so a late joiner (`ros2 topic echo --once`, ./robotarium status) gets what holds now,
@@ -42,9 +43,13 @@ from robotarium_core.config import DEFAULT
 
 DEFAULT_NAMESPACE = "robotarium"
 
+# What a reader of the testbed's outputs asks for: reliable, transient local, the last 50 samples.
+TESTBED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# What the testbed's writers (and the client's) offer: the same, with a history a reader may trail by.
 OUTPUT_HISTORY = 1000   # samples: 5 s of a lockstep run at 200 steps/s, 33 s in real time
-TESTBED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=OUTPUT_HISTORY,
-                         reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+OUTPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=OUTPUT_HISTORY,
+                        reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 
@@ -63,11 +68,12 @@ COMMAND_INPUT_QOS = command_input_qos(DEFAULT.command_queue_depth)
 # One SafetyReport per array the safety node sends, each counted by the simulator (the report's
 # interventions and what the safety layer prevented): a lost packet holds back every later report
 # until it is repaired, and with a history of 50 (0.4 s of a lockstep run) the simulator counted 172
-# of 243 interventions while another process flooded the machine's loopback. The outputs' depth.
-SAFETY_REPORT_QOS = TESTBED_QOS
+# of 243 interventions while another process flooded the machine's loopback. The outputs' depth, for
+# the simulator's reader too.
+SAFETY_REPORT_QOS = OUTPUT_QOS
 # What the script drew on r.axes, change by change (robotarium_recording.drawing): the outputs' depth,
 # so that a recorder matching late still gets the first drawing of a fast lockstep run.
-DRAWING_QOS = TESTBED_QOS
+DRAWING_QOS = OUTPUT_QOS
 # pose_array for viewers: the ROS default (reliable, volatile: no history for a late joiner) with the
 # outputs' depth, so that a recorder that falls behind loses none either.
 POSE_ARRAY_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=OUTPUT_HISTORY,
@@ -77,7 +83,7 @@ POSE_ARRAY_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=OUTPUT_HISTOR
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # The testbed's state (status): a late joiner gets only the newest; every status also goes on the stream.
 STATUS_QOS = LATCHED
-STATUS_STREAM_QOS = TESTBED_QOS
+STATUS_STREAM_QOS = OUTPUT_QOS
 # The recent runs' folders (recorder -> ./robotarium run): `recording` keeps only the newest, which is ""
 # once a run closed, so a command that asks late still finds the folder of a run it knows the id of.
 RECORDED_RUNS_QOS = QoSProfile(depth=20, reliability=ReliabilityPolicy.RELIABLE,

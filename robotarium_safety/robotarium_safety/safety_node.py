@@ -82,6 +82,7 @@ from robotarium_core.topics import (
     DEFAULT_NAMESPACE,
     EXPERIMENT,
     LATCHED,
+    OUTPUT_QOS,
     POSES,
     SAFETY_ARM,
     SAFETY_REPORT,
@@ -122,7 +123,7 @@ class SafetyNode(Node):
         self.stale_stops = 0         # commands turned into a stop because the newest poses were too old
         self._stale_spell = None     # (first stop's time, stops so far, last log time) while poses stay old
 
-        self.safe_pub = self.create_publisher(TwistArray, CMD_SAFE, TESTBED_QOS)
+        self.safe_pub = self.create_publisher(TwistArray, CMD_SAFE, OUTPUT_QOS)
         self.report_pub = self.create_publisher(SafetyReport, SAFETY_REPORT, SAFETY_REPORT_QOS)
         # Poses first: the executor serves ready subscriptions in the order they were created.
         self.poses_subscription = self.create_subscription(RobotPoses, POSES, self.on_poses, TESTBED_QOS, raw=True)

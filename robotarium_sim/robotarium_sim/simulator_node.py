@@ -81,6 +81,7 @@ from robotarium_core.topics import (
     LATCHED,
     MARKERS,
     OBSTACLES,
+    OUTPUT_QOS,
     POSE_ARRAY,
     POSE_ARRAY_QOS,
     POSES,
@@ -94,7 +95,6 @@ from robotarium_core.topics import (
     STATUS_QOS,
     STATUS_STREAM,
     STATUS_STREAM_QOS,
-    TESTBED_QOS,
     VIEWER_QOS,
     command_input_qos,
     warn_on_incompatible_qos,
@@ -165,7 +165,7 @@ class SimulatorNode(Node):
         self._client_deadline = None
         self.line = Line(self.config.line_lease)   # clients waiting for the testbed, first come first served
 
-        self.poses_pub = self.create_publisher(RobotPoses, POSES, TESTBED_QOS)
+        self.poses_pub = self.create_publisher(RobotPoses, POSES, OUTPUT_QOS)
         self.pose_array_pub = self.create_publisher(PoseArray, POSE_ARRAY, POSE_ARRAY_QOS)
         # Viewers get the scene at viewer_rate, not every step (lockstep runs hundreds a second).
         self.markers_pub = self.create_publisher(MarkerArray, MARKERS, VIEWER_QOS)
@@ -175,7 +175,7 @@ class SimulatorNode(Node):
         # The configuration of the running experiment, for the recorder and the report.
         self.config_pub = self.create_publisher(String, CONFIG, LATCHED)
         # The 2.x API's extras (robotarium_sim.rps2_io): sensors, the experiment's settings, obstacles.
-        self.sensors_pub = self.create_publisher(SensorReadings, SENSORS, TESTBED_QOS)
+        self.sensors_pub = self.create_publisher(SensorReadings, SENSORS, OUTPUT_QOS)
         self.experiment_pub = self.create_publisher(String, EXPERIMENT, LATCHED)
         self.obstacles_pub = rps2_io.obstacles_publisher(self, OBSTACLES, LATCHED)
         # The same sensors per robot on standard types for ROS tools, throttled by simulated time.
