@@ -153,10 +153,11 @@ MMAP_THRESHOLD = 256 * 1024   # bytes: larger blocks are mapped for themselves a
 _M_MMAP_THRESHOLD = -3         # glibc's mallopt parameter
 
 
-def bounded_memory():
-    """Make a flood cost no memory that stays (issue 22): DDS readers allocate a sample's buffer
-    when it arrives and free it when it is taken (dds_profile.xml; a profile file the user set
-    is kept, and with it their choice), and the C allocator returns every block of more than
+def dds_defaults():
+    """The testbed nodes' Fast DDS settings (dds_profile.xml; a profile file the user set is kept, and
+    with it their choice): a participant announced every 0.2 s, so a client that joins later finds the
+    node at once; and a flood costs no memory that stays (issue 22): DDS readers allocate a sample's
+    buffer when it arrives and free it when it is taken, and the C allocator returns every block of more than
     MMAP_THRESHOLD to the system as soon as it is freed (glibc raises that threshold by itself
     after the first large block was freed, and then keeps freed 2.4 MB arrays in the process).
     Called before rclpy.init."""
@@ -207,7 +208,7 @@ def run_node(make_node, name, args=None, before_destroy=None, claim=None):
     with claim.REFUSED (4), before it offers anything, or as soon as it hears of it later."""
     if not lifeline.pass_start_gate():
         return 0
-    bounded_memory()
+    dds_defaults()
     # rclpy's own handlers would shut the context down at the first signal, before the wind-down.
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop = StopRequest()
