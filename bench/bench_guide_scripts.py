@@ -93,7 +93,7 @@ def run_stack(script, seed, env, real_time, timeout):
     mode = "--real-time" if real_time else "--lockstep"
     start = time.perf_counter()
     try:
-        out = subprocess.run([sys.executable, "-m", "robotarium_client.cli", "run", "--no-local-testbed", mode, "--no-video",
+        out = subprocess.run([sys.executable, "-m", "robotarium_cli", "run", "--no-local-testbed", mode, "--no-video",
                               RUN_SEEDED, str(seed), script], env=env, capture_output=True, text=True,
                              cwd=os.path.dirname(script), timeout=timeout)
     except subprocess.TimeoutExpired:
@@ -126,7 +126,7 @@ def main():
     scripts = [s for s in sorted(glob.glob(os.path.join(GUIDE, "*.py")))
                if not args.patterns or any(p in os.path.basename(s) for p in args.patterns)]
 
-    from robotarium_client.testbed import LocalTestbed, testbed_answers
+    from robotarium_bringup.testbed import LocalTestbed, testbed_answers
     domain = unique_domain_id()
     env = node_env(domain)
     saved = dict(os.environ)

@@ -33,7 +33,7 @@ def run(script, seed, max_steps, env, hardware, timeout):
     flags = ["--hardware", "--seed", str(seed)] if hardware else []
     start = time.perf_counter()
     try:
-        out = subprocess.run([sys.executable, "-m", "robotarium_client.cli", "run", "--no-local-testbed", "--lockstep",
+        out = subprocess.run([sys.executable, "-m", "robotarium_cli", "run", "--no-local-testbed", "--lockstep",
                               "--no-video", *flags, OUTCOME, str(seed), str(max_steps), script],
                              env=env, capture_output=True, text=True, cwd=os.path.dirname(script), timeout=timeout)
     except subprocess.TimeoutExpired:
@@ -68,7 +68,7 @@ def main():
     scripts = [s for s in sorted(glob.glob(os.path.join(GUIDE, "*.py")))
                if not args.patterns or any(p in os.path.basename(s) for p in args.patterns)]
 
-    from robotarium_client.testbed import LocalTestbed, testbed_answers
+    from robotarium_bringup.testbed import LocalTestbed, testbed_answers
     domain = unique_domain_id()
     env = node_env(domain)
     saved = dict(os.environ)

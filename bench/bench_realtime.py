@@ -80,8 +80,8 @@ def main():
     os.environ["ROS_DOMAIN_ID"] = str(unique_domain_id())
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     os.environ["ROBOTARIUM_NAMESPACE"] = "/realtime"
+    from robotarium_bringup.testbed import LocalTestbed, testbed_answers
     from robotarium_client import session
-    from robotarium_client.testbed import LocalTestbed, testbed_answers
     from robotarium_msgs.msg import SafetyReport
     from robotarium_recording.bag import Bag
 

@@ -124,7 +124,7 @@ def main():
     os.environ["ROS_DOMAIN_ID"] = str(unique_domain_id())
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     os.environ["ROBOTARIUM_RPS"] = "guide"   # rps is the guide's (its controller); --api 2 imports the 2.x class itself
-    from robotarium_client.testbed import LocalTestbed
+    from robotarium_bringup.testbed import LocalTestbed
 
     work = tempfile.mkdtemp(prefix="robotarium-scaling-")
     testbed = LocalTestbed(log_dir=os.path.join(work, "log"), record=not args.no_record,

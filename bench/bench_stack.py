@@ -31,7 +31,7 @@ def steps_per_second(output):
 
 def ours(iterations):
     env = node_env(unique_domain_id())
-    out = subprocess.run([sys.executable, "-m", "robotarium_client.cli", "run", "--lockstep", "--no-record",
+    out = subprocess.run([sys.executable, "-m", "robotarium_cli", "run", "--lockstep", "--no-record",
                           SCRIPT, str(iterations)], env=env, capture_output=True, text=True, cwd=REPO, timeout=600)
     return steps_per_second(out.stdout + out.stderr)
 

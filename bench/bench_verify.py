@@ -45,7 +45,7 @@ def reference(script):
 
 
 def cli(env, *args):
-    return subprocess.run([sys.executable, "-m", "robotarium_client.cli", *args], env=env, capture_output=True,
+    return subprocess.run([sys.executable, "-m", "robotarium_cli", *args], env=env, capture_output=True,
                           text=True, timeout=600)
 
 

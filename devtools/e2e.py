@@ -7,7 +7,7 @@ import subprocess
 import sys
 
 from devtools.rosutil import node_env, unique_domain_id
-from robotarium_client.testbed import LocalTestbed, testbed_answers
+from robotarium_bringup.testbed import LocalTestbed, testbed_answers
 
 RUNNING = []   # the modules' LocalTestbeds while they run: a failure shows their nodes' logs
 
@@ -35,7 +35,7 @@ def run(env, script, *args, timeout=600):
     flags = ("--no-local-testbed", *flags)
     # in the folder of the script that runs (the last .py argument: run_seeded.py runs the one after it)
     cwd = os.path.dirname(([a for a in (script, *script_args) if str(a).endswith(".py")])[-1])
-    process = subprocess.Popen([sys.executable, "-m", "robotarium_client.cli", "run", *flags, script, *script_args],
+    process = subprocess.Popen([sys.executable, "-m", "robotarium_cli", "run", *flags, script, *script_args],
                                env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd,
                                start_new_session=True)
     try:

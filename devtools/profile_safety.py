@@ -31,7 +31,7 @@ def main():
     os.environ["ROBOTARIUM_NAMESPACE"] = "/profile"
     import bench_scaling
 
-    from robotarium_client.testbed import LocalTestbed, node_command
+    from robotarium_bringup.testbed import LocalTestbed, node_command
     from robotarium_core import lifeline
 
     work = tempfile.mkdtemp(prefix="robotarium-profile-")

@@ -41,9 +41,9 @@ def pytest_collection_modifyitems(items):
 
 @pytest.fixture(autouse=True, scope="module")
 def _no_probe_participant_left():
-    """The DDS participant that in-process probes of a module's testbed keep (robotarium_client.testbed's
+    """The DDS participant that in-process probes of a module's testbed keep (robotarium_bringup.testbed's
     probe contexts) goes with the module, before another module draws its ROS_DOMAIN_ID."""
     yield
-    testbed = sys.modules.get("robotarium_client.testbed")
+    testbed = sys.modules.get("robotarium_bringup.testbed")
     if testbed is not None:
         testbed.close_probe_contexts()

@@ -24,8 +24,8 @@ def testbed(tmp_path_factory):
     saved = {k: os.environ.get(k) for k in ("ROS_DOMAIN_ID", "MPLBACKEND", "ROS_AUTOMATIC_DISCOVERY_RANGE")}
     # localhost discovery, as the nodes have (node_env): a client discovering the whole subnet takes ~3 s
     os.environ.update(ROS_DOMAIN_ID=str(domain), MPLBACKEND="Agg", ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    from robotarium_bringup.testbed import testbed_answers
     from robotarium_client import session
-    from robotarium_client.testbed import testbed_answers
     saved_options, session.options = session.options, session.RunOptions(local_testbed=False)
     try:
         assert testbed_answers(timeout=30), "the simulator did not come up"
@@ -285,7 +285,7 @@ def test_without_safety_node_nothing_moves(tmp_path, monkeypatch):
     monkeypatch.setattr("robotarium_client.session.options", RunOptions(local_testbed=False))
     monkeypatch.setattr("robotarium_client.robotarium.STEP_TIMEOUT", 2.0)
     try:
-        from robotarium_client.testbed import testbed_answers
+        from robotarium_bringup.testbed import testbed_answers
         assert testbed_answers(timeout=30)
         with pytest.raises(RuntimeError, match="safety node"):
             robotarium(number_of_robots=2, initial_conditions=LINE[:, :2].copy())

@@ -31,7 +31,7 @@ def test_an_unknown_command_lists_every_command():
 
 
 def test_every_command_has_help(capsys):
-    from robotarium_client import cli
+    from robotarium_cli import main as cli
     for command in listed_commands():
         if command in ("test", "bench", "setup", "shell", "serve", "worker"):   # bash's own (test: pytest's help)
             completed = robotarium(command, "--help")
@@ -67,9 +67,9 @@ def test_what_report_and_replay_write_beside_the_committed_sample_is_ignored_by_
     ("import rps.utilities.barrier_certificate", "did you mean 'rps.utilities.barrier_certificates'?"),
 ])
 def test_an_import_typo_is_named_with_what_was_meant_before_anything_runs(tmp_path, line, hint):
-    """run's pre-check (cli.check_script) names a typo in a top-level module and in an rps submodule
+    """run's pre-check (robotarium_cli.folders.check_script) names a typo in a top-level module and in an rps submodule
     alike (the README promises a "did you mean" for import typos; submodules once got none)."""
-    from robotarium_client import cli
+    from robotarium_cli import folders as cli
     script = tmp_path / "typo.py"
     script.write_text("import numpy as np\n%s\nprint('never runs')\n" % line)
     detail, message = cli.check_script(str(script))
@@ -78,7 +78,7 @@ def test_an_import_typo_is_named_with_what_was_meant_before_anything_runs(tmp_pa
 
 
 def test_an_import_of_something_real_passes_the_pre_check(tmp_path):
-    from robotarium_client import cli
+    from robotarium_cli import folders as cli
     script = tmp_path / "fine.py"
     script.write_text("import rps.robotarium as robotarium\nfrom rps.utilities.misc import *\nimport numpy\n")
     assert cli.check_script(str(script)) is None

@@ -274,7 +274,7 @@ def test_only_the_client_ends_its_run_and_an_operator_with_force(healthy):
         assert not refused.success and "belongs to the client that started it" in refused.message
     drive(r, [0.05] * 3, [0.5] * 3)   # still running
     env = node_env(lab.domain)
-    operator = subprocess.Popen([sys.executable, "-m", "robotarium_client.cli", "end", "--force"], env=env, cwd=REPO,
+    operator = subprocess.Popen([sys.executable, "-m", "robotarium_cli", "end", "--force"], env=env, cwd=REPO,
                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     ended = None   # when the operator's command returned
     with pytest.raises(RuntimeError, match=r"ended by an operator \(end --force\) at step \d+") as raised:
@@ -356,7 +356,10 @@ def test_the_clients_own_oversized_and_huge_arrays(healthy):
     "oversized") and costs the run nothing; a finite 1e308 is full speed along its arc (saturated,
     reported as such), never a stop and never passed on."""
     lab = healthy
+    began = time.time_ns()
     r = client(FACING)
+    # This run's reports only: the probe's reader may still hold earlier runs' (their step 1 included),
+    # taken only when it spins next.
     lab.reports.clear()
     huge = cdr.TWIST_ARRAY.build(frame_id="arena", token=r._token, step=1, ids=np.arange(100_000) % 2,
                                  twists=cdr.twists(np.full(100_000, 0.2), np.zeros(100_000)))
@@ -369,8 +372,11 @@ def test_the_clients_own_oversized_and_huge_arrays(healthy):
         assert p[0, 0] == FACING[0, 0] + DEFAULT.time_step * DEFAULT.max_linear_velocity   # full speed
         reach = model.threshold_keeping_arc(np.array([[1.0], [1.0]]))[0, 0]   # |v| = omega at the wheel limit
         assert p[2, 1] == pytest.approx(model.wrap_angle(FACING[2, 1] + DEFAULT.time_step * reach))
-        assert lab.probe.spin_until(lambda: any(rep.step == 1 for rep in lab.reports), 10)
-        report = [rep for rep in lab.reports if rep.step == 1][-1]
+        def this_runs_step_1():
+            return [rep for rep in lab.reports
+                    if rep.step == 1 and rep.header.stamp.sec * 1_000_000_000 + rep.header.stamp.nanosec >= began]
+        assert lab.probe.spin_until(this_runs_step_1, 10)
+        report = this_runs_step_1()[-1]
         assert report.status == SafetyReport.STATUS_SATURATED
         r.call_at_scripts_end()
         assert r.run_info["actuator_limit_iterations"] == 1, r.run_info   # the script's command, as rps judges

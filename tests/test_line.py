@@ -14,8 +14,8 @@ import pytest
 from devtools.rosutil import REPO, node_env, unique_domain_id
 
 # imported under another name: pytest would collect a module-level test_* function as a test
-from robotarium_client.testbed import LocalTestbed
-from robotarium_client.testbed import testbed_answers as answers_in_namespace
+from robotarium_bringup.testbed import LocalTestbed
+from robotarium_bringup.testbed import testbed_answers as answers_in_namespace
 from robotarium_core.line import Line
 
 DATA = os.path.join(REPO, "tests", "data")
@@ -54,7 +54,7 @@ def testbed(tmp_path_factory):
 def start_run(env, tmp_path, *args):
     """./robotarium run in a subprocess; its output is read as it comes (process.lines), so a
     chatty script never blocks on a full pipe."""
-    process = subprocess.Popen([sys.executable, "-m", "robotarium_client.cli", "run", "--no-local-testbed",
+    process = subprocess.Popen([sys.executable, "-m", "robotarium_cli", "run", "--no-local-testbed",
                                 "--no-video", "--results-dir", str(tmp_path / "results"), *args], env=env,
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=str(tmp_path),
                                start_new_session=True)
@@ -92,7 +92,7 @@ def test_a_second_student_waits_in_line_and_a_third_is_refused_with_no_wait(test
         wait_for_line(dave, "step 5")
         assert dave.poll() is None, "".join(dave.lines)
         # --no-wait: exit 4, one readable line naming who holds the testbed, no traceback, nothing cut
-        refused = subprocess.run([sys.executable, "-m", "robotarium_client.cli", "run", "--no-local-testbed",
+        refused = subprocess.run([sys.executable, "-m", "robotarium_cli", "run", "--no-local-testbed",
                                   "--no-video", "--no-wait", "--results-dir", str(tmp_path / "results"),
                                   os.path.join(DATA, "two_robots_to_goals.py")], env=env, capture_output=True,
                                  text=True, cwd=str(tmp_path), timeout=120)
@@ -108,7 +108,7 @@ def test_a_second_student_waits_in_line_and_a_third_is_refused_with_no_wait(test
         frank = start_run(env, tmp_path, os.path.join(DATA, "two_robots_to_goals.py"))
         said = wait_for_line(frank, "waiting for the testbed: number 2 in line")
         assert "steps_forever.py: run steps_forever_" in said, said
-        status = subprocess.run([sys.executable, "-m", "robotarium_client.cli", "status"], env=env,
+        status = subprocess.run([sys.executable, "-m", "robotarium_cli", "status"], env=env,
                                 capture_output=True, text=True, timeout=60).stdout
         assert "held by " in status and "steps_forever.py" in status, status
         assert "waiting in line: 1. " in status and "2. " in status and "two_robots_to_goals.py" in status, status

@@ -27,7 +27,9 @@ PYTHON_DEPENDENCIES = {
 # Declared without an import, and why.
 NOT_IMPORTED = {
     ("robotarium_msgs", "rosidl_default_runtime"): "what generated interfaces need at run time",
-    ("robotarium_client", "robotarium_sim"): "./robotarium run starts the simulator node as a process",
+    ("robotarium_bringup", "robotarium_sim"): "a local testbed and the launch file start the node as a process",
+    ("robotarium_bringup", "robotarium_safety"): "a local testbed and the launch file start the node as a process",
+    ("robotarium_bringup", "robotarium_recording"): "a local testbed and the launch file start the node as a process",
     ("robotarium_recording", "ffmpeg"): "the video encoder, where the imageio-ffmpeg wheel brings none",
     ("robotarium_recording", "geometry_msgs"): "the recorder imports the class of each recorded topic by name",
     ("robotarium_recording", "sensor_msgs"): "the recorder imports the class of each recorded topic by name",
@@ -86,7 +88,8 @@ def test_requirements_pin_every_python_package_the_code_imports():
     modules = set().union(*(imported(p) for p in packages()))
     unknown = sorted(m for m in modules if m not in PYTHON_DEPENDENCIES and not m.startswith(("rcl", "robotarium_"))
                      and not m.endswith(("_msgs", "_srvs")) and m not in ("rps", "rps2", "launch", "launch_ros",
-                                                                             "ament_index_python", "rclpy"))
+                                                                             "ament_index_python", "rclpy",
+                                                                             "ros2cli"))   # a ROS install's (ros2 robotarium)
     assert not unknown, "imports not mapped in PYTHON_DEPENDENCIES (test_manifests.py): %s" % unknown
     missing = sorted(PYTHON_DEPENDENCIES[m][1] for m in modules if m in PYTHON_DEPENDENCIES
                      and PYTHON_DEPENDENCIES[m][1].lower() not in pinned)

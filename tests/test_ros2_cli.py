@@ -1,8 +1,8 @@
 """The ROS 2 user's way in, with the real ros2 command line (../shared/ros2-tools: ros2cli and
 ros2 launch, Jazzy) against the real nodes: ros2 run with the packaged parameters file, parameters
 described and refused, an experiment started and ended with ros2 service call and driven with
-ros2 topic pub at its default QoS, ros2 topic hz, and ros2 launch of the testbed that
-./robotarium run --no-local-testbed then uses.
+ros2 topic pub at its default QoS, ros2 topic hz, ros2 launch of the testbed that
+ros2 robotarium run --no-local-testbed then uses, and the ros2 robotarium command itself.
 
 The CLI is slow to start (1-3 s a call on 2 cores), so the checks share one testbed per test.
 Skipped, saying why, where ../shared/ros2-tools is absent (a user's clone)."""
@@ -190,24 +190,41 @@ r.call_at_scripts_end()
 '''
 
 
+def test_ros2_robotarium_lists_the_verbs_and_refuses_a_bad_one(ros2, tmp_path):
+    """`ros2 robotarium` is the robotarium command (robotarium_cli.command): its help lists every verb,
+    a verb's help is the command's own, a bad argument is refused with exit code 2."""
+    from robotarium_cli.verb import VERBS
+    cli = Cli(ros2, unique_domain_id())
+    listed, run_help, status = cli.gather([("robotarium", "--help"), ("robotarium", "run", "--help"),
+                                           ("robotarium", "status", "--json", "--timeout", "0.5")])
+    assert all(re.search(r"^\s+%s\s+\S" % verb, listed, re.MULTILINE) for verb in VERBS), listed
+    assert "--no-local-testbed" in run_help and "Exit codes" in run_help, run_help
+    assert '"local_testbeds"' in status, status
+    refused = subprocess.run([ros2, "robotarium", "verify", "x.py", "--robots", "zero"], env=cli.env, cwd=tmp_path,
+                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=60)
+    assert refused.returncode == 2 and "--robots" in refused.stdout, refused.stdout
+
+
 def test_ros2_launch_starts_the_testbed_that_robotarium_run_uses(ros2, tmp_path):
     domain = unique_domain_id()
     cli = Cli(ros2, domain, ROBOTARIUM_NAMESPACE="/launched")
     try:
         bags = tmp_path / "bags"
-        launch = cli.start("launch", "robotarium_client", "testbed.launch.py", "namespace:=launched",
+        launch = cli.start("launch", "robotarium_bringup", "testbed.launch.py", "namespace:=launched",
                            "bags_dir:=%s" % bags, log=tmp_path / "launch.log")
         script = tmp_path / "two_robots.py"
         script.write_text(SCRIPT)
-        run = subprocess.run([os.path.join(REPO, "robotarium"), "run", "--no-local-testbed", "--no-video", str(script)],
+        # ./robotarium run as a ROS user has it: ros2 robotarium run (our own flags after the script too)
+        run = subprocess.run([ros2, "robotarium", "run", "--no-local-testbed", str(script), "--no-video"],
                              env=cli.env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                              timeout=180)
         assert run.returncode == 0, run.stdout + (tmp_path / "launch.log").read_text()
+        assert "run.mp4" not in run.stdout, run.stdout   # --no-video, given after the script, was taken
         assert "using the testbed that answers in /launched" in run.stdout
         runs = list(bags.glob("two_robots_*"))
         assert len(runs) == 1 and (runs[0] / "report.txt").is_file(), run.stdout   # recorded by the launched recorder
         # One testbed per namespace: a second launch there refuses, naming the first, and ends with an error.
-        second = cli.start("launch", "robotarium_client", "testbed.launch.py", "namespace:=launched",
+        second = cli.start("launch", "robotarium_bringup", "testbed.launch.py", "namespace:=launched",
                            log=tmp_path / "second.log")
         assert second.wait(timeout=120) != 0, (tmp_path / "second.log").read_text()
         refused = (tmp_path / "second.log").read_text()

@@ -61,7 +61,7 @@ def testbed(tmp_path_factory):
 
 def start_run(ctx, script, *flags, env=None):
     """./robotarium run in its own session (as a terminal's foreground job: signals reach it alone)."""
-    command = [sys.executable, "-m", "robotarium_client.cli", "run", *flags, "--results-dir", str(ctx["results"]),
+    command = [sys.executable, "-m", "robotarium_cli", "run", *flags, "--results-dir", str(ctx["results"]),
                script if os.path.isabs(script) else str(ctx["scripts"] / script)]
     return subprocess.Popen(command, env=env or ctx["env"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                             text=True, cwd=str(ctx["scripts"]), start_new_session=True)
@@ -200,7 +200,7 @@ def test_a_guide_plotting_scripts_video_shows_its_goals_and_labels(testbed, tmp_
     from robotarium_recording.bag import Bag
     from robotarium_recording.pictures import render_video
     script = os.path.join(REPO, "examples", "guide", "3_8_4_go_to_point_single_integrator_with_plotting.py")
-    command = [sys.executable, "-m", "robotarium_client.cli", "run", "--no-local-testbed", "--lockstep",
+    command = [sys.executable, "-m", "robotarium_cli", "run", "--no-local-testbed", "--lockstep",
                "--results-dir", str(testbed["results"]), os.path.join(REPO, "devtools", "run_seeded.py"), "1", script]
     completed = subprocess.run(command, env=testbed["env"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                text=True, cwd=os.path.dirname(script), timeout=300)
@@ -324,12 +324,12 @@ def test_replay_plays_a_lockstep_run_in_experiment_time_and_refuses_a_live_testb
 
 
 def _script_process(pid):
-    """The script's process (robotarium_client.runner) that ./robotarium run `pid` started."""
+    """The script's process (robotarium_cli.runner) that ./robotarium run `pid` started."""
     with open("/proc/%d/task/%d/children" % (pid, pid)) as f:
         children = [int(p) for p in f.read().split()]
     for child in children:
         with open("/proc/%d/cmdline" % child, "rb") as f:
-            if b"robotarium_client.runner" in f.read():
+            if b"robotarium_cli.runner" in f.read():
                 return child
     raise AssertionError("no script process among %s" % children)
 
@@ -373,7 +373,7 @@ def test_a_run_command_killed_outright_is_finished_by_the_next_command(testbed, 
     process.communicate()
     pending = os.listdir(root / "results" / ".unfinished")
     assert len(pending) == 1, pending
-    status = subprocess.run([sys.executable, "-m", "robotarium_client.cli", "status", "--timeout", "0.5"],
+    status = subprocess.run([sys.executable, "-m", "robotarium_cli", "status", "--timeout", "0.5"],
                             env=dict(testbed["env"], ROBOTARIUM_ROOT=str(root)), stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, timeout=120, cwd=str(tmp_path))
     out = status.stdout
@@ -390,7 +390,7 @@ def test_a_run_command_killed_outright_is_finished_by_the_next_command(testbed, 
     assert run["step_calls"] is None or run["steps"] >= run["step_calls"] > 5, run
     assert "steps:        %d " % run["steps"] in report and "running" in log
     assert os.listdir(root / "results" / ".unfinished") == []
-    again = subprocess.run([sys.executable, "-m", "robotarium_client.cli", "status", "--timeout", "0.5"],
+    again = subprocess.run([sys.executable, "-m", "robotarium_cli", "status", "--timeout", "0.5"],
                            env=dict(testbed["env"], ROBOTARIUM_ROOT=str(root)), stdout=subprocess.PIPE,
                            stderr=subprocess.STDOUT, text=True, timeout=60)
     assert "lost its ./robotarium run" not in again.stdout   # once

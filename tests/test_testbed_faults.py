@@ -31,7 +31,7 @@ ACCEPTANCE = "Acceptance of your experiment is likely"
 
 
 def cli(*args, env, cwd, timeout=180):
-    return subprocess.run([sys.executable, "-m", "robotarium_client.cli", *args], env=env, cwd=cwd, timeout=timeout,
+    return subprocess.run([sys.executable, "-m", "robotarium_cli", *args], env=env, cwd=cwd, timeout=timeout,
                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
@@ -44,7 +44,7 @@ def testbed(tmp_path_factory):
     bags.mkdir()
     env = node_env(domain, ROBOTARIUM_NAMESPACE=NAMESPACE, ROBOTARIUM_ROOT=str(root), ROBOTARIUM_PROGRESS="0")
     log = open(root / "up.log", "wb")
-    up = subprocess.Popen([sys.executable, "-m", "robotarium_client.cli", "up", "--bags-dir", str(bags)], env=env,
+    up = subprocess.Popen([sys.executable, "-m", "robotarium_cli", "up", "--bags-dir", str(bags)], env=env,
                           cwd=str(root), stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
     try:
         deadline = time.monotonic() + 120   # its three nodes say they are ready

@@ -125,7 +125,7 @@ def test_a_signal_to_run_leaves_no_testbed_behind(lab, sig):
 
 
 def _registry_entries():
-    from robotarium_client import local_testbeds
+    from robotarium_bringup import local_testbeds
     return [entry for _, entry in local_testbeds.registered()]
 
 
@@ -158,7 +158,7 @@ def test_the_time_limit_ends_the_experiment_cleanly(lab):
 
 def cli(lab, *args, ns=NAMESPACE, timeout=60):
     env = dict(lab["env"], ROBOTARIUM_NAMESPACE=ns)
-    return subprocess.run([sys.executable, "-m", "robotarium_client.cli", *args], env=env, cwd=str(lab["root"]),
+    return subprocess.run([sys.executable, "-m", "robotarium_cli", *args], env=env, cwd=str(lab["root"]),
                           capture_output=True, text=True, timeout=timeout)
 
 
@@ -167,7 +167,7 @@ def test_status_lists_local_testbeds_and_stop_and_end_get_rid_of_them(lab):
     `ros2 run`): status lists both with their process ids, the experiment running on the first and
     since when; `end` ends that experiment and prints its report; `stop` stops each, cleanly."""
     from robotarium_msgs.srv import StartExperiment
-    up = subprocess.Popen([sys.executable, "-m", "robotarium_client.cli", "up", "--bags-dir", lab["bags"]],
+    up = subprocess.Popen([sys.executable, "-m", "robotarium_cli", "up", "--bags-dir", lab["bags"]],
                           env=lab["env"], cwd=str(lab["root"]), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                           start_new_session=True)
     stray = NodeProcess("robotarium_sim.simulator_node", lab["domain"], ros_args=["-r", "__ns:=/stray"])
@@ -210,7 +210,7 @@ def test_status_lists_local_testbeds_and_stop_and_end_get_rid_of_them(lab):
         assert mine.success, mine.message
         end = cli(lab, "end")
         assert end.returncode == 0 and mine.run_id in end.stdout, end.stdout + end.stderr
-        from robotarium_client.cli import wait_until_recorded
+        from robotarium_cli.folders import wait_until_recorded
         from robotarium_recording.results import recompute
         assert wait_until_recorded(os.path.join(lab["bags"], mine.run_id))
         ended = recompute(os.path.join(lab["bags"], mine.run_id))   # the recording says who ended it
@@ -238,7 +238,7 @@ def test_a_testbed_without_a_safety_node_is_incomplete_not_a_script_error(lab):
     """A simulator and a recorder answer, no safety node does (issue 23): `status` says the testbed
     is incomplete, and `run` refuses with exit 4 and one line naming what is missing, with a hint
     about the testbed: never a traceback or "fix it" (the script is fine)."""
-    from robotarium_client.testbed import LocalTestbed, testbed_answers
+    from robotarium_bringup.testbed import LocalTestbed, testbed_answers
     ns = "/incomplete"
     saved = dict(os.environ)
     os.environ.update(lab["env"])
@@ -278,7 +278,7 @@ def test_stop_mid_run_names_the_stopped_testbed_first(lab):
     itself)."""
     ns = "/stopped"
     env = dict(lab["env"], ROBOTARIUM_NAMESPACE=ns)
-    up = subprocess.Popen([sys.executable, "-m", "robotarium_client.cli", "up", "--bags-dir", lab["bags"]],
+    up = subprocess.Popen([sys.executable, "-m", "robotarium_cli", "up", "--bags-dir", lab["bags"]],
                           env=env, cwd=str(lab["root"]), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                           start_new_session=True)
     run = None
@@ -303,7 +303,7 @@ def test_stop_mid_run_names_the_stopped_testbed_first(lab):
 
 
 def test_every_new_command_has_help():
-    from robotarium_client import cli as robotarium_cli
+    from robotarium_cli import main as robotarium_cli
     for command in ("status", "stop", "end", "run", "up"):
         with pytest.raises(SystemExit) as exit_:
             robotarium_cli.main([command, "--help"])

@@ -1,7 +1,7 @@
 """./robotarium verify: the Robotarium's verdict (issue 23), and `run` telling the truth about what
 the safety layer kept from happening.
 
-The verification runs are real: `python -m robotarium_client.cli verify` starts its own testbed
+The verification runs are real: `python -m robotarium_cli verify` starts its own testbed
 (simulator, safety node auditing, recorder) in a namespace of its own, on this module's
 ROS_DOMAIN_ID. The head-on script's collision count is compared with the Robotarium's own
 simulator (robotarium-python-simulator 0.0.0 in .venv-reference) running the same file.
@@ -19,7 +19,7 @@ import pytest
 
 from devtools.reference import REFERENCE_PYTHON, _reference_env, reference_available
 from devtools.rosutil import REPO, node_env, unique_domain_id
-from robotarium_client import verify
+from robotarium_cli import verification as verify
 from robotarium_core import model, outcomes
 from robotarium_core.config import DEFAULT
 
@@ -34,7 +34,7 @@ def env():
 
 
 def run_cli(env, *args, cwd=None, timeout=300):
-    return subprocess.run([sys.executable, "-m", "robotarium_client.cli", *args], env=env, capture_output=True,
+    return subprocess.run([sys.executable, "-m", "robotarium_cli", *args], env=env, capture_output=True,
                           text=True, cwd=cwd or REPO, timeout=timeout)
 
 

@@ -243,7 +243,7 @@ class Robotarium(RobotariumABC):
         from rclpy.node import Node
         from std_msgs.msg import String
 
-        from robotarium_client.testbed import LocalTestbed, security_enabled
+        from robotarium_bringup.testbed import LocalTestbed, security_enabled
         from robotarium_core.executor import LeanExecutor
         from robotarium_core.topics import (
             CMD_REQUESTED,

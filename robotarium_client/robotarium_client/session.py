@@ -1,6 +1,6 @@
 """How a script's Robotarium is to run: the choices of `./robotarium run`, passed explicitly.
 
-`./robotarium run` starts the script through `robotarium_client.runner`, which sets `options`
+`./robotarium run` starts the script through `robotarium_cli.runner`, which sets `options`
 before the script's first line; a script started any other way (`python my_script.py`) gets the
 defaults below. Three user-facing environment variables are read here and nowhere else:
 ROBOTARIUM_NAMESPACE (which testbed: /robotarium by default), ROBOTARIUM_PROGRESS (seconds
@@ -16,12 +16,7 @@ import sys
 from robotarium_client.errors import EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete, TestbedLost
 from robotarium_core import outcomes
 from robotarium_core.model import RobotariumError
-from robotarium_core.topics import DEFAULT_NAMESPACE
-
-
-def namespace_from_environment():
-    """The testbed's namespace: ROBOTARIUM_NAMESPACE with one leading slash, /robotarium by default."""
-    return "/" + os.environ.get("ROBOTARIUM_NAMESPACE", DEFAULT_NAMESPACE).strip("/")
+from robotarium_core.topics import namespace_from_environment
 
 
 def progress_from_environment(default):

@@ -8,7 +8,7 @@ service's. It hands the command line this description of the script's box in the
                            "home": "/srv/robotarium-boxes/runs/home",
                            "limits": {"cpu_seconds": 1200, "memory_bytes": 4294967296, ...}}
 
-and the command line starts the script's process (robotarium_client.runner) with popen_options():
+and the command line starts the script's process (robotarium_cli.runner) with popen_options():
 as that account, with those resource limits, without the variable. Without it nothing changes
 (`./robotarium run` on one's own machine)."""
 import json

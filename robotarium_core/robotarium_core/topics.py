@@ -36,12 +36,20 @@ works through the history one old sample per step (a 60 ms loop would trail the 
 queued ticks, 1.7 s), and a flood of foreign samples cannot push the testbed's own out of a short
 history.
 """
+import os
+
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from robotarium_core.config import DEFAULT
 
 DEFAULT_NAMESPACE = "robotarium"
+
+
+def namespace_from_environment():
+    """The testbed's namespace for a client or a command: ROBOTARIUM_NAMESPACE with one leading slash,
+    /robotarium by default (nodes take theirs from ROS: `__ns`)."""
+    return "/" + os.environ.get("ROBOTARIUM_NAMESPACE", DEFAULT_NAMESPACE).strip("/")
 
 # What a reader of the testbed's outputs asks for: reliable, transient local, the last 50 samples.
 TESTBED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=ReliabilityPolicy.RELIABLE,

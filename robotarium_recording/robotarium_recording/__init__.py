@@ -22,9 +22,17 @@ _API = {
     "write_page": ("page", "write_page"),                       # the results page of a run folder
     "ViewProcess": ("view_node", "ViewProcess"),                # the Foxglove view in a process of its own
     "add_view_arguments": ("view_node", "add_view_arguments"),
+    # The replay, view and report commands: main(argv) parses its own arguments; add_arguments(parser)
+    # and the function that takes the parsed ones serve `ros2 robotarium <verb>`.
     "replay_main": ("replay_node", "main"),                     # ./robotarium replay
+    "replay_arguments": ("replay_node", "add_arguments"),
+    "replay": ("replay_node", "replay"),
     "view_main": ("view_node", "main"),                         # ./robotarium view
+    "view_arguments": ("view_node", "add_arguments"),
+    "view": ("view_node", "view"),
     "report_main": ("results", "main"),                         # ./robotarium report
+    "report_arguments": ("results", "add_report_arguments"),
+    "report": ("results", "report"),
 }
 __all__ = sorted(_API)
 

@@ -191,11 +191,19 @@ def play(node, keyboard=None, figure=None, poses_topic=None, delay=0.0):
     executor.remove_node(node)
 
 
+DESCRIPTION = ("Republish a recorded run: every topic, in recorded order, in experiment time for a lockstep run "
+               "(as its video plays) and with the original timing for a real-time one. Keys: space/p pause and "
+               "resume, q quits; service <ns>/replay/pause (std_srvs/SetBool) does the same.")
+
+
 def build_parser():
-    parser = argparse.ArgumentParser(prog="robotarium replay", description=(
-        "Republish a recorded run: every topic, in recorded order, in experiment time for a lockstep run "
-        "(as its video plays) and with the original timing for a real-time one. Keys: space/p pause and "
-        "resume, q quits; service <ns>/replay/pause (std_srvs/SetBool) does the same."))
+    parser = argparse.ArgumentParser(prog="robotarium replay", description=DESCRIPTION)
+    add_arguments(parser)
+    return parser
+
+
+def add_arguments(parser):
+    """replay's arguments (robotarium replay, ros2 run, ros2 robotarium replay)."""
     parser.add_argument("bag", help="run folder (bags/<run_id>), its metadata.yaml or its .mcap file")
     parser.add_argument("--rate", type=float, default=1.0, help="speed factor (2 = twice as fast)")
     parser.add_argument("--loop", action="store_true", help="start again at the end, until stopped")
@@ -221,7 +229,6 @@ def build_parser():
         "before the first message, wait (up to %.0f s) until something subscribes to the poses and the replay's "
         "publisher has matched it: a subscriber started with the replay then gets every message, however long "
         "discovery takes on a loaded machine (--delay only guesses)" % SUBSCRIBER_WAIT))
-    return parser
 
 
 def live_testbed_answers(node, namespace, timeout):
@@ -274,16 +281,21 @@ def wait_for_subscriber(node, poses_topic, timeout=SUBSCRIBER_WAIT):
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
-    args = parser.parse_args(remove_ros_args(["replay"] + argv)[1:])
+    return replay(parser.parse_args(remove_ros_args(["replay"] + argv)[1:]), parser.error, ros_args=argv)
+
+
+def replay(args, error, ros_args=()):
+    """Replay as `args` (add_arguments) say; error(message) reports a bad argument and exits; ros_args:
+    the command line's --ros-args, if any."""
     if not args.rate > 0:
-        parser.error("--rate must be > 0")
+        error("--rate must be > 0")
     try:
         bag = Bag(args.bag)
     except FileNotFoundError as error:
         print("replay: %s" % error, file=sys.stderr)
         return 2
     timing = args.timing or ("experiment" if any(s.mode == "lockstep" for s in bag.statuses()[:50]) else "recorded")
-    rclpy.init(args=["replay"] + argv)
+    rclpy.init(args=["replay"] + list(ros_args))
     node = keyboard = figure = view = None
     try:
         node = ReplayNode(bag, rate=args.rate, loop=args.loop, namespace=args.namespace, timing=timing)

@@ -468,15 +468,27 @@ def write_results(bag_dir, progress=True, *, out_dir=None, video=True, run=None)
     return paths
 
 
-def main(argv=None):
-    parser = argparse.ArgumentParser(prog="robotarium report", description=(
-        "Recompute the results of a recorded run from its bag: report.txt (the debug report), "
-        "trajectories.png, a video and the results page index.html, written beside the bag (or into --out)."))
+REPORT_DESCRIPTION = ("Recompute the results of a recorded run from its bag: report.txt (the debug report), "
+                      "trajectories.png, a video and the results page index.html, written beside the bag (or into "
+                      "--out).")
+
+
+def add_report_arguments(parser):
+    """report's arguments (robotarium report, ros2 robotarium report)."""
     parser.add_argument("bag", help="run folder (bags/<run_id>), its metadata.yaml or its .mcap file")
     parser.add_argument("--out", help="folder for the results (default: the bag folder)")
     parser.add_argument("--no-video", action="store_true", help="skip the video")
     parser.add_argument("--quiet", action="store_true", help="no progress output")
-    args = parser.parse_args(argv)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="robotarium report", description=REPORT_DESCRIPTION)
+    add_report_arguments(parser)
+    return report(parser.parse_args(argv))
+
+
+def report(args):
+    """Write the results of the bag `args` (add_report_arguments) name and print the report."""
     try:
         run = _run_json(Bag(args.bag).path)
         paths = write_results(args.bag, progress=not args.quiet, out_dir=args.out, video=not args.no_video,

@@ -314,25 +314,37 @@ class ViewerWatch(foxglove.websocket.ServerListener):
             print("[view] %s (client %d, first to %s)" % (VIEWER, client.id, channel.topic), flush=True)
 
 
+DESCRIPTION = ("Serve a testbed's namespace to Foxglove, live: the scene (arena, robots with heading and id, trails, "
+               "what the script drew) in the arena frame at the testbed's viewer_rate, and the poses, status, commands "
+               "and safety reports as they are published. In Foxglove: Open connection > Foxglove WebSocket > "
+               "ws://HOST:PORT, then import the layout %s (see --layout). Runs until Ctrl-C." % LAYOUT_FILE)
+
+
 def build_parser():
-    parser = argparse.ArgumentParser(prog="robotarium view", description=(
-        "Serve a testbed's namespace to Foxglove, live: the scene (arena, robots with heading and id, trails, "
-        "what the script drew) in the arena frame at the testbed's viewer_rate, and the poses, status, commands "
-        "and safety reports as they are published. In Foxglove: Open connection > Foxglove WebSocket > "
-        "ws://HOST:PORT, then import the layout %s (see --layout). Runs until Ctrl-C." % LAYOUT_FILE))
+    parser = argparse.ArgumentParser(prog="robotarium view", description=DESCRIPTION)
+    add_arguments(parser)
+    return parser
+
+
+def add_arguments(parser):
+    """view's arguments (robotarium view, ros2 run, ros2 robotarium view)."""
     add_view_arguments(parser)
     parser.add_argument("--namespace", default=None,
                         help="the testbed's namespace (default: $ROBOTARIUM_NAMESPACE, else /%s)" % DEFAULT_NAMESPACE)
     parser.add_argument("--layout", metavar="FILE", help=(
         "write the Foxglove layout of this view (for --namespace) to FILE and exit; the one for /%s is "
         "committed as %s" % (DEFAULT_NAMESPACE, LAYOUT_FILE)))
-    return parser
 
 
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
-    args = parser.parse_args(remove_ros_args(["view"] + argv)[1:])
+    return view(parser.parse_args(remove_ros_args(["view"] + argv)[1:]), parser.error, ros_args=argv)
+
+
+def view(args, error, ros_args=()):
+    """Serve the view as `args` (add_arguments) say; error(message) reports a bad argument and exits;
+    ros_args: the command line's --ros-args, if any."""
     namespace = "/" + (args.namespace or default_namespace()).strip("/")
     if args.layout:
         with open(args.layout, "w") as f:
@@ -340,14 +352,14 @@ def main(argv=None):
         print("[view] wrote the Foxglove layout for %s to %s" % (namespace, args.layout), file=sys.stderr)
         return 0
     if not 0 <= args.port < 65536:
-        parser.error("--port must be between 0 and 65535; received %d" % args.port)
+        error("--port must be between 0 and 65535; received %d" % args.port)
     try:
         server = foxglove.start_server(name="robotarium %s" % namespace, host=args.host, port=args.port,
                                        server_listener=ViewerWatch())
-    except RuntimeError as error:
+    except RuntimeError as problem:
         print("view: cannot serve on %s port %d: %s. Is another view running there (./robotarium view, up --view, "
               "replay --view)? Stop it, or choose another port (--port N, or --view-port N; 0 picks a free one)."
-              % (args.host, args.port, error), file=sys.stderr)
+              % (args.host, args.port, problem), file=sys.stderr)
         return 1
 
     def make_node():
@@ -358,7 +370,7 @@ def main(argv=None):
               flush=True)
         return node
 
-    return run_node(make_node, "view", ["view"] + argv, before_destroy=lambda node: server.stop())
+    return run_node(make_node, "view", ["view"] + list(ros_args), before_destroy=lambda node: server.stop())
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """Runs an experiment script for `./robotarium run`, in the script's own process.
 
-    python -m robotarium_client.runner OPTIONS_JSON RUN_INFO_JSON SCRIPT [ARGS...]
+    python -m robotarium_cli.runner OPTIONS_JSON RUN_INFO_JSON SCRIPT [ARGS...]
 
 It sets robotarium_client.session.options (the run's choices, explicitly: no environment
 variables) and runs SCRIPT as `python SCRIPT ARGS` would (as __main__, its folder first on

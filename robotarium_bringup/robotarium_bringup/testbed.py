@@ -8,7 +8,7 @@ A local testbed never outlives the process that started it: each node holds that
 lifeline (robotarium_core.lifeline) and, when it is gone (SIGKILL included), ends the experiment,
 closes the recording and exits. Each local testbed logs into its own folder,
 log/testbed/<namespace>_<domain>_<pid>/, and is listed in the registry of the machine's testbeds
-(robotarium_client.local_testbeds) while it runs.
+(robotarium_bringup.local_testbeds) while it runs.
 """
 import contextlib
 import os
@@ -18,10 +18,10 @@ import subprocess
 import sys
 import time
 
-from robotarium_client import local_testbeds
-from robotarium_client.session import namespace_from_environment
+from robotarium_bringup import local_testbeds
 from robotarium_core import claim, lifeline
 from robotarium_core.config import DEFAULT_FILE
+from robotarium_core.topics import namespace_from_environment
 
 NODES = {
     # name: (module, whether it reads the testbed configuration)
@@ -36,14 +36,11 @@ def repository_root():
     return os.environ.get("ROBOTARIUM_ROOT") or os.getcwd()
 
 
-namespace = namespace_from_environment   # the testbed's namespace, from ROBOTARIUM_NAMESPACE
-
-
 def node_command(name, ns=None, extra_ros_args=(), config_file=DEFAULT_FILE):
     """The command line of one testbed node; the simulator and the safety node read the same
     testbed configuration file (the packaged testbed.yaml unless another is given)."""
     module, configured = NODES[name]
-    cmd = [sys.executable, "-m", module, "--ros-args", "-r", "__ns:=%s" % (ns or namespace())]
+    cmd = [sys.executable, "-m", module, "--ros-args", "-r", "__ns:=%s" % (ns or namespace_from_environment())]
     if configured:
         cmd += ["--params-file", config_file or DEFAULT_FILE]
     if security_enabled():   # each node in its enclave of sros2/robotarium.policy.xml
@@ -63,7 +60,8 @@ KEEP_LOG_DIRS = 20
 def owner_command():
     """How the process starting a testbed was started, for `./robotarium status`."""
     argv = list(sys.argv)
-    if argv and argv[0].replace(os.sep, "/").endswith("robotarium_client/cli.py"):
+    if argv and (argv[0].replace(os.sep, "/").endswith("robotarium_cli/__main__.py")
+                 or os.path.basename(argv[0]) == "robotarium"):   # python -m robotarium_cli, the console script
         return " ".join(["./robotarium"] + argv[1:])
     return " ".join([os.path.basename(sys.executable)] + argv)
 
@@ -104,7 +102,7 @@ class LocalTestbed:
         # namespace): the nodes claim their place without waiting for an older one (robotarium_core.claim).
         self.looked = looked
         self._stop_deadline = None   # set by begin_stop()
-        self.ns = ns or namespace()
+        self.ns = ns or namespace_from_environment()
         self.config_file = config_file
         self.log_dir = log_dir   # None: log/testbed/<namespace>_<domain>_<pid>/, chosen at start
         self.hardware = hardware   # every experiment hardware-like (the simulator's `hardware` parameter)
@@ -218,7 +216,7 @@ def testbed_answers(ns=None, timeout=3.0):
     from robotarium_msgs.srv import StartExperiment
 
     with probe_node("robotarium_probe") as (node, _):
-        client = node.create_client(StartExperiment, "%s/start_experiment" % (ns or namespace()))
+        client = node.create_client(StartExperiment, "%s/start_experiment" % (ns or namespace_from_environment()))
         return wait_for_service(client, timeout)
 
 
@@ -249,7 +247,7 @@ def announced_recording(run_id, ns=None, timeout=RECORDING_LOOKUP_WAIT):
             pass   # not an announcement
     # Named as the client's nodes are (robotarium_client_<pid>...): SROS2's policy lets them read it.
     with probe_node("robotarium_client_recorded_runs") as (node, executor):
-        topic = "%s/%s" % ((ns or namespace()).rstrip("/"), RECORDED_RUNS)
+        topic = "%s/%s" % ((ns or namespace_from_environment()).rstrip("/"), RECORDED_RUNS)
         node.create_subscription(String, topic, heard, RECORDED_RUNS_QOS)
         start = time.monotonic()
         while not found and time.monotonic() < start + timeout:
@@ -270,7 +268,7 @@ def running_testbed(ns=None, timeout=3.0):
     from robotarium_core.topics import START_EXPERIMENT
     from robotarium_msgs.srv import StartExperiment
 
-    ns = (ns or namespace()).rstrip("/")
+    ns = (ns or namespace_from_environment()).rstrip("/")
     heard = []
     with probe_node("robotarium_claims") as (node, executor):
         for who in (presence.SIMULATOR, presence.SAFETY, presence.RECORDER):
@@ -299,7 +297,7 @@ def _probe_context(domain=None, discovery_range=None):
     rmw destroys a context's DDS participant with its last node, and Fast DDS 2.14 can deadlock
     destroying a participant while discovery callbacks run, spinning for ever (a ./robotarium run
     once spun at 100 % CPU for 28 minutes in rcl_node_fini right after a probe, under load). The
-    probes' own nodes come and go; the command ends with os._exit (cli.py), never tearing it down."""
+    probes' own nodes come and go; the command ends with os._exit (robotarium_cli.main), never tearing it down."""
     import rclpy
     from rclpy.context import Context
     from rclpy.node import Node
@@ -427,7 +425,7 @@ def end_experiment(ns=None, timeout=10.0, force=False, outcome=0, detail=""):
     from robotarium_core.topics import END_EXPERIMENT
     from robotarium_msgs.srv import EndExperiment
 
-    ns = ns or namespace()
+    ns = ns or namespace_from_environment()
     with probe_node("robotarium_end") as (node, executor):
         client = node.create_client(EndExperiment, "%s/%s" % (ns.rstrip("/"), END_EXPERIMENT))
         if not client.wait_for_service(timeout_sec=timeout):

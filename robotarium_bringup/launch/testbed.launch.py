@@ -1,9 +1,9 @@
 """The Robotarium testbed under `ros2 launch`: the nodes `./robotarium up` starts, on a ROS install.
 
-    ros2 launch robotarium_client testbed.launch.py [namespace:=robotarium] [config:=FILE]
+    ros2 launch robotarium_bringup testbed.launch.py [namespace:=robotarium] [config:=FILE]
                                                    [bags_dir:=DIR] [record:=true]
 
-Arguments (`ros2 launch robotarium_client testbed.launch.py --show-args` lists them):
+Arguments (`ros2 launch robotarium_bringup testbed.launch.py --show-args` lists them):
   namespace  the testbed's namespace (default robotarium; clients: ROBOTARIUM_NAMESPACE=/<namespace>)
   config     the testbed configuration file the simulator and the safety node read (default: the
              packaged share/robotarium_core/config/testbed.yaml; edit a copy to change a value)

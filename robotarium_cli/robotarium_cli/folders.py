@@ -1,0 +1,324 @@
+"""Run folders: the checks before a run, the folder each run gets, the results made in it, and the
+folders of runs whose ./robotarium run was killed."""
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+
+import robotarium_recording as recording
+from robotarium_cli.console import say
+from robotarium_client import session
+from robotarium_core import outcomes, script_box
+
+# Folders never searched for data files a script saved.
+SKIP_DIRS = {".git", ".venv", ".venv-reference", "build", "install", "log", "bags", "results", "__pycache__",
+             "node_modules"}
+
+
+def snapshot_files(directory):
+    """Paths and modification times of the files under `directory` (the script's data files)."""
+    seen = {}
+    for root, dirs, files in os.walk(directory):
+        dirs[:] = [d for d in dirs if d not in SKIP_DIRS and not d.startswith(".")]
+        for name in files:
+            path = os.path.join(root, name)
+            try:
+                seen[path] = os.stat(path).st_mtime_ns
+            except OSError:
+                pass
+    return seen
+
+
+def tee(stream, sinks):
+    sinks = list(sinks)
+    for line in iter(stream.readline, b""):
+        for sink in list(sinks):
+            try:
+                sink.write(line)
+                sink.flush()
+            except OSError:   # our terminal is gone (SIGHUP): keep the log, keep reading
+                sinks.remove(sink)
+
+
+def wait_until_recorded(run_dir, timeout=15.0, quiet=False):
+    """The recorder closes a run's bag shortly after the run ended (it keeps late messages for a
+    moment); results made before that would miss the last chunk. Wait for metadata.yaml to say
+    the bag is complete."""
+    import yaml
+    path = os.path.join(run_dir, "metadata.yaml")
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            with open(path) as f:
+                info = yaml.safe_load(f)["rosbag2_bagfile_information"]
+            if str(info.get("custom_data", {}).get("complete")) == "true":
+                return True
+        except (OSError, KeyError, TypeError, yaml.YAMLError):
+            pass  # not written yet, or being replaced
+        time.sleep(0.02)
+    if not quiet:
+        say("the recorder has not closed %s yet; results are made from what is recorded so far" % run_dir)
+    return False
+
+
+# -- before a testbed is started: can the script run at all? ---------------------------------------
+
+def _close_module_name(name):
+    """An importable module whose dotted name is close to `name` (an import typo: `nump` -> `numpy`,
+    `rps.utilities.misk` -> `rps.utilities.misc`), or None. The first part that is missing is
+    compared with its siblings: the top-level modules, or the submodules of the package above it."""
+    import difflib
+    import importlib.util
+    import pkgutil
+    parts = name.split(".")
+    for depth in range(len(parts)):
+        try:
+            if importlib.util.find_spec(".".join(parts[:depth + 1])) is not None:
+                continue
+        except (ImportError, ValueError):
+            pass
+        if depth == 0:
+            siblings = set(sys.builtin_module_names) | {m.name for m in pkgutil.iter_modules()}
+        else:
+            parent = importlib.util.find_spec(".".join(parts[:depth]))
+            locations = parent.submodule_search_locations if parent is not None else None
+            if not locations:
+                return None   # the part above is a module, not a package: nothing to compare with
+            siblings = {m.name for m in pkgutil.iter_modules(locations)}
+        match = difflib.get_close_matches(parts[depth], sorted(siblings), n=1, cutoff=0.75)
+        return ".".join(parts[:depth] + [match[0]] + parts[depth + 1:]) if match else None
+    return None
+
+
+def check_script(script):
+    """Compile the script and find the modules its opening import statements name, as `python
+    SCRIPT` would meet them (the script's folder first on sys.path), without running it. Returns
+    None, or (detail, message): a syntax error or an import typo fails here, before a testbed is
+    started, with the message python would print."""
+    import ast
+    import importlib.util
+
+    from robotarium_cli.verification import COMPILE_ERRORS, compile_script
+    try:
+        source, tree = compile_script(script)
+    except COMPILE_ERRORS as error:
+        import traceback
+        text = "".join(traceback.format_exception_only(type(error), error))
+        where = " (line %d of %s)" % (error.lineno, os.path.basename(script)) if getattr(error, "lineno", None) else ""
+        what = "%s: %s" % (type(error).__name__, error.msg) if isinstance(error, SyntaxError) else \
+            session.describe_exception(error)
+        return "could not be compiled: %s%s" % (what, where), text
+    lines = source.splitlines()
+    sys.path.insert(0, os.path.dirname(script))
+    try:
+        # The imports at the top of the script, before its first other statement: those in functions
+        # or try blocks may be optional, and a later one may follow a change to sys.path.
+        for node in tree.body:
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                names = [node.module] if node.level == 0 and node.module else []
+            elif isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant):
+                continue   # the docstring
+            else:
+                break
+            if script_box.VARIABLE in os.environ:
+                # Boxed (the portal): find_spec("pkg.mod") would import pkg, the user's code, as the service.
+                names = [name.split(".")[0] for name in names]
+            for name in names:
+                try:
+                    found = importlib.util.find_spec(name) is not None
+                    error = "No module named %r" % name
+                except ModuleNotFoundError as missing:
+                    found, error = False, str(missing)
+                except Exception as failed:   # noqa: BLE001 - a parent package that fails to import
+                    found, error = False, session.describe_exception(failed)
+                if not found:
+                    close = _close_module_name(name) if "No module named" in error else None
+                    hint = "Did you mean %r?" % close if close and close != name else ""
+                    text = '  File "%s", line %d\n    %s\nModuleNotFoundError: %s%s\n' % (
+                        script, node.lineno, lines[node.lineno - 1].strip(), error, " " + hint if hint else "")
+                    return ("could not import %s: ModuleNotFoundError: %s (line %d of %s%s)"
+                            % (name, error, node.lineno, os.path.basename(script),
+                               "; " + hint[0].lower() + hint[1:] if hint else "")), text
+    finally:
+        sys.path.remove(os.path.dirname(script))
+    return None
+
+
+# -- the run folder -----------------------------------------------------------------------------------
+
+HINTS = {
+    "script_error": "the traceback above (also in log.txt) shows where the script failed; fix it and run it again",
+    "interrupted": "the experiment was ended where it was; the results cover the steps that ran",
+    "no_end": "end the script with r.call_at_scripts_end(): the Robotarium needs it to finish an experiment",
+    "testbed_lost": ("the testbed stopped answering; when ./robotarium started it, its node logs are in "
+                     "log/testbed/, otherwise look at the machine running ./robotarium up"),
+    "client_lost": "the testbed ended the experiment because it stopped hearing from the script",
+    "time_limit": "the experiment reached its time limit",
+    "ended_by_unsent_request": ("another process holding the run's token (copied off the wire: without SROS2 it is no "
+                                "secret) ended the experiment: stop that process (./robotarium status lists what runs "
+                                "on the domain) or use DDS Security (sros2/README.md), then run the script again"),
+    "testbed_busy": ("the testbed was busy with another experiment (nothing ran): run again without --no-wait to wait in "
+                     "line for it; ./robotarium status shows who holds it"),
+    "testbed_incomplete": ("the testbed has no safety node (nothing ran): start one in its namespace, or stop the "
+                           "testbed and start a whole one with ./robotarium up; ./robotarium status shows what runs"),
+}
+
+
+def results_folder_problem(folder, min_free_mb):
+    """Why a run's folder cannot go into `folder` (created if missing): not writable, or less than
+    `min_free_mb` MB free; None when it can. Checked with a real write, so a read-only mount, a full
+    disk and missing permissions are all found before anything runs."""
+    try:
+        os.makedirs(folder, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".robotarium-write-check-") as probe:
+            probe.write(b"\0" * 4096)
+            probe.flush()
+            os.fsync(probe.fileno())
+        free = shutil.disk_usage(folder).free
+    except OSError as error:
+        import errno
+        if error.errno in (errno.ENOSPC, errno.EDQUOT):
+            return "%s is on a full disk (%s)" % (folder, error.strerror)
+        return "%s is not writable (%s)" % (folder, error.strerror or error)
+    if free < min_free_mb * 1e6:
+        return "%s has %s free, less than results_min_free (%s)" % (folder, _megabytes(free), _megabytes(min_free_mb * 1e6))
+    return None
+
+
+def check_run_folders(folders, config_file=None):
+    """One line and USAGE_ERROR when a run's folder could not be written (results_folder_problem),
+    else None: said before a testbed starts or a robot moves, not as a traceback after the run."""
+    from robotarium_core import outcomes
+    from robotarium_core.config import DEFAULT, ConfigError, TestbedConfig
+    try:
+        min_free = (TestbedConfig.load(config_file) if config_file else DEFAULT).results_min_free
+    except (OSError, ConfigError):
+        min_free = DEFAULT.results_min_free   # (the run itself says what is wrong with the file)
+    for folder in folders:
+        problem = results_folder_problem(folder, min_free)
+        if problem is not None:
+            say("cannot run: the run's folder would go where it cannot be written: %s. Free some space, or choose "
+                "another folder (--results-dir, --bags-dir)." % problem)
+            return outcomes.USAGE_ERROR
+    return None
+
+
+# A run the testbed ended (it was stopped, or an operator's end --force: outcomes.ENDED_BY_TESTBED in its detail).
+HINT_ENDED_BY_TESTBED = ("the testbed ended the experiment (it was stopped, or an operator ran ./robotarium end "
+                         "--force); the results cover the steps that ran; ./robotarium status shows whether a testbed "
+                         "answers now")
+
+
+def new_run_folder(results_dir, name):
+    """results/<name>_<YYYYmmdd-HHMMSS>[_k]: a fresh folder for a run that has no recording here."""
+    os.makedirs(results_dir, exist_ok=True)
+    base = os.path.join(results_dir, "%s_%s" % (name, time.strftime("%Y%m%d-%H%M%S")))
+    for k in range(1000):
+        path = base if k == 0 else "%s_%d" % (base, k)
+        try:
+            os.makedirs(path)
+            return path
+        except FileExistsError:
+            continue
+    raise RuntimeError("no free folder name for %s" % base)
+
+
+def modified_time(path):
+    try:
+        return os.stat(path).st_mtime
+    except OSError:
+        return time.time()
+
+
+def write_unrecorded_results(run_dir, run, testbed_report=""):
+    """report.txt and index.html for a run with no recording here (it never started, or it was
+    recorded on another machine): how it ended, and the testbed's debug report if there is one."""
+    from robotarium_core import outcomes
+    outcome = {name: value for value, name in outcomes.NAMES.items()}.get(run["outcome"], outcomes.UNFINISHED)
+    lines = [outcomes.first_line(outcome, run.get("detail", "")), ""]
+    if testbed_report:
+        lines += [testbed_report.rstrip("\n"), "", "(the run was recorded on the testbed's machine, not here)"]
+    else:
+        lines.append("No experiment ran on a testbed, so there is no debug report.")
+    notes = outcomes.run_notes(run)
+    if notes:
+        lines += [""] + notes
+    with open(os.path.join(run_dir, "report.txt"), "w", encoding="utf-8") as f:
+        f.write("\n".join(lines) + "\n")
+    recording.write_page(run_dir, run=run)
+
+
+def finish_run_folder(run_dir, run, script, log_path, saved, cwd, data_limit=None):
+    """Copy the script, the log and the data files into the run folder and write run.json.
+
+    The data files are capped at `data_limit` bytes (default: the configuration's run_data_limit):
+    the newest first, each that fits; the others are left out, each named in run.json's
+    data_not_saved with why, and in one line here (the report says so too: outcomes.run_notes)."""
+    from robotarium_core.config import DEFAULT
+    shutil.copy2(script, os.path.join(run_dir, os.path.basename(script)))
+    shutil.copy2(log_path, os.path.join(run_dir, "log.txt"))
+    limit = DEFAULT.run_data_limit * 1e6 if data_limit is None else data_limit
+    if saved:
+        data_dir = os.path.join(run_dir, "data")
+        os.makedirs(data_dir, exist_ok=True)
+        copied, left_out = 0, []
+
+        def newest_first(path):
+            try:
+                return -os.stat(path).st_mtime_ns
+            except OSError:
+                return 0
+        for path in sorted(saved, key=newest_first):
+            name = os.path.relpath(path, cwd).replace(os.sep, "__")
+            try:
+                size = os.stat(path).st_size
+                if copied + size > limit:
+                    left_out.append((name, size))
+                    run.setdefault("data_not_saved", {})[name] = (
+                        "left out: %s over the run folder's limit for data files (run_data_limit %s)"
+                        % (_megabytes(size), _megabytes(limit)))
+                    continue
+                shutil.copy2(path, os.path.join(data_dir, name))
+                copied += size
+            except OSError as error:   # gone meanwhile (a job box removes what broke its disk quota) or unreadable
+                run.setdefault("data_not_saved", {})[name] = error.strerror or str(error)
+                print("[robotarium] the data file %s was not saved: %s" % (name, error.strerror or error), flush=True)
+        if left_out:
+            print("[robotarium] %d data file(s) of %s left out of the run folder (run_data_limit %s, the newest kept): %s"
+                  % (len(left_out), _megabytes(sum(size for _, size in left_out)), _megabytes(limit),
+                     ", ".join(name for name, _ in left_out)), flush=True)
+    with open(os.path.join(run_dir, "run.json"), "w") as f:
+        json.dump(run, f, indent=2)
+
+
+def _megabytes(size):
+    return "%.3g MB" % (size / 1e6)
+
+
+def print_summary(run_dir, run, cwd):
+    """The closing lines: how the run ended, a hint for a failure, and (last) where everything is."""
+    with open(os.path.join(run_dir, "report.txt"), encoding="utf-8") as f:
+        first = f.readline().strip()
+    say(first)
+    if "no testbed was started" in run.get("detail", ""):
+        say("hint: fix the line named above and run it again (nothing ran)")
+    elif run["outcome"] == "interrupted" and outcomes.ENDED_BY_TESTBED in run.get("detail", ""):
+        say("hint: " + HINT_ENDED_BY_TESTBED)
+    elif run["outcome"] != "completed" and run["outcome"] in HINTS:
+        say("hint: " + HINTS[run["outcome"]])
+    elif outcomes.recording_stopped(run):
+        say("the experiment completed, but %s: its recording is incomplete (exit code %d)"
+            % (outcomes.recording_stopped(run), run["exit_code"]))
+    elif run.get("recording_lost_poses"):
+        say("the experiment completed, but %s (exit code %d)" % (outcomes.lost_poses(
+            run["recording_lost_poses"], run["recording_first_lost_step"]), run["exit_code"]))
+    elif run["exit_code"]:   # completed, and then the script failed or was stopped
+        say("the experiment completed, %s (exit code %d)" % (run["detail"], run["exit_code"]))
+    relative = os.path.relpath(run_dir, cwd)
+    shown = run_dir if relative.startswith("..") else relative
+    say("files: " + ", ".join(sorted(os.listdir(run_dir))))
+    say("results in %s (open %s in a browser)" % (shown, os.path.join(shown, "index.html")))

@@ -1,0 +1,77 @@
+"""robotarium up: start the testbed nodes; they run as long as this command does."""
+import os
+import time
+
+import robotarium_recording as recording
+from robotarium_bringup.testbed import LocalTestbed, running_testbed
+from robotarium_cli.console import Interruption, say
+from robotarium_cli.running import PROBE_WAIT, discovery_is_local
+from robotarium_core.topics import namespace_from_environment as namespace
+
+HELP = "start the testbed nodes; they run as long as this command does (Ctrl-C stops)"
+
+
+def add_arguments(parser):
+    parser.add_argument("--no-record", action="store_true", help="do not start the recorder")
+    parser.add_argument("--bags-dir", help="where runs are recorded (default: bags/)")
+    parser.add_argument("--config", help="the testbed configuration file (default: robotarium_core's testbed.yaml)")
+    parser.add_argument("--hardware", action="store_true",
+                        help="run every experiment hardware-like: tracking and command latency, pose noise, wheel "
+                             "dynamics (the numbers: hardware section of testbed.yaml)")
+    parser.add_argument("--view", action="store_true",
+                        help="also serve the testbed to Foxglove, as ./robotarium view does (--view-host, --view-port)")
+    recording.add_view_arguments(parser, prefix="view-")
+
+
+def main(args):
+    from robotarium_bringup import local_testbeds
+    from robotarium_core import claim
+    from robotarium_core.config import DEFAULT
+    ns = namespace()
+    domain = os.environ.get("ROS_DOMAIN_ID", "0")
+    # One testbed per namespace: name the one that runs. Where discovery reaches this machine only,
+    # the process table knows it at once (a look on the domain backs it up for a claim_wait); else
+    # it is looked for on the domain, as run does (discovery can wait for the next announcement).
+    running = local_testbeds.running_here(ns, local_testbeds.domain_id()) if discovery_is_local() else None
+    if running is None:
+        running = running_testbed(ns, timeout=DEFAULT.claim_wait if discovery_is_local() else PROBE_WAIT)
+    if running is not None:
+        say(claim.refusal(running, ns, domain))
+        return claim.REFUSED
+    view = None
+    if args.view:   # first: a port in use is said before any node starts
+        view = recording.ViewProcess(ns, args.view_host, args.view_port)
+        if not view.wait_ready():
+            view.stop()
+            say("the Foxglove view could not start (its message is above); no testbed was started")
+            return 1
+    interruption = Interruption()
+    testbed = LocalTestbed(record=not args.no_record, quiet=False, bags_dir=args.bags_dir,
+                           config_file=args.config, hardware=args.hardware, looked=True).start()
+    code = 0
+    try:
+        say("testbed up in namespace %s on ROS_DOMAIN_ID %s (simulator%s, safety%s%s). It runs as long as this "
+            "command does: Ctrl-C (or SIGTERM, SIGHUP) stops it." % (
+                ns, os.environ.get("ROS_DOMAIN_ID", "0"), " hardware-like" if args.hardware else "",
+                "" if args.no_record else ", recorder", ", Foxglove view" if view else ""))
+        while interruption.signum is None:
+            failed = testbed.failed()
+            if claim.REFUSED in failed.values():   # one started at the same moment is older: it stays
+                say("an older testbed runs in %s on ROS_DOMAIN_ID %s (named above); stopping this one"
+                    % (ns, domain))
+                code = claim.REFUSED
+                break
+            if failed:
+                say("node(s) exited: %s; stopping the testbed" % failed)
+                break
+            if view is not None and view.failed():
+                say("the Foxglove view exited (its message is above); the testbed runs on")
+                view = None
+            time.sleep(0.2)
+    finally:
+        if view is not None:
+            view.stop()
+        testbed.stop()   # a running experiment is ended and its recording closed
+        interruption.restore()
+    say("testbed stopped" + (" (%s)" % interruption.name if interruption.signum else ""))
+    return code

@@ -1,0 +1,113 @@
+"""robotarium verify: judge a script as the Robotarium's verification does (robotarium_cli.verification)."""
+import argparse
+import os
+
+from robotarium_cli import verification
+from robotarium_cli.console import positive_int, say, seconds, shown
+from robotarium_cli.running import RunRequest, run_script
+from robotarium_client import session
+
+HELP = "judge a script as the Robotarium's verification does: accept or reject"
+DESCRIPTION = ("Run SCRIPT in lockstep on a testbed of its own with the safety node auditing, and accept or reject it "
+               "by the Robotarium's rules (their limits: testbed.yaml, verify_*).")
+FORMATTER = argparse.RawDescriptionHelpFormatter
+
+EPILOG = """\
+before anything runs the script must compile and import only modules the Robotarium provides
+(verify_allowed_modules in testbed.yaml, and modules beside the script). It then runs in lockstep on a
+testbed of its own with the safety node auditing: it lets the script's own commands through, so
+collisions and robots leaving the arena happen and are counted as on the Robotarium. Rejected when
+it has more than verify_max_collision_iterations (100) collision iterations or verify_max_boundary_iterations
+(100) iterations with robots outside the arena, uses another robot count than --robots, runs longer than
+verify_duration_factor (1.5) x --duration, raises, or never calls call_at_scripts_end().
+Exit codes: 0 accepted; 6 rejected (each broken rule is printed, and listed in --json); 2 a bad command
+line; 4 the testbed failed (no verdict); 128 + N interrupted by signal N."""
+
+
+def add_arguments(parser):
+    parser.add_argument("script")
+    parser.add_argument("script_args", nargs=argparse.REMAINDER, help="arguments passed to the script")
+    parser.add_argument("--robots", type=positive_int, metavar="N",
+                        help="the number of robots declared for the experiment (omitted: not checked)")
+    parser.add_argument("--duration", type=seconds, metavar="S",
+                        help="the experiment's declared duration in seconds (omitted: not checked)")
+    parser.add_argument("--json", metavar="FILE", help="also write the verdict as JSON to FILE (exit codes 0 and 6)")
+    parser.add_argument("--rps", choices=session.RPS_APIS + ("1",), default=None,
+                        help="the Robotarium API the script is written against, as for run (1: the guide's)")
+    parser.add_argument("--config", help="the testbed configuration file (default: robotarium_core's testbed.yaml)")
+    parser.add_argument("--no-record", action="store_true", help="do not record the run")
+    parser.add_argument("--bags-dir", help="where the run is recorded (default: bags/)")
+    parser.add_argument("--results-dir", help="where a run not recorded keeps its results (default: results/)")
+
+
+# Our own options that may follow the script too (argparse passes them on to it).
+OWN_OPTIONS = {"--robots": positive_int, "--duration": seconds, "--json": str, "--rps": str, "--config": str,
+               "--bags-dir": str, "--results-dir": str}
+
+
+def take_own_arguments(args, error):
+    rest, given = [], iter(args.script_args)
+    for arg in given:
+        name, _, value = arg.partition("=")
+        if name in OWN_OPTIONS:
+            value = value or next(given, "")
+            try:
+                value = OWN_OPTIONS[name](value)
+            except argparse.ArgumentTypeError as problem:
+                error("argument %s: %s" % (name, problem))
+            if name == "--rps" and value not in session.RPS_APIS + ("1",):
+                error("argument --rps: invalid choice %r" % value)
+            setattr(args, name[2:].replace("-", "_"), value)
+        elif arg == "--no-record":
+            args.no_record = True
+        else:
+            rest.append(arg)
+    args.script_args = rest
+
+
+def main(args):
+    """./robotarium verify: see robotarium_cli.verification."""
+    from robotarium_core import outcomes
+    from robotarium_core.config import DEFAULT, ConfigError, TestbedConfig
+    try:
+        config = TestbedConfig.load(args.config) if args.config else DEFAULT
+    except (OSError, ConfigError) as error:
+        say("cannot read the testbed configuration: %s" % error)
+        return outcomes.USAGE_ERROR
+    script = os.path.abspath(args.script)
+    if not os.path.isfile(script):
+        say("no such script: %s" % script)
+        return outcomes.USAGE_ERROR
+    rules = verification.static_rules(script, config)
+    run, report, run_dir = {}, "", None
+    if not rules:
+        # A testbed of its own, in a namespace no other testbed or verification uses.
+        os.environ["ROBOTARIUM_NAMESPACE"] = "/robotarium_verify_%d" % os.getpid()
+        say("verifying %s as the Robotarium does: lockstep, safety node auditing (the script's own commands go "
+            "through and every collision counts)" % shown(script))
+        options = session.RunOptions(real_time=False, config_file=args.config, audit=True,
+                                     rps_api={"1": "guide"}.get(args.rps, args.rps) or session.rps_api_from_environment())
+        code, run, run_dir = run_script(RunRequest(script, args.script_args, options, record=not args.no_record,
+                                                   bags_dir=args.bags_dir, video=False, own_testbed=True,
+                                                   results_dir=args.results_dir))
+        if run is None:
+            say("no verdict: the run did not start (exit code %d)" % code)
+            return code if code != outcomes.USAGE_ERROR else outcomes.TESTBED_PROBLEM
+        if run["outcome"] in ("interrupted",):
+            say("no verdict: the verification was interrupted")
+            return code or 130
+        if run["outcome"] in ("testbed_lost", "client_lost", "unfinished", "testbed_incomplete"):
+            say("no verdict: the testbed failed (%s); see the testbed's logs in log/testbed/ and run verify again"
+                % run.get("detail", run["outcome"]))
+            return outcomes.TESTBED_PROBLEM
+        report = (run.get("runs") or [{}])[-1].get("report", "")
+        rules = verification.judge(run, config, args.robots, args.duration)
+    document = verification.verdict(rules, run, report, run_dir)
+    if args.json:
+        verification.write_json(args.json, document)
+    print("\n##### VERIFICATION (the Robotarium's rules) #####")
+    if report:
+        print(report, end="" if report.endswith("\n") else "\n")
+    for line in verification.verdict_lines(rules, run, config, args.robots, args.duration):
+        print(line)
+    return outcomes.VERIFY_REJECTED if rules else outcomes.VERIFY_ACCEPTED
