@@ -189,6 +189,12 @@ class RosProbe:
             self._presences.append(Presence(self.node, response.client_alive_topic, response.client_lease))
         return response
 
+    def drop_client_presences(self):
+        """Stop being the client of the experiments this probe started: their liveliness ends."""
+        for held in self._presences:
+            held.destroy()
+        self._presences.clear()
+
     def collect(self, msg_type, topic, qos=TESTBED_QOS):
         """Subscribe and return the list that received messages are appended to. With the
         testbed's QoS the publisher's recent history is delivered too, whenever matching happens."""

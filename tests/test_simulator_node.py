@@ -2,6 +2,7 @@
 import os
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -192,6 +193,32 @@ def test_lockstep_is_deterministic(testbed):
     assert np.array_equal(runs[0], runs[1])
     # and it is the model's trajectory: the robots did move
     assert np.abs(runs[0][-1] - LINE).max() > 0.05
+
+
+def test_a_client_whose_arrays_keep_coming_is_not_lost_when_its_liveliness_lapses(testbed):
+    """A starved machine can hold back a client's liveliness assertions for seconds while its arrays
+    keep coming (a lockstep client was ended as lost at step 1520 of a run it was driving): the testbed
+    ends an experiment for a lost client only once its arrays have stopped for the lease too."""
+    _, probe, safety = testbed
+    poses = probe.collect(RobotPoses, NS + "/poses")
+    status = probe.collect(TestbedStatus, NS + "/status")
+    probe.wait_for_publishers()
+    started = start(probe, n=3, poses=LINE)
+    assert started.success, started.message
+    safety.wait_for_simulator()
+    lockstep(probe, safety, command(range(3), [0.0] * 3, [0.0] * 3, step=1), poses)
+    probe.drop_client_presences()   # its liveliness ends ("left"), its arrays go on for twice the lease
+    k, until = 1, time.monotonic() + 2 * DEFAULT.client_lease
+    while time.monotonic() < until:
+        k += 1
+        lockstep(probe, safety, command(range(3), [0.0] * 3, [0.0] * 3, step=k), poses)
+        probe.spin_for(0.05)
+    stopped = time.monotonic()
+    assert probe.spin_until(lambda: any(m.run_id == started.run_id and m.state == TestbedStatus.STATE_IDLE
+                                        for m in status), DEFAULT.client_lease + 10)
+    assert time.monotonic() - stopped >= DEFAULT.client_lease - 0.3   # not before the arrays had stopped that long
+    ended = [m for m in status if m.run_id == started.run_id and m.state == TestbedStatus.STATE_IDLE][-1]
+    assert ended.end_reason == "client lost at step %d" % k, ended.end_reason
 
 
 def test_hardware_like_lockstep_is_the_same_for_a_seed(tmp_path):

@@ -6,6 +6,7 @@ status that says how it ended.
 """
 import dataclasses
 import hashlib
+import math
 import re
 import secrets
 import time
@@ -96,6 +97,7 @@ class Experiment:
     safe_arrays_heard: int = 0     # arrays with the safety key (each comes with a SafetyReport)
     reports_heard: int = 0         # SafetyReports of arrays (not STATUS_COUNTS_ONLY)
     last_command_step: int = 0     # the testbed's step when the last command was applied
+    last_command_at: float = -math.inf   # time.monotonic() when it came (the client's sign of life too)
     dropped: dict = dataclasses.field(default_factory=lambda: dict.fromkeys(model.DROP_REASONS, 0))   # on cmd_safe
     dropped_requested: object = None   # the safety node's drop counts (robotarium_msgs DropCounts), from its reports
     logged_drops: set = dataclasses.field(default_factory=set)   # drop reasons said in the log already
