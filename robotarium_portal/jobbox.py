@@ -269,10 +269,16 @@ class JobBox:
         self.keep = [Path(p) for p in keep]   # more folders the job's command needs (the data folder)
         self.user = account_name(name) if isolated() else pwd.getpwuid(os.geteuid()).pw_name
         self.uid = self.gid = None
+        self._held = None   # the box's lock file while a job holds it (prepare .. clean)
 
     def prepare(self, files_from=None):
-        """A fresh folder (files_from's files in work/), owned by the job's account; returns work/."""
+        """A fresh folder (files_from's files in work/), owned by the job's account; returns work/. Waits
+        while another job holds the box: one job at a time in a box, or the second would stop the first's
+        processes as leftovers (kill_account below: a run was killed right after its start while a
+        database restart had its worker's cluster handing out work again)."""
         self.root.mkdir(parents=True, exist_ok=True)
+        self._held = open(self.root / (self.folder.name + ".lock"), "a")
+        fcntl.flock(self._held, fcntl.LOCK_EX)   # let go by clean(), or by the kernel when its holder dies
         if isolated():
             os.chown(self.root, 0, 0)
             self.root.chmod(0o711)   # its boxes reachable by their own accounts, not listable
@@ -413,10 +419,13 @@ class JobBox:
             pass
 
     def clean(self):
-        """The folder goes; the account's processes too."""
+        """The folder goes; the account's processes too; then the box is free for the next job."""
         if self.uid is not None:
             self._stop_script()
         shutil.rmtree(self.folder, ignore_errors=True)
+        if self._held is not None:
+            self._held.close()
+            self._held = None
 
 
 def stop_group(pgid, grace=30.0):

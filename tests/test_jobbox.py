@@ -10,6 +10,7 @@ import os
 import pwd
 import shutil
 import socket
+import subprocess
 import tempfile
 import threading
 from pathlib import Path
@@ -112,6 +113,25 @@ def test_a_fork_bomb_meets_the_process_limit_and_nothing_of_it_is_left(place):
     assert ("the script reached the job's limit of 200 processes and threads; all" in output
             or "the script's process ended leaving" in output), output[-2000:]
     assert run["outcome"] in ("script_error", "interrupted") and outcome.code is not None   # not the wall time
+
+
+def test_a_second_job_in_a_box_waits_for_the_first_and_stops_none_of_it(place):
+    """One job at a time in a box: a job handed out while another still runs there waits for it;
+    before, its prepare() stopped the running job's processes as leftovers of a job before it."""
+    first = new_box(place, "shared")
+    first.prepare()
+    running = subprocess.Popen(["sleep", "60"], user=first.uid)   # the first job's script, as its account
+    second = new_box(place, "shared")
+    entered = threading.Event()
+    threading.Thread(target=lambda: (second.prepare(), entered.set()), daemon=True).start()
+    try:
+        assert not entered.wait(1.0), "the second job took the box the first still holds"
+        assert running.poll() is None, "the second job stopped the first's processes"
+    finally:
+        first.clean()   # the first job ends: its processes stopped, the box free
+    assert entered.wait(10), "the box stayed taken after the first job ended"
+    second.clean()
+    assert running.wait(timeout=10) != 0
 
 
 def test_children_the_script_leaves_behind_are_stopped(place):
