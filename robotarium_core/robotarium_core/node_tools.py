@@ -133,8 +133,9 @@ def wait_for_service(client, timeout):
     return False
 
 
-def take_waiting(subscription, limit=10_000):
-    """The messages waiting in `subscription`'s queue, taken now (raw bytes for a raw=True one).
+def take_waiting(subscription, limit=10_000, with_info=False):
+    """The messages waiting in `subscription`'s queue, taken now (raw bytes for a raw=True one; with
+    with_info, (message, its message info) as rclpy hands a callback that takes both).
 
     rclpy's executor hands a callback one message per turn of its wait loop, a few hundred
     microseconds each on a loaded machine; under a flood of 1000 arrays a second a node then falls
@@ -145,7 +146,7 @@ def take_waiting(subscription, limit=10_000):
             taken = subscription.handle.take_message(subscription.msg_type, subscription.raw)
             if taken is None:
                 return
-            yield taken[0]
+            yield taken if with_info else taken[0]
 
 
 DDS_PROFILE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "dds_profile.xml")

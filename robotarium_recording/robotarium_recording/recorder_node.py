@@ -54,7 +54,7 @@ from std_msgs.msg import String
 
 from robotarium_core import cdr, presence
 from robotarium_core.config import DEFAULT, FIELDS
-from robotarium_core.node_tools import declare_parameter, run_node
+from robotarium_core.node_tools import declare_parameter, run_node, take_waiting
 from robotarium_core.topics import (
     DEFAULT_NAMESPACE,
     LATCHED,
@@ -343,9 +343,11 @@ class RecorderNode(Node):
         self.status_topic = "%s/%s" % (self.ns, STATUS)
         self.poses_topic = "%s/%s" % (self.ns, POSES)
         self.topics[self.status_topic] = "robotarium_msgs/msg/TestbedStatus"   # not subscribed itself (discover)
-        self.create_subscription(TestbedStatus, "%s/%s" % (self.ns, STATUS_STREAM), self.on_status, QoSProfile(
-            depth=SUBSCRIPTION_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL), raw=True)
+        self.readers_and_callbacks = []   # (subscription, callback(data, info)) of everything recorded
+        statuses = self.create_subscription(TestbedStatus, "%s/%s" % (self.ns, STATUS_STREAM), self.on_status,
+                                            QoSProfile(depth=SUBSCRIPTION_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
+                                                       durability=DurabilityPolicy.TRANSIENT_LOCAL), raw=True)
+        self.readers_and_callbacks.append((statuses, lambda data, info: self.on_status(data)))
         self.subscribe("/rosout", "rcl_interfaces/msg/Log", QoSProfile(depth=SUBSCRIPTION_DEPTH))
         self._sim_missing_since = None
         self.create_timer(0.2, self.tick)
@@ -374,7 +376,7 @@ class RecorderNode(Node):
             identity = samples.identity(info, data)
             if identity is None or self.seen.first(topic, identity):   # not a copy another reader of ours heard
                 handle(data)
-        self.create_subscription(cls, topic, callback, qos, raw=True)
+        self.readers_and_callbacks.append((self.create_subscription(cls, topic, callback, qos, raw=True), callback))
         self.topics[topic] = type_name
 
     def discover(self):
@@ -427,7 +429,17 @@ class RecorderNode(Node):
             pub = msg.stamp.sec * 1_000_000_000 + msg.stamp.nanosec or recv
             self.session.on_message("/rosout", data, recv, pub, log_line=True)
 
+    def take_waiting_messages(self):
+        """Everything the readers hold, handed over now: a closing run's bag gets the messages the
+        executor had not come to yet (a busy recorder closed a 2.x run's bag with all its poses but the
+        sensor readings of its last 107 steps still waiting in their reader)."""
+        for subscription, callback in self.readers_and_callbacks:
+            for data, info in take_waiting(subscription, with_info=True):
+                callback(data, info)
+
     def tick(self):
+        if self.session.state == "closing":
+            self.take_waiting_messages()
         # The simulator is gone when nobody publishes status any more (for 2 s, to ride out discovery).
         present = self.count_publishers(self.status_topic) > 0
         now = time.monotonic()
