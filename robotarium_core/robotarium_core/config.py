@@ -232,101 +232,20 @@ def _check_number(name, field, value):
     return int(value) if field.integer else float(value)
 
 
-@dataclasses.dataclass(frozen=True)
-class TestbedConfig:
-    """The testbed's numbers (see testbed.yaml for each one's meaning and source)."""
-    __test__ = False  # not a pytest class
+def _value_type(name, field):
+    """The type of a field's value once checked (_check)."""
+    if name == "arena" or field.length or field.names:
+        return tuple
+    if field.boolean:
+        return bool
+    return int if field.integer else float
 
-    arena: tuple
-    robot_diameter: float
-    wheel_radius: float
-    base_length: float
-    max_linear_velocity: float
-    max_angular_velocity: float
-    max_wheel_velocity: float
-    max_robots: int
-    real_testbed_max_robots: int
-    time_step: float
-    rate: float
-    command_timeout: float
-    barrier_gain: float
-    safety_radius: float
-    projection_distance: float
-    magnitude_limit: float
-    boundary_margin: float
-    collision_margin: float
-    collision_barrier_rate: float
-    pose_timeout: float
-    lockstep_wait: float
-    intervention_tolerance: float
-    command_queue_depth: int
-    held_commands_limit: int
-    time_limit: float
-    client_lease: float
-    line_lease: float
-    node_lease: float
-    claim_wait: float
-    recorder_dedup_window: int
-    results_min_free: float
-    run_data_limit: float
-    viewer_rate: float
-    trail_length: float
-    hardware: bool
-    tracking_latency: float
-    tracking_noise_position: float
-    tracking_noise_heading: float
-    command_latency: float
-    command_jitter: float
-    robot_loop_period: float
-    pid_period: float
-    pid_kp: float
-    pid_ki: float
-    pwm_slew: int
-    encoder_counts: int
-    motor_free_speed: float
-    motor_time_constant: float
-    deadband_linear: float
-    deadband_angular: float
-    brake_timeout: float
-    wheel_radius_spread: float
-    # the 2.x API
-    obstacle_clearance: float
-    collision_diameter: float
-    collision_offset: float
-    distance_sensor_range: float
-    distance_sensor_error: float
-    distance_sensor_dropout_prob: float
-    distance_sensor_outlier_prob: float
-    distance_sensor_x: tuple
-    distance_sensor_y: tuple
-    distance_sensor_heading: tuple
-    distance_sensor_origin_offset: float
-    distance_sensors_see_walls: bool
-    encoder_counts_per_revolution: float
-    motor_gear_ratio: float
-    encoder_noise_std: float
-    imu_position: tuple
-    accelerometer_noise_std: tuple
-    gyro_noise_std: tuple
-    magnetometer_noise_std: tuple
-    magnetometer_xy_field: float
-    magnetometer_z_field: float
-    orientation_noise_std: float
-    sensor_seed: int
-    standard_sensor_rate: float
-    random_pose_spacing: float
-    random_pose_min_spacing: float
-    random_pose_area: tuple
-    charger_spacing: float
-    drive_on_wave_margin: float
-    drive_on_position_error: float
-    drive_on_rotation_error: float
-    drive_on_max_steps: int
-    # ./robotarium verify
-    verify_max_collision_iterations: int
-    verify_max_boundary_iterations: int
-    verify_duration_factor: float
-    verify_allowed_modules: tuple
+
+class _TestbedConfigBehaviour:
+    """What a TestbedConfig does; its fields are FIELDS, in their order (TestbedConfig below is made
+    from them, so the schema is written once: FIELDS, from which the nodes' parameter declarations and
+    the checks of a file derive too)."""
+    __test__ = False  # not a pytest class
 
     def __post_init__(self):
         for name in FIELDS:
@@ -415,6 +334,13 @@ class TestbedConfig:
         values = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader)) or {}   # libyaml's: 10 x faster
         known = {k: v for k, v in values.items() if k in FIELDS}
         return cls.from_dict(known, base if base is not None else DEFAULT)
+
+
+TestbedConfig = dataclasses.make_dataclass(
+    "TestbedConfig", [(name, _value_type(name, field)) for name, field in FIELDS.items()],
+    bases=(_TestbedConfigBehaviour,), frozen=True, module=__name__,
+    namespace={"__doc__": "The testbed's numbers, one field per entry of FIELDS (see testbed.yaml for each one's "
+                          "meaning and source): TestbedConfig.load(path), DEFAULT (the packaged file)."})
 
 
 DEFAULT = TestbedConfig.load()

@@ -59,6 +59,7 @@ from robotarium_core.topics import (
     POSES,
     SAFETY_REPORT,
     STATUS,
+    namespace_from_environment,
 )
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
 from robotarium_recording import drawing, foxglove_scene
@@ -94,11 +95,6 @@ FORWARDED = (
 def type_name(cls):
     """robotarium_msgs.msg.RobotPoses -> robotarium_msgs/msg/RobotPoses."""
     return "%s/msg/%s" % (cls.__module__.split(".")[0], cls.__name__)
-
-
-def default_namespace():
-    """The namespace ./robotarium uses: $ROBOTARIUM_NAMESPACE, else /robotarium."""
-    return "/" + os.environ.get("ROBOTARIUM_NAMESPACE", DEFAULT_NAMESPACE).strip("/")
 
 
 def topic_in(namespace, topic):
@@ -345,7 +341,7 @@ def main(argv=None):
 def view(args, error, ros_args=()):
     """Serve the view as `args` (add_arguments) say; error(message) reports a bad argument and exits;
     ros_args: the command line's --ros-args, if any."""
-    namespace = "/" + (args.namespace or default_namespace()).strip("/")
+    namespace = "/" + (args.namespace or namespace_from_environment()).strip("/")
     if args.layout:
         with open(args.layout, "w") as f:
             f.write(layout_text(namespace))
