@@ -22,6 +22,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from devtools import PACKAGE_SOURCES, REPO
+from robotarium_core.node_tools import wait_for_quiet_discovery
 from robotarium_core.topics import CMD_SAFE, SAFETY_ARM, SAFETY_REPORT, SAFETY_REPORT_QOS, TESTBED_QOS
 
 # Domain ids 1..101 only: DDS derives its UDP ports from the domain (7400 + 250 x domain + ...), and
@@ -114,12 +115,6 @@ class NodeProcess:
             return f.read().decode(errors="replace")
 
 
-# RosProbe.close: discovery counts as settled after this long without news (s), waited for at most
-# QUIET_DISCOVERY_WAIT.
-QUIET_DISCOVERY = 0.2
-QUIET_DISCOVERY_WAIT = 2.0
-
-
 class RosProbe:
     """An rclpy node in its own context on `domain_id`, spun by hand from the test."""
 
@@ -209,28 +204,8 @@ class RosProbe:
             missing = [s.topic_name for s in self._subscriptions if s.get_publisher_count() == 0]
             raise TimeoutError("no publisher matched %s within %.0f s" % (missing, timeout))
 
-    def graph(self):
-        """What discovery has told this participant: nodes, and each topic's publisher and
-        subscriber counts."""
-        return (tuple(sorted(self.node.get_node_names_and_namespaces())),
-                tuple((name, self.node.count_publishers(name), self.node.count_subscribers(name))
-                      for name, _ in sorted(self.node.get_topic_names_and_types())))
-
-    def wait_for_quiet_discovery(self, still=QUIET_DISCOVERY, timeout=QUIET_DISCOVERY_WAIT):
-        """Wait (at most `timeout`) until discovery has told nothing new for `still` seconds."""
-        last, since, end = self.graph(), time.monotonic(), time.monotonic() + timeout
-        while time.monotonic() - since < still and time.monotonic() < end:
-            time.sleep(0.02)
-            now = self.graph()
-            if now != last:
-                last, since = now, time.monotonic()
-
     def close(self):
-        # Fast DDS can hang for good destroying a participant while one of its discovery callbacks
-        # runs (DomainParticipant::set_listener spins holding the lock the callback needs to end; seen
-        # as a worker stuck in destroy_node after a test's experiment ended and the simulator dropped
-        # that run's endpoints): let the discovery a test's last actions caused settle first.
-        self.wait_for_quiet_discovery()
+        wait_for_quiet_discovery(self.node, still=0.2, timeout=2.0)   # before the participant goes
         self.executor.shutdown()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)

@@ -327,8 +327,11 @@ def _probe_context(domain=None, discovery_range=None):
 def close_probe_contexts():
     """Tear down the probe contexts (for a long-lived process that leaves a domain, such as the tests)."""
     import rclpy
+
+    from robotarium_core.node_tools import wait_for_quiet_discovery
     while _probe_contexts:
         _, (context, anchor) = _probe_contexts.popitem()
+        wait_for_quiet_discovery(anchor)   # the participant goes with the anchor
         anchor.destroy_node()
         rclpy.try_shutdown(context=context)
 

@@ -590,8 +590,11 @@ class Robotarium(RobotariumABC):
 
     def _shutdown(self):
         import rclpy
+
+        from robotarium_core.node_tools import wait_for_quiet_discovery
         if self._node is not None:
             self._executor.shutdown()
+            wait_for_quiet_discovery(self._node)   # the participant goes with the node
             self._node.destroy_node()
             self._node = None
             rclpy.try_shutdown(context=self._context)

@@ -133,6 +133,33 @@ def wait_for_service(client, timeout):
     return False
 
 
+# Discovery counts as settled after this long without news (s), waited for at most QUIET_DISCOVERY_WAIT.
+QUIET_DISCOVERY = 0.1
+QUIET_DISCOVERY_WAIT = 1.0
+
+
+def discovery_graph(node):
+    """What discovery has told `node`'s participant: nodes, and each topic's publisher and subscriber
+    counts."""
+    return (tuple(sorted(node.get_node_names_and_namespaces())),
+            tuple((name, node.count_publishers(name), node.count_subscribers(name))
+                  for name, _ in sorted(node.get_topic_names_and_types())))
+
+
+def wait_for_quiet_discovery(node, still=QUIET_DISCOVERY, timeout=QUIET_DISCOVERY_WAIT):
+    """Wait (at most `timeout`) until discovery has told `node` nothing new for `still` seconds. Before
+    a participant is destroyed: Fast DDS can hang for good destroying one while one of its discovery
+    callbacks runs (DomainParticipant::set_listener spins holding the lock the callback needs to
+    end), and an experiment's end makes the simulator drop that run's endpoints just then (a test
+    worker hung in destroy_node that way)."""
+    last, since, end = discovery_graph(node), time.monotonic(), time.monotonic() + timeout
+    while time.monotonic() - since < still and time.monotonic() < end:
+        time.sleep(0.01)
+        now = discovery_graph(node)
+        if now != last:
+            last, since = now, time.monotonic()
+
+
 def take_waiting(subscription, limit=10_000, with_info=False):
     """The messages waiting in `subscription`'s queue, taken now (raw bytes for a raw=True one; with
     with_info, (message, its message info) as rclpy hands a callback that takes both).
