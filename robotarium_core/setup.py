@@ -13,6 +13,7 @@ setup(
         ("share/" + package_name + "/config", ["robotarium_core/testbed.yaml"]),
     ],
     install_requires=["setuptools"],
+    extras_require={"test": ["pytest"]},   # test/ (colcon test runs it with pytest)
     zip_safe=False,
     maintainer="Robotarium ROS team",
     maintainer_email="robotarium-ros@example.com",

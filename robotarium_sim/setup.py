@@ -11,6 +11,7 @@ setup(
         ("share/" + package_name, ["package.xml"]),
     ],
     install_requires=["setuptools"],
+    extras_require={"test": ["pytest"]},   # test/ (colcon test runs it with pytest)
     zip_safe=True,
     maintainer="Robotarium ROS team",
     maintainer_email="robotarium-ros@example.com",

@@ -23,6 +23,8 @@ PYTHON_DEPENDENCIES = {
     "imageio_ffmpeg": ("python3-imageio-ffmpeg-pip", "imageio-ffmpeg"),
     "PIL": ("python3-pil", "pillow"),
     "foxglove": ("python3-foxglove-sdk-pip", "foxglove-sdk"),
+    "pytest": ("python3-pytest", "pytest"),
+    "hypothesis": ("python3-hypothesis", "hypothesis"),
 }
 # Declared without an import, and why.
 NOT_IMPORTED = {
@@ -41,17 +43,20 @@ def packages():
     return sorted(os.path.basename(os.path.dirname(p)) for p in glob.glob(os.path.join(REPO, "*", "package.xml")))
 
 
-def declared(package):
+def declared(package, tags=("exec_depend", "depend")):
     root = ElementTree.parse(os.path.join(REPO, package, "package.xml")).getroot()
-    return {e.text.strip() for tag in ("exec_depend", "depend") for e in root.iter(tag)}
+    return {e.text.strip() for tag in tags for e in root.iter(tag)}
 
 
-def imported(package):
-    """Top-level modules that the package's Python files import (inside functions too), but its own."""
+def imported(package, tests=False):
+    """Top-level modules that the package's Python files import (inside functions too), but its own;
+    with tests, those its tests (<package>/test/) import instead."""
     own = {os.path.basename(os.path.dirname(p)) for p in glob.glob(os.path.join(REPO, package, "*", "__init__.py"))}
     modules = set()
     for path in glob.glob(os.path.join(REPO, package, "**", "*.py"), recursive=True):
         if "/examples/" in path or os.path.basename(path) == "setup.py":
+            continue
+        if path.startswith(os.path.join(REPO, package, "test") + os.sep) != tests:
             continue
         with open(path) as f:
             tree = ast.parse(f.read(), path)
@@ -79,13 +84,19 @@ def test_every_import_is_declared_and_every_declaration_imported():
                      for k in sorted(keys - declared(package))]
         problems += ["%s declares %s, which nothing in it imports: remove it, or say why in NOT_IMPORTED" % (package, k)
                      for k in sorted(declared(package) - keys) if (package, k) not in NOT_IMPORTED]
+        # its own tests (test/, which colcon test runs): what they import beyond the package's own needs
+        test_keys = {rosdep_key(m) for m in imported(package, tests=True)} - keys
+        problems += ["%s's tests import %s: add <test_depend>%s</test_depend>" % (package, k, k)
+                     for k in sorted(test_keys - declared(package, ("test_depend",)))]
+        problems += ["%s declares the test dependency %s, which no test of it imports only" % (package, k)
+                     for k in sorted(declared(package, ("test_depend",)) - test_keys)]
     assert not problems, "\n".join(problems)
 
 
 def test_requirements_pin_every_python_package_the_code_imports():
     with open(os.path.join(REPO, "requirements.txt")) as f:
         pinned = {re.split(r"[=<>\[]", line.strip())[0].lower() for line in f if line.strip() and line[0] != "#"}
-    modules = set().union(*(imported(p) for p in packages()))
+    modules = set().union(*(imported(p, tests) for p in packages() for tests in (False, True)))
     unknown = sorted(m for m in modules if m not in PYTHON_DEPENDENCIES and not m.startswith(("rcl", "robotarium_"))
                      and not m.endswith(("_msgs", "_srvs")) and m not in ("rps", "rps2", "launch", "launch_ros",
                                                                              "ament_index_python", "rclpy",

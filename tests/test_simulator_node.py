@@ -151,7 +151,7 @@ def test_a_late_joiner_gets_only_the_newest_status_and_the_stream_every_one(test
 
 
 def test_an_invalid_start_is_refused_with_its_reason(testbed):
-    """Every reason is tested in process (tests/test_experiment.py); here that one reaches the client."""
+    """Every reason is tested in process (robotarium_sim/test/test_experiment.py); here that one reaches the client."""
     _, probe, _ = testbed
     response = start(probe, n=3, poses=np.array([[0.0, 0.5], [0.0, 0.0], [0.0, 0.0]]))
     assert not response.success and "length 3" in response.message

@@ -5,7 +5,7 @@ Why: rclpy turns a `geometry_msgs/Twist[20]` into 20 Twist and 40 Vector3 Python
 0.1 ms to publish and 0.25 ms to take at every hop of every step; a PoseArray of 20 costs as
 much. A subscription made with `raw=True` hands over the serialized bytes instead and a publisher
 publishes `bytes` as they are (both a few microseconds), so the nodes and the client read and
-write these bytes here. The bytes are exactly what rclpy would send (tests/test_cdr.py compares
+write these bytes here. The bytes are exactly what rclpy would send (robotarium_core/test/test_cdr.py compares
 them with rclpy's serialize_message, byte for byte apart from the padding, which we zero), so a
 recorder, `ros2 topic echo` and any bag reader see ordinary messages.
 
@@ -20,7 +20,7 @@ Each message is a `Layout`: its fields in order (the header's stamp and frame_id
 `sec`, `nanosec`, `frame_id`). `parse` checks every length against the bytes it was given and
 against `max_elements` before reading anything, so a truncated, garbled or oversized array is a
 `CdrError` (a ValueError), never a crash and never a large allocation; `build` returns the bytes.
-A new field in a .msg file is one line in its layout here (tests/test_cdr.py fails until it is).
+A new field in a .msg file is one line in its layout here (robotarium_core/test/test_cdr.py fails until it is).
 
 The testbed's command inputs read with `parse_commands`: the token (kept second in TwistArray for
 this) is compared before anything after it is read, and the lengths are checked against the

@@ -348,7 +348,7 @@ class StepGate:
     ends it.
 
     Pure: the simulator node calls `admit` for every valid array before applying it, and the
-    property test (tests/test_safety_guarantee.py) runs the same object on adversarial streams."""
+    property test (robotarium_safety/test/test_safety_guarantee.py) runs the same object on adversarial streams."""
 
     def __init__(self, real_time):
         self.real_time = real_time

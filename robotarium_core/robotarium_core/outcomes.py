@@ -1,6 +1,6 @@
 """How a run ended. Plain Python.
 
-The numbers are TestbedStatus.OUTCOME_* (robotarium_msgs; tests/test_outcomes.py checks that they
+The numbers are TestbedStatus.OUTCOME_* (robotarium_msgs; robotarium_core/test/test_outcomes.py checks that they
 agree): the simulator keeps the outcome an end_experiment request gives in the IDLE status that
 closes the run, so the recording itself says how the run ended. One more has no message value,
 because only the report can tell it: a recording that ends while its experiment was still running.

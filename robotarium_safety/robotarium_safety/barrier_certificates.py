@@ -384,7 +384,7 @@ class _CentreGuard:
     that is for d >= d* = a + sqrt(a^2 + D^2) with a = 2 S T / gamma. The QP's rows assume
     S = speed_bound; the clamp uses the answer's own S. Why leaving such a pair out is safe in one
     step, directly: each centre moves at most S T, so h' >= (d - 2 S T)^2 - D^2 >= h - 4 S T d
-    >= (1 - gamma) h, the discrete barrier the rows keep (tests/test_safety_guarantee.py checks it
+    >= (1 - gamma) h, the discrete barrier the rows keep (robotarium_safety/test/test_safety_guarantee.py checks it
     on the simulator's motion, head-on at the cutoff).
     """
 

@@ -37,7 +37,7 @@ OSQP_SETTINGS = {
     "max_iter": 10000,
     # rho adapted every 25 iterations, not at an interval OSQP derives from its set-up time: runs do
     # not depend on the machine's speed, and ADMM does not stall (with the timed interval a 2-robot
-    # QP whose robot rows are parallel to its pair row ran to max_iter: tests/test_safety_guarantee.py).
+    # QP whose robot rows are parallel to its pair row ran to max_iter: robotarium_safety/test/test_safety_guarantee.py).
     "adaptive_rho_interval": 25,
 }
 # Where polishing fails, OSQP goes on to this tolerance (and polishes again).

@@ -1,5 +1,5 @@
 """Which requested arrays the safety node filters, at which poses, and how it marks them (issue 22).
-Plain Python, no ROS: the safety node calls it, and tests/test_safety_guarantee.py runs it on
+Plain Python, no ROS: the safety node calls it, and robotarium_safety/test/test_safety_guarantee.py runs it on
 adversarial streams together with the simulator's rule (robotarium_core.model.StepGate).
 
 The barrier certificate's guarantee is about one step from the poses a command was filtered at.
