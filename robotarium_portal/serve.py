@@ -106,8 +106,9 @@ def main(argv=None):
     import waitress
 
     from robotarium_portal import tasks
-    from robotarium_portal.workers import Stop, Supervisor, stop_on_signals
+    from robotarium_portal.workers import Stop, Supervisor, forget_dead_local_workers, stop_on_signals
     from robotarium_portal.wsgi import application
+    forget_dead_local_workers()   # this machine's slots whose supervisor is gone hand their jobs back
     tasks.reconcile()   # before any worker: the jobs again from the experiments' states
     hosts = ["localhost", "127.0.0.1", "[::1]"] + args.allowed_host + (
         [args.host] if args.host not in ("0.0.0.0", "::") else [])

@@ -71,7 +71,7 @@ DATABASES = {"default": {
 }}
 # PostgreSQL instead (--database postgresql://user[:password]@host[:port]/name): workers on other machines.
 # CONN_MAX_AGE 0: a connection lives one request or one job step, so a database restart costs nothing but a
-# retry (robotarium_portal.workers.database_retry); the health check catches a connection a restart broke.
+# retry (robotarium_portal.database.database_retry); the health check catches a connection a restart broke.
 DATABASE_URL = os.environ.get("ROBOTARIUM_PORTAL_DATABASE", "")
 if DATABASE_URL:
     from urllib.parse import unquote, urlsplit

@@ -19,10 +19,10 @@ from django_q.models import OrmQ
 from django_q.tasks import async_task
 
 from robotarium_portal import jobbox, mail
+from robotarium_portal.database import database_retry
 from robotarium_portal.files import copy_files
 from robotarium_portal.jobbox import stop_group
 from robotarium_portal.models import Experiment, Worker, without_nul
-from robotarium_portal.workers import database_retry, me
 
 logger = logging.getLogger("robotarium_portal")
 VERIFY_CLUSTER, RUN_CLUSTER = "verify", "runs"
@@ -48,6 +48,12 @@ def enqueue_verification(experiment):
                task_name="verify #%d" % experiment.pk)
 
 
+def me():
+    """The Worker (slot) this process works for, or None outside a worker."""
+    value = os.environ.get("ROBOTARIUM_WORKER_ID")
+    return int(value) if value else None
+
+
 def enqueue_run():
     async_task("robotarium_portal.tasks.run_next", cluster=RUN_CLUSTER, task_name="run the next experiment")
 
@@ -56,8 +62,6 @@ def reconcile():
     """At the service's start, before its own workers: every job from the experiments' states. A run that a
     stop cut short goes back to the head of the queue (its queued_at is kept) and runs again. What a live
     worker (on another machine) holds stays its own."""
-    from robotarium_portal.workers import forget_dead_local_workers
-    forget_dead_local_workers()
     OrmQ.objects.filter(key__in=[VERIFY_CLUSTER, RUN_CLUSTER]).delete()
     unheld = Q(worker__isnull=True) | ~Q(worker__state=Worker.ALIVE)
     for experiment in Experiment.objects.filter(unheld, state=Experiment.RUNNING):

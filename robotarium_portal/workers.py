@@ -24,10 +24,11 @@ import threading
 import time
 from pathlib import Path
 
+from robotarium_portal.database import database_retry
+
 logger = logging.getLogger("robotarium_portal")
 REPOSITORY = Path(__file__).resolve().parent.parent
 STOP_GRACE = 60.0        # s a slot has to stop its job (a run ends its experiment and writes its results)
-DATABASE_PATIENCE = 600  # s a job keeps trying to write its outcome while the database does not answer
 
 
 class Stop(Exception):
@@ -40,29 +41,6 @@ def stop_on_signals():
         raise Stop()
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, stop)
-
-
-def me():
-    """The Worker (slot) this process works for, or None outside a worker."""
-    value = os.environ.get("ROBOTARIUM_WORKER_ID")
-    return int(value) if value else None
-
-
-def database_retry(action, what):
-    """action() on a fresh connection; while the database does not answer (a restart), again every second
-    for DATABASE_PATIENCE s. What a job writes at its end is never lost to a database that was away."""
-    from django.db import InterfaceError, OperationalError, close_old_connections, connection
-    deadline = time.monotonic() + DATABASE_PATIENCE
-    while True:
-        close_old_connections()
-        try:
-            return action()
-        except (OperationalError, InterfaceError) as error:
-            connection.close()
-            if time.monotonic() > deadline:
-                raise
-            logger.warning("the database did not answer while %s (%s); trying again", what, error)
-            time.sleep(1.0)
 
 
 def _now_text():
