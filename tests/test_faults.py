@@ -15,6 +15,7 @@ measured values are the benchmark's, on a quiet machine.
 import glob
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -488,8 +489,9 @@ def lines(log, word):
 
 
 def last_step(log):
-    steps = lines(log, "step")
-    return int(steps[-1]) if steps else 0
+    # only whole numbers: the script's stderr may be written into a step line as it ends (a signal's message)
+    steps = [int(m.group()) for m in map(re.compile(r"\d+").match, lines(log, "step")) if m]
+    return steps[-1] if steps else 0
 
 
 def wait_step(lab, proc, log, step, timeout=60):

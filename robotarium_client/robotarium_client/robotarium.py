@@ -245,6 +245,7 @@ class Robotarium(RobotariumABC):
 
         from robotarium_bringup.testbed import LocalTestbed, security_enabled
         from robotarium_core.executor import LeanExecutor
+        from robotarium_core.node_tools import dds_defaults
         from robotarium_core.topics import (
             CMD_REQUESTED,
             CONFIG,
@@ -278,6 +279,9 @@ class Robotarium(RobotariumABC):
         self._recorder_lost_at = None
         self._recording_stopped_because = None   # "the recorder is gone", "disk full", ...
         self._stopped_recording = ""             # the bag of a recording stopped by a write error
+        # The testbed's Fast DDS settings for the script's participant too (node_tools.dds_defaults): its
+        # writers' heartbeat every 0.1 s, so a lost packet of cmd_requested is sent again at once, not 3 s later.
+        dds_defaults()
         self._context = Context()
         # With DDS Security (sros2/README.md) a script runs in the client enclave of the policy.
         rclpy.init(context=self._context, args=["--ros-args", "--enclave", "/robotarium/client"]

@@ -182,16 +182,21 @@ _M_MMAP_THRESHOLD = -3         # glibc's mallopt parameter
 
 
 def dds_defaults():
-    """The testbed nodes' Fast DDS settings (dds_profile.xml; a profile file the user set is kept, and
-    with it their choice): a participant announced every 0.2 s, so a client that joins later finds the
-    node at once; and a flood costs no memory that stays (issue 22): DDS readers allocate a sample's
-    buffer when it arrives and free it when it is taken, and the C allocator returns every block of more than
-    MMAP_THRESHOLD to the system as soon as it is freed (glibc raises that threshold by itself
-    after the first large block was freed, and then keeps freed 2.4 MB arrays in the process).
-    Called before rclpy.init."""
+    """The testbed's Fast DDS settings (dds_profile.xml; a profile file the user set is kept, and with
+    it their choice), for its nodes and a script's client alike: a participant announced every 0.2 s,
+    so a process that joins later finds it at once; writers that send a heartbeat every 0.1 s, so a
+    lost packet is sent again at once; readers that allocate a sample's buffer when it arrives and free
+    it when it is taken (issue 22: a flood costs no memory that stays). Called before rclpy.init."""
     if "FASTRTPS_DEFAULT_PROFILES_FILE" not in os.environ:
         os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = DDS_PROFILE
         os.environ["RMW_FASTRTPS_USE_QOS_FROM_XML"] = "1"   # only for the policies our code leaves to the middleware
+
+
+def return_freed_memory():
+    """A node's freed large blocks go back to the system (issue 22): the C allocator maps every block of
+    more than MMAP_THRESHOLD for itself and unmaps it when it is freed (glibc raises that threshold by
+    itself after the first large block was freed, and then keeps freed 2.4 MB arrays in the process).
+    Not for a script's process: its own large numpy arrays would be mapped and unmapped every time."""
     try:
         ctypes.CDLL("libc.so.6").mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD)
     except (OSError, AttributeError):
@@ -237,6 +242,7 @@ def run_node(make_node, name, args=None, before_destroy=None, claim=None):
     if not lifeline.pass_start_gate():
         return 0
     dds_defaults()
+    return_freed_memory()
     # rclpy's own handlers would shut the context down at the first signal, before the wind-down.
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop = StopRequest()

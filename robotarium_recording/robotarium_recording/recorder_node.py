@@ -366,16 +366,21 @@ class RecorderNode(Node):
             self.topics[topic] = None
             return
         if topic == "/rosout":
-            handle = self.on_rosout
+            def handle(data, info):
+                self.on_rosout(data)
         else:
-            def handle(data, topic=topic, leading_stamp=leading_stamp):
+            def handle(data, info, topic=topic, leading_stamp=leading_stamp):
                 recv = time.time_ns()
-                self.session.on_message(topic, data, recv, (leading_stamp and bag.stamp_from_cdr(data)) or recv)
+                # Publish time: the header's stamp, else when the writer wrote it (DDS's source timestamp),
+                # never when it came: a sample repaired after a lost packet comes up to a heartbeat later
+                # (a run's `experiment` message came after the run's end and was left out of its bag).
+                sent = (leading_stamp and bag.stamp_from_cdr(data)) or (info or {}).get("source_timestamp") or recv
+                self.session.on_message(topic, data, recv, sent)
 
         def callback(data, info, topic=topic, handle=handle):
             identity = samples.identity(info, data)
             if identity is None or self.seen.first(topic, identity):   # not a copy another reader of ours heard
-                handle(data)
+                handle(data, info)
         self.readers_and_callbacks.append((self.create_subscription(cls, topic, callback, qos, raw=True), callback))
         self.topics[topic] = type_name
 
