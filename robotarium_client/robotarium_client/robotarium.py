@@ -281,7 +281,7 @@ class Robotarium(RobotariumABC):
         self._stopped_recording = ""             # the bag of a recording stopped by a write error
         # The testbed's Fast DDS settings for the script's participant too (node_tools.dds_defaults): its
         # writers' heartbeat every 0.1 s, so a lost packet of cmd_requested is sent again at once, not 3 s later.
-        dds_defaults()
+        dds_defaults(node=False)
         self._context = Context()
         # With DDS Security (sros2/README.md) a script runs in the client enclave of the policy.
         rclpy.init(context=self._context, args=["--ros-args", "--enclave", "/robotarium/client"]

@@ -181,15 +181,20 @@ MMAP_THRESHOLD = 256 * 1024   # bytes: larger blocks are mapped for themselves a
 _M_MMAP_THRESHOLD = -3         # glibc's mallopt parameter
 
 
-def dds_defaults():
+def dds_defaults(node=True):
     """The testbed's Fast DDS settings (dds_profile.xml; a profile file the user set is kept, and with
     it their choice), for its nodes and a script's client alike: a participant announced every 0.2 s,
     so a process that joins later finds it at once; writers that send a heartbeat every 0.1 s, so a
-    lost packet is sent again at once; readers that allocate a sample's buffer when it arrives and free
-    it when it is taken (issue 22: a flood costs no memory that stays). Called before rclpy.init."""
-    if "FASTRTPS_DEFAULT_PROFILES_FILE" not in os.environ:
+    lost packet is sent again at once. A node's readers also allocate a sample's buffer when it arrives
+    and free it when it is taken (issue 22: a flood costs no memory that stays), for which rmw_fastrtps
+    must take the policies it would set itself from the file (RMW_FASTRTPS_USE_QOS_FROM_XML), data
+    sharing among them; a client (node=False) keeps rmw's, data sharing off: a script in a job box runs
+    as an account that may not open the testbed's shared segments. Called before rclpy.init."""
+    # (ours, inherited from a client that started a testbed for its script, is not the user's choice)
+    if os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE", DDS_PROFILE) == DDS_PROFILE:
         os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = DDS_PROFILE
-        os.environ["RMW_FASTRTPS_USE_QOS_FROM_XML"] = "1"   # only for the policies our code leaves to the middleware
+        if node:
+            os.environ["RMW_FASTRTPS_USE_QOS_FROM_XML"] = "1"   # only for the policies our code leaves to it
 
 
 def return_freed_memory():
