@@ -1,7 +1,7 @@
 """The robotarium command: up, run, verify, demo, status, stop, end, replay, report, view.
 
     robotarium VERB [ARGS]      (./robotarium VERB makes the environment, then hands over to it)
-    ros2 robotarium VERB [ARGS] (where ros2cli is installed: robotarium_cli.ros2)
+    ros2 robotarium VERB [ARGS] (where ros2cli is installed: robotarium_cli.command.robotarium)
 
 One module per verb (robotarium_cli.verb). Signals: SIGINT, SIGTERM and SIGHUP (Ctrl-C, `kill`,
 `timeout`, a closed terminal) to `run`, `demo` or `up` stop the script if it still runs
@@ -26,10 +26,11 @@ def add_verb_parser(subparsers, name):
     return parser, module
 
 
-def run_verb(module, parser, args):
-    """Run a parsed verb: its own flags given after a script taken back first."""
+def run_verb(module, args, error):
+    """Run a parsed verb (here and for ros2 robotarium): its own flags given after a script taken
+    back first (`robotarium run script.py --lockstep`); error(message) reports a bad one and exits."""
     if hasattr(module, "take_own_arguments"):
-        module.take_own_arguments(args, parser.error)
+        module.take_own_arguments(args, error)
     return module.main(args) or 0
 
 
@@ -42,7 +43,7 @@ def main(argv=None):
     parsers = {name: add_verb_parser(subparsers, name) for name in verbs.VERBS}
     args = parser.parse_args(argv)
     verb_parser, module = parsers[args.command]
-    return run_verb(module, verb_parser, args)
+    return run_verb(module, args, verb_parser.error)
 
 
 def console_main():

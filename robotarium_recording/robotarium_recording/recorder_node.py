@@ -95,7 +95,8 @@ class RunRecorder:
     stays open past grace_ns until it holds the poses of the run's last step (its last RUNNING
     status says which), catch_up_ns more at most. A reliable stream delivers in order, so one lost
     packet holds back every later poses message until the writer repairs it, which takes up to its
-    heartbeat period (3 s) when the recorder was starved of CPU: the bag then closed without them.
+    heartbeat period (Fast DDS's 3 s; the testbed's profile makes it 0.1 s) when the recorder was
+    starved of CPU: the bag then closed without them.
     """
 
     def __init__(self, bags_dir, describe, on_started=None, on_finished=None, log=None,

@@ -328,29 +328,26 @@ class SimulatorNode(Node):
     def check_client(self):
         if self.testbed is None or self.client_watch is None:
             return
-        # A client that never showed up (gone before its presence was discovered) is lost too.
-        if not self.client_watch.seen and time.monotonic() > self._client_deadline:
+        # Its liveliness still missing (lost once its arrays stopped too), or a client that never showed
+        # up (gone before its presence was discovered).
+        if self.client_watch.lost or (not self.client_watch.seen and time.monotonic() > self._client_deadline):
             self.on_client_lost()
-        elif self.client_watch.lost:
-            self.on_client_lost()   # its liveliness is still missing: lost once its arrays stopped too
 
     def on_client_lost(self):
         # The liveliness assertions come from a thread of the client's DDS participant, which a starved
         # machine can hold back for seconds while the client's arrays keep coming (a lockstep client was
         # ended at step 1520 of a run it was driving): arrays of its run within the lease are a sign too.
-        heard = time.monotonic() - self.run.last_command_at
-        if self.testbed is not None and heard <= self.config.client_lease:
-            return   # check_client asks again
-        if self.testbed is not None:
-            # The step of its last command: where its script stopped (in real time the testbed ticked on).
-            self.get_logger().warning("the client of %s is gone (no sign of it for %g s; its last command came at "
-                                      "step %d): ending the experiment at step %d" % (
-                                          self.run.run_id, self.config.client_lease, self.run.last_command_step,
-                                          self.testbed.steps))
-            self.end_experiment("client lost at step %d" % self.run.last_command_step, outcome=outcomes.CLIENT_LOST,
-                                detail="the testbed ended it at step %d: its client was gone for %g s (its last "
-                                "command came at step %d)" % (self.testbed.steps, self.config.client_lease,
-                                                              self.run.last_command_step))
+        if self.testbed is None or time.monotonic() - self.run.last_command_at <= self.config.client_lease:
+            return   # (check_client asks again)
+        # The step of its last command: where its script stopped (in real time the testbed ticked on).
+        self.get_logger().warning("the client of %s is gone (no sign of it for %g s; its last command came at "
+                                  "step %d): ending the experiment at step %d" % (
+                                      self.run.run_id, self.config.client_lease, self.run.last_command_step,
+                                      self.testbed.steps))
+        self.end_experiment("client lost at step %d" % self.run.last_command_step, outcome=outcomes.CLIENT_LOST,
+                            detail="the testbed ended it at step %d: its client was gone for %g s (its last "
+                            "command came at step %d)" % (self.testbed.steps, self.config.client_lease,
+                                                          self.run.last_command_step))
 
     def on_safety_lost(self):
         if self.testbed is not None:

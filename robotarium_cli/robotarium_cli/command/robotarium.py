@@ -8,6 +8,7 @@ from ros2cli.verb import VerbExtension
 
 from robotarium_cli import verb as verbs
 from robotarium_cli.console import error
+from robotarium_cli.main import run_verb
 
 
 class RobotariumCommand(CommandExtension):
@@ -33,9 +34,7 @@ def _verb_class(name):
         module.add_arguments(parser)
 
     def main(self, *, args):
-        if hasattr(module, "take_own_arguments"):   # `ros2 robotarium run script.py --lockstep`
-            module.take_own_arguments(args, error)
-        return module.main(args) or 0
+        return run_verb(module, args, error)
     return type(name.capitalize() + "Verb", (VerbExtension,), {
         "__doc__": module.HELP[0].upper() + module.HELP[1:] + ".", "__module__": __name__,
         "add_arguments": add_arguments, "main": main})
