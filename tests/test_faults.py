@@ -28,9 +28,9 @@ import yaml
 
 from devtools import REPO
 from devtools.rosutil import NodeProcess, RosProbe, node_env, unique_domain_id
-from robotarium_core import cdr, model, presence
+from robotarium_core import cdr, model, node_tools, presence
 from robotarium_core.config import DEFAULT
-from robotarium_core.topics import TESTBED_QOS
+from robotarium_core.topics import TESTBED_QOS, readers_matched
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
 from robotarium_msgs.srv import EndExperiment
 
@@ -609,6 +609,38 @@ def test_a_lost_recorder_is_reported_and_its_bag_recovered(healthy, capsys):
     with open(mcap_file, "rb") as f:
         counted = sum(1 for _ in make_reader(f).iter_messages())
     assert info["message_count"] == counted == Bag(bag_dir).message_count > 0
+
+
+@pytest.mark.parametrize("name", list(NODES))
+def test_a_node_whose_shared_memory_port_was_deleted_restarts_and_the_next_client_reaches_it(healthy, name):
+    """Fast DDS deletes a shared-memory port whose listeners did not answer a newcomer within 1 s
+    (a machine that stalls; it happened on a loaded CI run) and makes a new file: the node keeps
+    reading the deleted one, so every process that starts afterwards goes unheard ("no testbed
+    answers", run after run). Deleting the node's port files as Fast DDS does: the node restarts in
+    place (same process) and a new client runs a whole experiment on it, recorded in full."""
+    lab = healthy
+    pid = lab.nodes[name].proc.pid
+    listening, lost = node_tools.shared_memory_ports(pid)
+    assert listening and not lost
+    for port in listening:
+        os.remove("/dev/shm/fastrtps_port%d" % port)
+    assert node_tools.shared_memory_ports(pid)[1] == listening
+    assert lab.probe.spin_until(lambda: "restarting: its shared-memory port" in lab.nodes[name].output(), 10), \
+        lab.nodes[name].output()
+    assert lab.probe.spin_until(lambda: node_tools.shared_memory_ports(pid)[0] and not node_tools.shared_memory_ports(pid)[1]
+                                and lab.watches[name].alive, 30)
+    assert lab.nodes[name].alive() and lab.nodes[name].proc.pid == pid
+    r = client(LINE3)
+    # (the client waits for the safety node's reader, not the recorder's: wait here until it knows it,
+    # so that all 20 arrays must reach it; a recorder still deaf knows it too, but hears none of them)
+    assert lab.probe.spin_until(lambda: readers_matched(r._node, r._command_pub, "recorder"), 10)
+    for _ in range(20):
+        drive(r, [0.05] * 3, [0.2] * 3)
+    r.call_at_scripts_end()
+    assert r.run_info["steps"] == 20 and r.run_info["outcome"] == "completed", r.run_info
+    from robotarium_recording.bag import Bag
+    assert lab.probe.spin_until(lambda: Bag(r.run_info["recording"]).complete, 10)   # the recorder closed it
+    assert Bag(r.run_info["recording"]).topics[NS + "/cmd_requested"].count == 20
 
 
 # -- the SROS2 policy ------------------------------------------------------------------------------

@@ -18,6 +18,7 @@ import threading
 ENV = "ROBOTARIUM_LIFELINE_FD"
 
 _pipe = []   # (read_fd, write_fd) of this process's lifeline to its children, made on first use
+_watched = []   # the read end this process was given and watches (kept for a restart in place)
 
 
 def for_child(env):
@@ -42,6 +43,7 @@ def watch(on_lost, name="lifeline"):
         given = False
     if not given:
         return False   # a stale variable (e.g. exported in a shell): nothing to watch
+    _watched[:] = [fd]
 
     def wait():
         while True:
@@ -54,6 +56,16 @@ def watch(on_lost, name="lifeline"):
 
     threading.Thread(target=wait, name=name, daemon=True).start()
     return True
+
+
+def hand_on(env):
+    """`env` for this very process started afresh (os.execve keeps the pid and inheritable
+    descriptors): the lifeline it watches, if any, is watched again there. Returns the descriptors
+    to keep open."""
+    if _watched:
+        env[ENV] = str(_watched[0])
+        os.set_inheritable(_watched[0], True)
+    return tuple(_watched)
 
 
 # -- a start gate: processes started early, held until their starter decides ------------------------

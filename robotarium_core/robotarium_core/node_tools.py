@@ -7,6 +7,7 @@ Kept apart from model.py and config.py (no ROS there); the nodes themselves stay
 import ctypes
 import math
 import os
+import re
 import signal
 import sys
 import time
@@ -94,6 +95,7 @@ class StopRequest:
 
     def __init__(self):
         self.reason = None
+        self.restart = False   # stop, then start afresh in this process (restart_in_place)
         self.signals = 0
         self._wake = None
         for name in STOP_SIGNALS:
@@ -110,9 +112,9 @@ class StopRequest:
         self.signals += 1
         self.request("received %s" % signal.Signals(signum).name)
 
-    def request(self, reason):
+    def request(self, reason, restart=False):
         if self.reason is None:
-            self.reason = reason
+            self.reason, self.restart = reason, restart
         if self._wake is not None:
             self._wake.trigger()
 
@@ -208,6 +210,81 @@ def return_freed_memory():
         pass   # not glibc: its own rules apply
 
 
+# -- a shared-memory port Fast DDS took away ------------------------------------------------------
+# A process that opens another's shared-memory port (to send to it, or while looking for a free
+# one) first checks that its listeners answer; when they do not within healthy_check_timeout
+# (1 s, which rmw_fastrtps does not let a profile change under ROS_AUTOMATIC_DISCOVERY_RANGE=
+# LOCALHOST), Fast DDS deletes the port's file and makes a new one. A listener that was only slow
+# (a machine stalled for a second, a busy 2-core CI box) keeps reading the deleted one: whoever
+# joins later writes into the new file and is never heard ("no testbed answers" for a minute, then
+# for every later run), while everyone it already knew still reaches it. The node cannot reopen its
+# port inside rmw, so it starts afresh once it holds no run (restart_in_place).
+
+PORT_CHECK_PERIOD = 1.0   # s between looks at this process's shared-memory ports
+_PORT_LOCK = re.compile(r"^/dev/shm/fastrtps_port(\d+)_el(?: \(deleted\))?$")   # held while listening
+_PORT_MAP = re.compile(r"/dev/shm/fastrtps_port(\d+) \(deleted\)$")
+
+
+def shared_memory_ports(pid="self"):
+    """(listening, lost): the Fast DDS shared-memory ports process `pid` listens on, and those of
+    them whose file was deleted under it (no process that opens the port from now on reaches it);
+    read from /proc, so (set(), set()) where there is none."""
+    listening = set()
+    try:
+        for fd in os.listdir("/proc/%s/fd" % pid):
+            try:
+                found = _PORT_LOCK.match(os.readlink("/proc/%s/fd/%s" % (pid, fd)))
+            except OSError:
+                continue   # closed meanwhile
+            if found:
+                listening.add(int(found.group(1)))
+        if not listening:
+            return set(), set()
+        with open("/proc/%s/maps" % pid) as maps:
+            deleted = {int(found.group(1)) for found in map(_PORT_MAP.search, maps.read().splitlines()) if found}
+    except OSError:
+        return set(), set()
+    return listening, listening & deleted
+
+
+def restart_in_place(claim_node=None):
+    """Start this node afresh in the same process: same pid (so `up`, a launch file or a test still
+    holds it), arguments, log and lifeline; a new DDS participant with new ports. Its claim keeps
+    its `since`, and it does not wait for older claims again (it was the one running)."""
+    if claim_node is not None:
+        os.environ[claims.ENV_SINCE] = repr(claim_node.claim.mine["since"])
+    os.environ[claims.ENV_CHECKED] = "1"
+    keep = lifeline.hand_on(os.environ)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    for fd in map(int, os.listdir("/proc/self/fd")):   # Fast DDS's locks and sockets must not survive
+        if fd > 2 and fd not in keep:
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+    os.execv(sys.executable, sys.orig_argv)
+
+
+def check_ports(node, stop, noticed):
+    """Look at this process's shared-memory ports (PORT_CHECK_PERIOD): one that Fast DDS took away
+    is said once, and the node asks to restart as soon as it is at rest (node.at_rest(): no run to
+    lose; a node without at_rest only says so). Returns whether a loss was noticed."""
+    lost = sorted(shared_memory_ports()[1])
+    if not lost:
+        return noticed
+    at_rest = getattr(node, "at_rest", None)
+    if not noticed:
+        node.get_logger().error(
+            "Fast DDS deleted this node's shared-memory port %s (another process found it unresponsive "
+            "for over a second, as when the machine stalls): processes that start from now on cannot "
+            "reach this node; %s" % (", ".join(map(str, lost)), "it restarts as soon as it holds no run"
+                                     if at_rest is not None else "restart it"))
+    if at_rest is not None and at_rest():
+        stop.request("restarting: its shared-memory port %s was deleted" % ", ".join(map(str, lost)), restart=True)
+    return True
+
+
 def claim_place(who, name, stop):
     """Claim this node's place in its domain and namespace (robotarium_core.claim) on a small node
     of its own, before the real node offers anything: returns (claim node, identity of an older
@@ -270,9 +347,12 @@ def run_node(make_node, name, args=None, before_destroy=None, claim=None):
     if claim_node is not None:
         executor.add_node(claim_node)
     stop.attach(node)
+    ports_lost, next_check = False, time.monotonic() + PORT_CHECK_PERIOD
     try:
         while stop.reason is None and rclpy.ok():
             executor.spin_once(timeout_sec=0.2)   # a signal's Python handler runs between waits
+            if time.monotonic() >= next_check:
+                ports_lost, next_check = check_ports(node, stop, ports_lost), time.monotonic() + PORT_CHECK_PERIOD
         if stop.reason is not None and rclpy.ok():
             node.get_logger().info("stopping: %s" % stop.reason)
             wind_down = getattr(node, "wind_down", None)
@@ -294,4 +374,6 @@ def run_node(make_node, name, args=None, before_destroy=None, claim=None):
     if claim_node is not None and claim_node.refusal is not None:
         print("%s: %s" % (name, claim_node.refusal), file=sys.stderr, flush=True)
         return claims.REFUSED
+    if stop.restart:
+        restart_in_place(claim_node)
     return 0

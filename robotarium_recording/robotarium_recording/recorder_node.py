@@ -472,6 +472,10 @@ class RecorderNode(Node):
         if self.context.ok():
             self.recording_pub.publish(String(data=""))
 
+    def at_rest(self):
+        """No run is being recorded: restarting the node loses nothing (node_tools.check_ports)."""
+        return self.session.state == "idle"
+
     def wind_down(self, reason):
         """Stopping: a run still open is closed once the simulator's end of it (winding down, it
         ends the experiment) arrived, or at run_node's limit, whichever is first."""

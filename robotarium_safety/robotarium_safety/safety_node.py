@@ -144,6 +144,10 @@ class SafetyNode(Node):
                 self.get_namespace(), c.robot_diameter + c.collision_margin, c.robot_diameter, c.boundary_margin,
                 list(c.arena), c.safety_radius + c.projection_distance))
 
+    def at_rest(self):
+        """No experiment is guarded: restarting the node loses nothing (node_tools.check_ports)."""
+        return not self.armed.run_id
+
     def on_arm(self, request, response):
         """The simulator starts (run_id set) or ends (empty) an experiment: guard that one only."""
         if request.run_id and request.number_of_robots < 1:

@@ -439,6 +439,10 @@ class SimulatorNode(Node):
         self.get_logger().info(response.message)
         return response
 
+    def at_rest(self):
+        """No experiment runs: restarting the node loses nothing (node_tools.check_ports)."""
+        return self.testbed is None
+
     def wind_down(self, reason):
         """Stopping (a signal, or the process that started the testbed is gone: node_tools.run_node):
         end the running experiment as end_experiment does, and wait until its last statuses reached
