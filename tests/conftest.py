@@ -29,6 +29,14 @@ LONGEST_FIRST = ("test_service.py", "test_examples.py", "test_rps2_examples.py",
                  "test_line.py", "test_testbed_lifetime.py", "test_simulator_node.py")
 
 
+def pytest_sessionstart(session):
+    """Once per run (not in each xdist worker): Fast DDS's files that killed processes of earlier runs
+    left in /dev/shm go (devtools.shm), so no participant of this run opens a dead port."""
+    if not hasattr(session.config, "workerinput"):
+        from devtools import shm
+        shm.remove_unused()
+
+
 def pytest_collection_modifyitems(items):
     """A test without a layer marker is a unit test (pytest.ini lists the layers); the longest
     modules first (LONGEST_FIRST), the rest in their order."""
