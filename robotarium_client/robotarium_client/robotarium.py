@@ -32,10 +32,14 @@ step known then), waits for a later one and again takes all that came: a script 
 message per step handed it. Lockstep is untouched: one command, one step, the poses of exactly
 that step.
 """
+from __future__ import annotations
+
 import atexit
 import os
 import sys
 import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, NoReturn
 
 import numpy as np
 
@@ -56,13 +60,20 @@ from robotarium_core import cdr, model, outcomes
 from robotarium_core.config import DEFAULT, TestbedConfig
 from robotarium_core.model import RobotariumError
 
+if TYPE_CHECKING:
+    from rclpy.client import Client
+    from std_msgs.msg import String
+
+    from robotarium_msgs.msg import TestbedStatus
+    from robotarium_msgs.srv import EndExperiment, StartExperiment
+
 STARTUP_WAIT = 60.0   # s for a testbed started here to come up
 STEP_TIMEOUT = 10.0   # s without poses after a step() before we give up with an explanation
 CONFIG_WAIT = 2.0     # s for the testbed's latched configuration once its services answer
 GRAPH_POLL = 0.01     # s between looks at what only the DDS graph says (a reader matched) while waiting
 
 
-def incomplete_testbed_message(ns):
+def incomplete_testbed_message(ns: str) -> str:
     """What a client says of a testbed in `ns` whose safety node does not answer (one line)."""
     return ("The testbed in %s on ROS_DOMAIN_ID %s is incomplete: no safety node answers, and without it the robots "
             "cannot move. Start one there (ros2 run robotarium_safety safety --ros-args -r __ns:=%s), or stop this "
@@ -74,7 +85,7 @@ LINE_POLL = 0.5         # s between a waiting client's asks (well within the tes
 LINE_REPORT = 10.0      # s between lines saying who holds the testbed, when nothing else changed
 
 
-def holder_of_this_process():
+def holder_of_this_process() -> str:
     """Who asks for the testbed, as those waiting and ./robotarium status show it."""
     import getpass
     import socket
@@ -88,7 +99,8 @@ def holder_of_this_process():
 class Robotarium(RobotariumABC):
     """The Robotarium of the guide, on the ROS 2 testbed."""
 
-    def __init__(self, number_of_robots=-1, show_figure=True, sim_in_real_time=True, initial_conditions=np.array([])):
+    def __init__(self, number_of_robots: int = -1, show_figure: bool = True, sim_in_real_time: bool = True,
+                 initial_conditions: np.ndarray = np.array([])) -> None:
         options = session.options
         # The testbed's own configuration replaces this once connected; a run's --config file
         # (e.g. more robots than the packaged 50) is what the arguments are checked against first.
@@ -115,7 +127,7 @@ class Robotarium(RobotariumABC):
 
     # -- the backend -----------------------------------------------------------------------------
 
-    def _advance(self, velocities):
+    def _advance(self, velocities: np.ndarray) -> np.ndarray:
         if self.sim_in_real_time:
             self._take_newest_poses()   # the newest step published before this command
             known = max(self._last_step, self._latest.step if self._latest is not None else 0)
@@ -130,7 +142,7 @@ class Robotarium(RobotariumABC):
             self._stop_at_time_limit()
         return poses
 
-    def _stop_at_time_limit(self):
+    def _stop_at_time_limit(self) -> NoReturn:
         """End the experiment at its time limit as call_at_scripts_end() would, with the reason as
         the report's first line, and stop the script (TimeLimitReached)."""
         step, sim_time = self._latest.step, self._latest.sim_time
@@ -144,7 +156,7 @@ class Robotarium(RobotariumABC):
         self._after_report()
         raise TimeLimitReached(note)
 
-    def _end(self, outcome=outcomes.COMPLETED, detail=""):
+    def _end(self, outcome: int = outcomes.COMPLETED, detail: str = "") -> str:
         from robotarium_msgs.srv import EndExperiment
         self._end_sent = True   # an IDLE status of this run from now on may be this request's
         if "recorder" in self._suspects:   # a lapse just before the end: settle whether the recorder is gone
@@ -190,7 +202,7 @@ class Robotarium(RobotariumABC):
                                           ("actuator", response.actuator_limit_iterations)) if v}
         return report
 
-    def _finish(self, outcome, detail=""):
+    def _finish(self, outcome: int, detail: str = "") -> str | None:
         """As RobotariumABC._finish; but an experiment that the testbed ended itself (an operator, a
         stopped testbed) or whose simulator or safety node is gone has nothing left to end here: the
         script was stopped with that cause, which was printed, and a second line ("could not end the
@@ -201,12 +213,12 @@ class Robotarium(RobotariumABC):
             return None
         return super()._finish(outcome, detail)
 
-    def _announced_recording(self):
+    def _announced_recording(self) -> str:
         """The recorder's folder for this run if it announced one (its name starts with the run id)."""
         ok = self._run_id and os.path.basename(self._recording).startswith(self._run_id)
         return self._recording if ok else ""
 
-    def partial_run_info(self):
+    def partial_run_info(self) -> dict[str, object]:
         """What is known of a run whose end the testbed never confirmed (a lost testbed)."""
         info = {"run_id": self._run_id or "", "recording": self._announced_recording(), "report": "",
                 "steps": self._latest.step if self._latest is not None else 0,
@@ -215,7 +227,7 @@ class Robotarium(RobotariumABC):
             info.update(ended=True, ended_by_unsent_request_at_step=self._unsent_end_at)
         return info
 
-    def _after_report(self):
+    def _after_report(self) -> None:
         info = self.run_info
         for name, counts in info["dropped"].items():
             if any(counts.values()):
@@ -237,7 +249,7 @@ class Robotarium(RobotariumABC):
 
     # -- talking to the testbed ------------------------------------------------------------------
 
-    def _connect(self):
+    def _connect(self) -> None:
         import rclpy
         from rclpy.context import Context
         from rclpy.node import Node
@@ -325,15 +337,15 @@ class Robotarium(RobotariumABC):
 
         self._ids = np.arange(self.number_of_robots)
 
-    def _on_config(self, msg):
+    def _on_config(self, msg: String) -> None:
         self._testbed_config = msg.data
 
-    def _on_recording(self, msg):
+    def _on_recording(self, msg: String) -> None:
         self._recording = msg.data   # the recorder announces each run's folder, and "" when it closed it
         if self._run_id and not self._ended and self._announced_recording():
             session.note_started(self.partial_run_info())
 
-    def _on_recording_error(self, msg):
+    def _on_recording_error(self, msg: String) -> None:
         """The recorder could not write this run's bag (a full disk): the run goes on, its recording
         stopped here; the report says so and gives no acceptance estimate."""
         import json
@@ -350,7 +362,7 @@ class Robotarium(RobotariumABC):
               "what was recorded until then stays readable%s." % (why, self._recorder_lost_at,
                                                                  " in %s" % path if path else ""), file=sys.stderr)
 
-    def _adopt_testbed_config(self):
+    def _adopt_testbed_config(self) -> None:
         """Take the testbed's configuration (its latched `config` topic) for the constants and the
         checks of the initial conditions: a testbed run with another arena or time step is
         described by its own numbers. A testbed that publishes none uses the packaged default."""
@@ -364,7 +376,7 @@ class Robotarium(RobotariumABC):
             model.validate_initial_conditions(self.initial_conditions, self.number_of_robots,
                                               config.robot_diameter, config.arena)
 
-    def _start_experiment(self):
+    def _start_experiment(self) -> None:
         from robotarium_msgs.srv import StartExperiment
         self._watch_testbed()
         request = StartExperiment.Request(name=self._options.experiment_name, number_of_robots=self.number_of_robots,
@@ -407,7 +419,7 @@ class Robotarium(RobotariumABC):
         # the safety node's first sign of life (moments; their presences assert every 0.17 s).
         self._spin_until(lambda: self._watches["simulator"].seen and self._watches["safety"].seen, STEP_TIMEOUT)
 
-    def _wait_in_line(self, request):
+    def _wait_in_line(self, request: StartExperiment.Request) -> StartExperiment.Response:
         """Ask to start until the testbed takes us: a busy testbed puts a waiting client in its line
         (first come, first served; robotarium_core.line), and we say our place and who holds it
         whenever that changes (and every LINE_REPORT s). Ctrl-C leaves the line (the testbed forgets
@@ -429,10 +441,10 @@ class Robotarium(RobotariumABC):
                 said, said_at = news, time.monotonic()
             self._spin_until(lambda: False, LINE_POLL)
 
-    def _complete_start_request(self, request):
+    def _complete_start_request(self, request: StartExperiment.Request) -> None:
         """What a subclass adds to the StartExperiment request (robotarium2: the 2.x API's fields)."""
 
-    def _watch_testbed(self):
+    def _watch_testbed(self) -> None:
         """Follow the presence of the testbed's nodes (robotarium_core.presence), with the testbed's lease."""
         from robotarium_core import presence
         lease = self.config.node_lease
@@ -440,7 +452,7 @@ class Robotarium(RobotariumABC):
             self._watches[who] = presence.Watch(self._node, presence.alive_topic(who), lease,
                                                 on_lost=lambda who=who: self._on_node_lost(who))
 
-    def _on_node_lost(self, who):
+    def _on_node_lost(self, who: str) -> None:
         if self._run_id is None or self._ended:
             return
         step = self._latest.step if self._latest is not None else 0
@@ -448,7 +460,7 @@ class Robotarium(RobotariumABC):
             return
         self._suspects.setdefault(who, (time.monotonic(), step))
 
-    def _confirm_losses(self):
+    def _confirm_losses(self) -> bool:
         """A node whose presence lapsed is lost once it stayed away another node_lease: on a loaded
         2-core machine a presence lapsed now and then for a moment (a burst of discovery or a flood
         starved the process's DDS threads) while the node went on working, and ended a run that was
@@ -479,7 +491,7 @@ class Robotarium(RobotariumABC):
                         ", and the simulator stopped every robot" if who == "safety" else ""))
         return self._failure is not None
 
-    def _on_status(self, msg):
+    def _on_status(self, msg: TestbedStatus) -> None:
         from robotarium_msgs.msg import TestbedStatus
         if msg.run_id != self._run_id or msg.state != TestbedStatus.STATE_IDLE:
             return
@@ -497,16 +509,16 @@ class Robotarium(RobotariumABC):
             self._failure = self._failure if self._failure is not None else ("%s%s." % (
                 outcomes.ENDED_BY_TESTBED, msg.end_reason or "no reason given"))
 
-    def _check_testbed(self):
+    def _check_testbed(self) -> None:
         """Raise RuntimeError when the experiment cannot go on (a node lost, ended by someone else)."""
         if self._confirm_losses():
             raise self._failure_kind(self._failure)
 
-    def _safety_node_matched(self):
+    def _safety_node_matched(self) -> bool:
         from robotarium_core.topics import readers_matched
         return readers_matched(self._node, self._command_pub, "safety")
 
-    def _on_poses(self, data):
+    def _on_poses(self, data: bytes) -> None:
         try:
             msg = cdr.ROBOT_POSES.parse(data, max_elements=self.number_of_robots)
         except cdr.CdrError:
@@ -515,24 +527,24 @@ class Robotarium(RobotariumABC):
         if msg.run_id == self._run_id and msg.key == self._poses_key:
             self._latest = msg
 
-    def _take_newest_poses(self):
+    def _take_newest_poses(self) -> None:
         """Take every poses message the reader holds now (this run's newest ends up in _latest)."""
         from robotarium_core.node_tools import take_waiting
         for data in take_waiting(self._poses_subscription):
             self._on_poses(data)
 
-    def _send(self, velocities, step):
+    def _send(self, velocities: np.ndarray, step: int) -> None:
         v, w = velocities
         sec, nanosec = self._node.get_clock().now().seconds_nanoseconds()
         self._command_pub.publish(cdr.TWIST_ARRAY.build(sec=sec, nanosec=nanosec, frame_id="arena", token=self._token,
                                                         step=step, ids=self._ids, twists=cdr.twists(v, w)))
 
-    def _publish_drawing(self, message):
+    def _publish_drawing(self, message: dict[str, object]) -> None:
         if self._node is not None:
             self._drawing_message.data = recording.encode_drawing(message)
             self._drawing_pub.publish(self._drawing_message)
 
-    def _wait_for_step(self, target):
+    def _wait_for_step(self, target: int) -> np.ndarray:
         arrived = self._spin_until(lambda: self._confirm_losses() or (
             self._latest is not None and self._latest.step >= target), STEP_TIMEOUT)
         self._check_testbed()
@@ -547,7 +559,7 @@ class Robotarium(RobotariumABC):
         self._last_step = msg.step
         return np.array([msg.x, msg.y, msg.theta])   # a copy: the message's arrays are views of its bytes
 
-    def _spin_until(self, predicate, timeout):
+    def _spin_until(self, predicate: Callable[[], object], timeout: float) -> bool:
         deadline = time.monotonic() + timeout
         while not predicate():
             remaining = deadline - time.monotonic()
@@ -557,7 +569,8 @@ class Robotarium(RobotariumABC):
             self._executor.spin_once(timeout_sec=min(remaining, GRAPH_POLL))
         return True
 
-    def _call(self, client, request, timeout=30.0, resend=None):
+    def _call(self, client: Client, request: StartExperiment.Request | EndExperiment.Request, timeout: float = 30.0,
+              resend: float | None = None) -> StartExperiment.Response | EndExperiment.Response:
         """The answer to `request`; with `resend` (s; only for a request answered the same however
         often it comes) sent again while unanswered."""
         from robotarium_core.node_tools import wait_for_service
@@ -573,7 +586,7 @@ class Robotarium(RobotariumABC):
                 raise TestbedLost("The testbed's %s service did not answer within %.0f s."
                                   % (client.srv_name, timeout))
 
-    def _end_quietly(self):
+    def _end_quietly(self) -> None:
         """At exit without call_at_scripts_end (a script run with plain python that raised or just
         ended; ./robotarium run ends it before, saying how): free the testbed for the next run,
         saying how the run ended."""
@@ -592,7 +605,7 @@ class Robotarium(RobotariumABC):
                     pass
         self._shutdown()
 
-    def _shutdown(self):
+    def _shutdown(self) -> None:
         import rclpy
 
         from robotarium_core.node_tools import wait_for_quiet_discovery

@@ -6,8 +6,12 @@ conditions, the figure, and the call-order rules of get_poses() / set_velocities
 backend subclass supplies the testbed: `_start`, `_advance` and `_end` (robotarium.Robotarium
 talks to the ROS 2 testbed over DDS).
 """
+from __future__ import annotations
+
 import abc
 import sys
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -16,12 +20,16 @@ from robotarium_core import model, outcomes
 from robotarium_core.config import DEFAULT
 from robotarium_core.model import RobotariumError
 
+if TYPE_CHECKING:
+    from robotarium_core.config import TestbedConfig
+    from robotarium_recording.arena_figure import ArenaFigure
+
 
 class RobotariumABC(abc.ABC):
     """Same constructor, defaults, attributes and call-order rules as rps.robotarium.Robotarium."""
 
-    def __init__(self, number_of_robots=-1, show_figure=True, sim_in_real_time=True,
-                 initial_conditions=np.array([]), config=DEFAULT):
+    def __init__(self, number_of_robots: int = -1, show_figure: bool = True, sim_in_real_time: bool = True,
+                 initial_conditions: np.ndarray = np.array([]), config: TestbedConfig = DEFAULT) -> None:
         # Argument checks of rps (RobotariumABC), with messages that say what to do.
         model.validate_number_of_robots(number_of_robots, config.max_robots)
         if not isinstance(initial_conditions, np.ndarray):
@@ -66,7 +74,7 @@ class RobotariumABC(abc.ABC):
         self.figure, self.axes = [], []
         self._arena_figure = self._drawing = None
 
-    def _use_config(self, config):
+    def _use_config(self, config: TestbedConfig) -> None:
         """The constants of rps, from the testbed configuration (a backend passes the testbed's own)."""
         self.config = config
         self.boundaries = list(config.boundaries)
@@ -79,14 +87,14 @@ class RobotariumABC(abc.ABC):
         self.max_angular_velocity = config.max_angular_velocity
         self.max_wheel_velocity = config.max_wheel_velocity
 
-    def _default_initial_conditions(self):
+    def _default_initial_conditions(self) -> np.ndarray:
         """Random initial conditions when the script gives none. rps draws these in the script's
         process from numpy's global generator, so a script that seeds numpy gets the same start as
         on the Robotarium simulator."""
         from rps.utilities.misc import generate_initial_conditions
         return generate_initial_conditions(self.number_of_robots, spacing=0.2, width=2.5, height=1.5)
 
-    def _make_figure(self):
+    def _make_figure(self) -> None:
         """The arena figure (r.figure, r.axes) when show_figure is True; call once the poses are known.
         What the script then draws on r.axes is watched, so that the video of the run shows it."""
         self._arena_figure = self._drawing = None
@@ -95,12 +103,12 @@ class RobotariumABC(abc.ABC):
             self.figure, self.axes = self._arena_figure.figure, self._arena_figure.axes
             self._drawing = recording.DrawingWatcher(self.axes, self._arena_figure.own_artists)
 
-    def _new_arena_figure(self):
+    def _new_arena_figure(self) -> ArenaFigure:
         """The live figure in rps's layout (a 2.x Robotarium lays it out as 2.x does)."""
         from robotarium_client.figure import live_figure
         return live_figure(self.config.arena, self.robot_radius, self.poses)
 
-    def _record_drawing(self, step):
+    def _record_drawing(self, step: int) -> None:
         """Hand what the script changed on r.axes since the last call to the backend, as drawn for
         the poses of `step`. Never lets a drawing problem stop the experiment."""
         if self._drawing is None:
@@ -117,7 +125,7 @@ class RobotariumABC(abc.ABC):
 
     # -- the rps API ---------------------------------------------------------------------------
 
-    def get_poses(self):
+    def get_poses(self) -> np.ndarray:
         """Returns the states of the agents: a 3xN numpy array (x, y, theta of each robot)."""
         if self._checked_poses_already:
             raise RobotariumError("Can only call get_poses() once per call of step().")
@@ -125,7 +133,7 @@ class RobotariumABC(abc.ABC):
         self._checked_poses_already = True
         return self.poses.copy()
 
-    def set_velocities(self, ids, velocities):
+    def set_velocities(self, ids: np.ndarray | Sequence[int] | int, velocities: np.ndarray) -> None:
         """Set unicycle commands: velocities is 2 x len(ids) (v in m/s, omega in rad/s).
 
         The testbed thresholds them to the wheel limits keeping the commanded arc, and the
@@ -153,7 +161,7 @@ class RobotariumABC(abc.ABC):
                                   "commands (the testbed would refuse them)." % bad.tolist())
         self.velocities[:, ids] = velocities
 
-    def step(self):
+    def step(self) -> None:
         """Send the commands and advance one step (0.033 s) of the testbed."""
         if self._called_step_already:
             raise RobotariumError("Make sure to call get_poses before calling step() again.")
@@ -170,7 +178,7 @@ class RobotariumABC(abc.ABC):
             if self._arena_figure.interactive:
                 self._arena_figure.show()
 
-    def call_at_scripts_end(self):
+    def call_at_scripts_end(self) -> None:
         """End the experiment and print the debug report, as rps does (again if called again)."""
         if self._ended:
             print(self._report, end="")
@@ -181,7 +189,7 @@ class RobotariumABC(abc.ABC):
         print(self._report, end="")
         self._after_report()
 
-    def _finish(self, outcome, detail=""):
+    def _finish(self, outcome: int, detail: str = "") -> str | None:
         """End an experiment that did not reach call_at_scripts_end (the script raised, was
         interrupted or simply ended), saying how (robotarium_core.outcomes); prints nothing.
         Returns the debug report, or None if the experiment had ended already."""
@@ -195,16 +203,16 @@ class RobotariumABC(abc.ABC):
     # -- what a backend supplies ---------------------------------------------------------------------
 
     @abc.abstractmethod
-    def _advance(self, velocities):
+    def _advance(self, velocities: np.ndarray) -> np.ndarray:
         """Apply `velocities` (2 x N) for one step and return the poses (3 x N) that follow."""
 
     @abc.abstractmethod
-    def _end(self, outcome=outcomes.COMPLETED, detail=""):
+    def _end(self, outcome: int = outcomes.COMPLETED, detail: str = "") -> str:
         """End the experiment saying how it ended (robotarium_core.outcomes); return the debug report text."""
 
-    def _publish_drawing(self, message):   # noqa: B027 (optional hook: a no-op by default)
+    def _publish_drawing(self, message: dict[str, object]) -> None:   # noqa: B027 (optional hook: a no-op by default)
         """Keep a DrawingWatcher message (what the script drew) with the run; a backend without a
         recording may ignore it."""
 
-    def _after_report(self):   # noqa: B027 (optional hook: a no-op by default)
+    def _after_report(self) -> None:   # noqa: B027 (optional hook: a no-op by default)
         """What a backend prints after the debug report (e.g. where the run was recorded)."""

@@ -28,10 +28,18 @@ experiment's robot count, so a foreign, oversized or malformed array costs a few
 is dropped with its reason (CdrError.reason: FOREIGN, OVERSIZED or MALFORMED; the names of
 robotarium_msgs/DropCounts).
 """
+from __future__ import annotations
+
 import struct
 from collections import namedtuple
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable, Mapping, Sequence
+
+    from numpy.typing import ArrayLike
 
 ENCAPSULATION = b"\x00\x01\x00\x00"     # plain CDR, little endian
 
@@ -47,25 +55,25 @@ class CdrError(ValueError):
     """Bytes that are not a valid serialized message of the expected layout; `reason` says why in
     DropCounts' words (MALFORMED, OVERSIZED: a sequence longer than max_elements, FOREIGN)."""
 
-    def __init__(self, text, reason=MALFORMED):
+    def __init__(self, text: str, reason: str = MALFORMED) -> None:
         super().__init__(text)
         self.reason = reason
 
 
 class _Scalar:
-    def __init__(self, fmt, default=0):
+    def __init__(self, fmt: str, default: float = 0) -> None:
         self.size = self.align = struct.calcsize(fmt)
         self.fmt = fmt
         self.default = default
         self.struct = struct.Struct("<" + fmt)
 
-    def read(self, reader):
+    def read(self, reader: _Reader) -> int | float | bool:
         pos = reader.align(self.align)
         reader.need(pos, self.size)
         reader.pos = pos + self.size
         return self.struct.unpack_from(reader.data, pos)[0]
 
-    def write(self, writer, value):
+    def write(self, writer: _Writer, value: float) -> None:
         writer.align(self.align)
         writer.put(self.struct.pack(value))
 
@@ -73,7 +81,7 @@ class _Scalar:
 class _String:
     default = ""
 
-    def read(self, reader):
+    def read(self, reader: _Reader) -> str:
         pos = reader.align(4)
         reader.need(pos, 4)
         length = _COUNT.unpack_from(reader.data, pos)[0]
@@ -84,7 +92,7 @@ class _String:
         # The length counts the terminating NUL (some writers send 0 for an empty string).
         return bytes(reader.data[pos + 4:pos + 3 + length]).decode("utf-8", errors="replace") if length else ""
 
-    def write(self, writer, value):
+    def write(self, writer: _Writer, value: str) -> None:
         encoded = value.encode("utf-8") + b"\x00"
         writer.align(4)
         writer.put(_COUNT.pack(len(encoded)))
@@ -95,14 +103,14 @@ class _Sequence:
     """A sequence of one primitive type, or of structs of `width` float64 members (Twist: 6,
     Pose: 7), as a numpy array (shape (count,) or (count, width))."""
 
-    def __init__(self, dtype, width=None):
+    def __init__(self, dtype: type[np.generic], width: int | None = None) -> None:
         self.dtype = np.dtype(dtype).newbyteorder("<")
         self.width = width
         self.element = self.dtype.itemsize * (width or 1)
         self.align = self.dtype.itemsize
         self.default = np.zeros((0, width) if width else 0, dtype=self.dtype)
 
-    def read(self, reader):
+    def read(self, reader: _Reader) -> np.ndarray:
         pos = reader.align(4)
         reader.need(pos, 4)
         count = _COUNT.unpack_from(reader.data, pos)[0]
@@ -118,7 +126,7 @@ class _Sequence:
         reader.pos = start + count * self.element
         return values.reshape(count, self.width) if self.width else values
 
-    def write(self, writer, value):
+    def write(self, writer: _Writer, value: ArrayLike) -> None:
         values = np.ascontiguousarray(value, dtype=self.dtype)
         count = values.shape[0] if values.ndim else 0
         if self.width and values.shape[1:] != (self.width,):
@@ -139,7 +147,7 @@ HEADER = (("sec", INT32), ("nanosec", UINT32), ("frame_id", STRING))   # std_msg
 
 
 class _Reader:
-    def __init__(self, data, max_elements, max_string):
+    def __init__(self, data: bytes | bytearray | memoryview, max_elements: int | None, max_string: int) -> None:
         if len(data) < 4:
             raise CdrError("%d bytes: too short for a serialized message" % len(data))
         if data[0] != 0 or data[1] != 1:
@@ -149,27 +157,27 @@ class _Reader:
         self.max_elements = max_elements
         self.max_string = max_string
 
-    def align(self, size):
+    def align(self, size: int) -> int:
         return self.pos + (-self.pos) % size
 
-    def need(self, pos, size):
+    def need(self, pos: int, size: int) -> None:
         if pos + size > len(self.data):
             raise CdrError("truncated: %d bytes needed at offset %d of %d" % (size, pos, len(self.data)))
 
 
 class _Writer:
-    def __init__(self):
+    def __init__(self) -> None:
         self.parts = [ENCAPSULATION]
         self.length = 0
         self.padding = []   # (offset, size) of each padding run, counted from the encapsulation header's end
 
-    def align(self, size):
+    def align(self, size: int) -> None:
         pad = (-self.length) % size
         if pad:
             self.padding.append((self.length, pad))
             self.put(b"\x00" * pad)
 
-    def put(self, data):
+    def put(self, data: bytes) -> None:
         self.parts.append(data)
         self.length += len(data)
 
@@ -177,28 +185,28 @@ class _Writer:
 class Layout:
     """One message type's fields in wire order: parse(bytes) -> namedtuple, build(**fields) -> bytes."""
 
-    def __init__(self, type_name, fields):
+    def __init__(self, type_name: str, fields: Iterable[tuple[str, _Scalar | _String | _Sequence]]) -> None:
         self.type_name = type_name
         self.fields = tuple(fields)
         self.Message = namedtuple(type_name.rsplit("/", 1)[-1], [name for name, _ in self.fields])
 
-    def parse(self, data, max_elements=None, max_string=MAX_STRING):
+    def parse(self, data: bytes | bytearray | memoryview, max_elements: int | None = None, max_string: int = MAX_STRING) -> tuple:
         """The fields of a serialized message (numpy arrays are read-only views of `data`).
         Raises CdrError when the bytes do not hold this layout, or when a sequence is longer
         than max_elements or a string longer than max_string."""
         reader = _Reader(data, max_elements, max_string)
         return self.Message(*[kind.read(reader) for _, kind in self.fields])
 
-    def build(self, **values):
+    def build(self, **values: object) -> bytes:
         """Serialized bytes; fields not given are zero or empty."""
         return b"".join(self._writer(values).parts)
 
-    def _writer(self, values):
+    def _writer(self, values: Mapping[str, object]) -> _Writer:
         writer = _Writer()
         self._write(writer, values)
         return writer
 
-    def _write(self, writer, values):
+    def _write(self, writer: _Writer, values: Mapping[str, object]) -> None:
         unknown = set(values) - set(self.Message._fields)
         if unknown:
             raise TypeError("%s has no field %s" % (self.type_name, ", ".join(sorted(unknown))))
@@ -206,7 +214,7 @@ class Layout:
             kind.write(writer, values.get(name, kind.default))
 
 
-def build_sequence(layout, elements):
+def build_sequence(layout: Layout, elements: Sequence[Mapping[str, object]]) -> bytes:
     """The bytes of a message whose only field is a sequence of `layout` structs (a MarkerArray):
     `elements` is a list of {field: value} dicts."""
     writer = _Writer()
@@ -278,14 +286,14 @@ _TWIST_ARRAY_HEAD = Layout("robotarium_msgs/msg/TwistArray", HEADER + (("token",
 Commands = namedtuple("Commands", "token step ids v omega requested_exceeds_limits sec nanosec")
 
 
-def max_twist_array_bytes(max_robots):
+def max_twist_array_bytes(max_robots: int) -> int:
     """The most bytes a serialized TwistArray of at most `max_robots` robots can take: the
     encapsulation, the header with a frame_id of MAX_STRING bytes, a token of as many, the step,
     max_robots ids and twists, the flag, and every alignment pad (at most 7 bytes each)."""
     return 4 + 8 + 2 * (4 + MAX_STRING) + 8 + (4 + 4 * max_robots) + (4 + 48 * max_robots) + 1 + 5 * 7
 
 
-def parse_commands(data, max_robots, token=None):
+def parse_commands(data: bytes | bytearray | memoryview, max_robots: int, token: str | None = None) -> Commands:
     """A TwistArray's serialized bytes (a raw=True subscription) -> Commands, or CdrError with its
     reason: OVERSIZED when the bytes are more than an array of `max_robots` robots can take
     (max_twist_array_bytes: from their length alone, before anything is read), or when ids or
@@ -303,7 +311,7 @@ def parse_commands(data, max_robots, token=None):
                     msg.twists[:, 5].astype(float), bool(msg.requested_exceeds_limits), msg.sec, msg.nanosec)
 
 
-def twists(v, w):
+def twists(v: np.ndarray | Sequence[float], w: np.ndarray | Sequence[float]) -> np.ndarray:
     """(count, 6) Twist rows with linear.x = v and angular.z = w."""
     rows = np.zeros((len(v), 6))
     rows[:, 0] = v
@@ -311,7 +319,8 @@ def twists(v, w):
     return rows
 
 
-def planar_poses(x, y, theta):
+def planar_poses(x: np.ndarray | Sequence[float], y: np.ndarray | Sequence[float],
+                 theta: np.ndarray | Sequence[float]) -> np.ndarray:
     """(count, 7) Pose rows of robots on the floor: position (x, y, 0), heading as a quaternion
     about z (as the simulator's PoseArray always was: z = sin(theta/2), w = cos(theta/2))."""
     rows = np.zeros((len(x), 7))

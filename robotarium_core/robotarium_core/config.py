@@ -10,8 +10,13 @@ made with the same numbers.
 import dataclasses
 import math
 import os
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Self
 
 import yaml
+
+if TYPE_CHECKING:
+    import numpy as np
 
 DEFAULT_FILE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "testbed.yaml")
 
@@ -195,7 +200,7 @@ class ConfigError(ValueError):
     """A configuration value that is missing, of the wrong kind or out of range."""
 
 
-def _check(name, value):
+def _check(name: str, value: object) -> tuple[float, ...] | tuple[str, ...] | bool | int | float:
     field = FIELDS[name]
     if name == "arena":
         if (not isinstance(value, (list, tuple)) or len(value) != 4
@@ -220,7 +225,7 @@ def _check(name, value):
     return _check_number(name, field, value)
 
 
-def _check_number(name, field, value):
+def _check_number(name: str, field: Field, value: object) -> int | float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise ConfigError("%s must be a finite number (%s); received %r." % (name, field.description, value))
     if field.integer and value != int(value):
@@ -232,7 +237,7 @@ def _check_number(name, field, value):
     return int(value) if field.integer else float(value)
 
 
-def _value_type(name, field):
+def _value_type(name: str, field: Field) -> type:
     """The type of a field's value once checked (_check)."""
     if name == "arena" or field.length or field.names:
         return tuple
@@ -247,38 +252,38 @@ class _TestbedConfigBehaviour:
     the checks of a file derive too)."""
     __test__ = False  # not a pytest class
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in FIELDS:
             object.__setattr__(self, name, _check(name, getattr(self, name)))
 
     # -- derived values (never configured separately, so they cannot disagree) ---------------------
 
     @property
-    def robot_radius(self):
+    def robot_radius(self) -> float:
         return self.robot_diameter / 2
 
     @property
-    def boundaries(self):
+    def boundaries(self) -> list[float]:
         """rps's [x_min, y_min, width, height]."""
         x_min, x_max, y_min, y_max = self.arena
         return [x_min, y_min, x_max - x_min, y_max - y_min]
 
     @property
-    def distance_sensor_poses(self):
+    def distance_sensor_poses(self) -> "np.ndarray":
         """3 x 7: x, y and heading of each distance sensor in the robot frame (2.x
         DISTANCE_SENSORS_ORIENTATION)."""
         import numpy as np
         return np.array([self.distance_sensor_x, self.distance_sensor_y, self.distance_sensor_heading])
 
     @property
-    def limits(self):
+    def limits(self) -> dict[str, float]:
         """Keyword arguments of the model's thresholding and limit checks."""
         return dict(max_linear=self.max_linear_velocity, max_angular=self.max_angular_velocity,
                     max_wheel=self.max_wheel_velocity, wheel_radius=self.wheel_radius,
                     base_length=self.base_length)
 
     @property
-    def safety_certificate(self):
+    def safety_certificate(self) -> dict[str, float | tuple[float, ...]]:
         """Keyword arguments of the safety node's certificate
         (robotarium_safety.barrier_certificates.create_unicycle_barrier_certificate_with_centre_boundary):
         it keeps robot centres robot_diameter + collision_margin apart, the collision rule the
@@ -292,7 +297,7 @@ class _TestbedConfigBehaviour:
     # -- reading and writing -------------------------------------------------------------------------
 
     @classmethod
-    def from_dict(cls, values, base=None):
+    def from_dict(cls, values: Mapping[str, object], base: Self | None = None) -> Self:
         """A configuration from {name: value}; names not given are taken from `base` (or an error)."""
         unknown = sorted(set(values) - set(FIELDS))
         if unknown:
@@ -305,7 +310,7 @@ class _TestbedConfigBehaviour:
         return cls(**{name: merged[name] for name in FIELDS})
 
     @classmethod
-    def load(cls, path=DEFAULT_FILE, base=None):
+    def load(cls, path: str | os.PathLike[str] = DEFAULT_FILE, base: Self | None = None) -> Self:
         """Read a ROS 2 parameters file (`/**: ros__parameters: {...}`) or a plain mapping."""
         with open(path) as f:
             document = yaml.safe_load(f) or {}
@@ -321,15 +326,15 @@ class _TestbedConfigBehaviour:
         except ConfigError as error:
             raise ConfigError("%s: %s" % (path, error)) from None
 
-    def to_dict(self):
+    def to_dict(self) -> dict[str, object]:
         return {name: list(value) if isinstance(value, tuple) else value
                 for name, value in dataclasses.asdict(self).items()}
 
-    def to_yaml(self):
+    def to_yaml(self) -> str:
         return yaml.safe_dump(self.to_dict(), sort_keys=False)
 
     @classmethod
-    def from_yaml(cls, text, base=None):
+    def from_yaml(cls, text: str, base: Self | None = None) -> Self:
         """The configuration a run published; values it lacks (an older run) come from `base`."""
         values = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader)) or {}   # libyaml's: 10 x faster
         known = {k: v for k, v in values.items() if k in FIELDS}

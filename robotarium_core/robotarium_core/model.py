@@ -17,10 +17,11 @@ limits along its own arc (guide §2.5 "scaling both the linear and angular compo
 proportionally"). Commands within the limits move the robots bit for bit as rps does.
 """
 import functools
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-from robotarium_core.config import DEFAULT
+from robotarium_core.config import DEFAULT, TestbedConfig
 
 # The Robotarium's numbers, as module constants for the rps API and the defaults of the functions
 # below. They are written once, in the testbed configuration (robotarium_core/testbed.yaml).
@@ -47,26 +48,27 @@ class RobotariumError(ValueError, AssertionError):
     """
 
 
-def wrap_angle(theta):
+def wrap_angle(theta: np.ndarray | float) -> np.ndarray | float:
     """Wrap angles to [-pi, pi] the way rps does (arctan2 of sine and cosine)."""
     return np.arctan2(np.sin(theta), np.cos(theta))
 
 
-def unicycle_to_wheels(dxu, wheel_radius=WHEEL_RADIUS, base_length=BASE_LENGTH):
+def unicycle_to_wheels(dxu: np.ndarray, wheel_radius: float = WHEEL_RADIUS, base_length: float = BASE_LENGTH) -> np.ndarray:
     """2xN (v, omega) -> 2xN (left, right) wheel speeds in rad/s (rps _uni_to_diff, guide §2.5.1)."""
     v, w = dxu[0], dxu[1]
     return np.vstack(((2 * v - base_length * w) / (2 * wheel_radius),
                       (2 * v + base_length * w) / (2 * wheel_radius)))
 
 
-def fastest_wheel(v, w, wheel_radius=WHEEL_RADIUS, base_length=BASE_LENGTH):
+def fastest_wheel(v: np.ndarray, w: np.ndarray, wheel_radius: float = WHEEL_RADIUS,
+                  base_length: float = BASE_LENGTH) -> np.ndarray:
     """Speed of the faster wheel of each robot: max(|2v - Lw|, |2v + Lw|) / 2r = (2|v| + L|w|) / 2r."""
     return (2 * np.abs(v) + base_length * np.abs(w)) / (2 * wheel_radius)
 
 
-def exceeds_actuator_limits(dxu, max_linear=MAX_LINEAR_VELOCITY, max_angular=MAX_ANGULAR_VELOCITY,
-                            max_wheel=MAX_WHEEL_VELOCITY, wheel_radius=WHEEL_RADIUS,
-                            base_length=BASE_LENGTH):
+def exceeds_actuator_limits(dxu: np.ndarray, max_linear: float = MAX_LINEAR_VELOCITY,
+                            max_angular: float = MAX_ANGULAR_VELOCITY, max_wheel: float = MAX_WHEEL_VELOCITY,
+                            wheel_radius: float = WHEEL_RADIUS, base_length: float = BASE_LENGTH) -> bool:
     """True when some robot's command is over the wheel-speed limit, judged as rps judges it.
 
     rps first clips v to +-0.2 m/s and omega to +-3.64 rad/s separately (set_velocities) and then
@@ -78,15 +80,16 @@ def exceeds_actuator_limits(dxu, max_linear=MAX_LINEAR_VELOCITY, max_angular=MAX
     return bool(np.any(fastest_wheel(v, w, wheel_radius, base_length) > max_wheel))
 
 
-def is_actuator_limit_iteration(dxu, requested_exceeds_limits=False, **limits):
+def is_actuator_limit_iteration(dxu: np.ndarray, requested_exceeds_limits: bool = False, **limits: float) -> bool:
     """Whether a step with the commands dxu in force counts in the debug report: they exceed the
     limits (exceeds_actuator_limits), or the safety node says the script's own commands behind
     them did (rps judges what the script set, before any filtering)."""
     return bool(requested_exceeds_limits) or exceeds_actuator_limits(dxu, **limits)
 
 
-def threshold_keeping_arc(dxu, max_linear=MAX_LINEAR_VELOCITY, max_angular=MAX_ANGULAR_VELOCITY,
-                          max_wheel=MAX_WHEEL_VELOCITY, wheel_radius=WHEEL_RADIUS, base_length=BASE_LENGTH):
+def threshold_keeping_arc(dxu: np.ndarray, max_linear: float = MAX_LINEAR_VELOCITY,
+                          max_angular: float = MAX_ANGULAR_VELOCITY, max_wheel: float = MAX_WHEEL_VELOCITY,
+                          wheel_radius: float = WHEEL_RADIUS, base_length: float = BASE_LENGTH) -> np.ndarray:
     """Scale each robot's (v, omega) by one factor alpha <= 1 so that both wheels stay within
     max_wheel, |v| <= max_linear and |omega| <= max_angular (guide §2.5: v_scaled = alpha v,
     w_scaled = alpha w keeps the arc radius v/omega). Commands already within limits are
@@ -114,7 +117,7 @@ def threshold_keeping_arc(dxu, max_linear=MAX_LINEAR_VELOCITY, max_angular=MAX_A
     return scaled
 
 
-def unicycle_step(poses, dxu, time_step=TIME_STEP):
+def unicycle_step(poses: np.ndarray, dxu: np.ndarray, time_step: float = TIME_STEP) -> np.ndarray:
     """The poses after one forward-Euler step of the unicycle with commands dxu (2 x N, applied as
     they are), heading wrapped: rps.Robotarium.step()'s integration, in its expression order."""
     v, w = dxu[0], dxu[1]
@@ -125,20 +128,22 @@ def unicycle_step(poses, dxu, time_step=TIME_STEP):
     return moved
 
 
-def lookahead_poses(poses, commands, time_step=TIME_STEP, **limits):
+def lookahead_poses(poses: np.ndarray, commands: np.ndarray, time_step: float = TIME_STEP, **limits: float) -> np.ndarray:
     """Where the robots would be one step on if `commands` (2 x N, the script's own) were applied:
     thresholded to the actuator limits along their arc, as the simulator would, then integrated."""
     return unicycle_step(poses, threshold_keeping_arc(commands, **limits), time_step)
 
 
-def violations(poses, robot_diameter=ROBOT_DIAMETER, arena=ARENA):
+def violations(poses: np.ndarray, robot_diameter: float = ROBOT_DIAMETER,
+               arena: Sequence[float] = ARENA) -> tuple[int, int]:
     """(collisions, boundary violations) the debug report counts on these poses: robot pairs within
     a robot diameter, robots outside the arena."""
     return count_collisions(poses, robot_diameter), int(np.count_nonzero(outside_arena(poses, arena)))
 
 
-def lookahead_violations(poses, commands, time_step=TIME_STEP, robot_diameter=ROBOT_DIAMETER, arena=ARENA,
-                         **limits):
+def lookahead_violations(poses: np.ndarray, commands: np.ndarray, time_step: float = TIME_STEP,
+                         robot_diameter: float = ROBOT_DIAMETER, arena: Sequence[float] = ARENA,
+                         **limits: float) -> tuple[int, int]:
     """(collisions, boundary violations) the debug report would count on the poses one step on,
     had `commands` been applied unfiltered from `poses` (lookahead_poses).
 
@@ -162,7 +167,9 @@ class UnfilteredReplay:
     four-robot head-on script of tests/data it gives the audited run's 168 collision iterations.
     `count`: poses -> (collisions, boundary violations), the experiment's rules (violations by default)."""
 
-    def __init__(self, poses, step=0, time_step=TIME_STEP, limits=None, count=violations):
+    def __init__(self, poses: np.ndarray, step: int = 0, time_step: float = TIME_STEP,
+                 limits: Mapping[str, float] | None = None,
+                 count: Callable[[np.ndarray], tuple[int, int]] = violations) -> None:
         self.poses = np.array(poses, dtype=float)
         self.step = step
         self.time_step = time_step
@@ -170,13 +177,13 @@ class UnfilteredReplay:
         self.count = count
         self._counts = None   # count(self.poses), kept: lockstep asks violations() and then advance() on the same poses
 
-    def violations(self):
+    def violations(self) -> tuple[int, int]:
         """What the next step would count (on the poses before its move)."""
         if self._counts is None:
             self._counts = self.count(self.poses)
         return self._counts
 
-    def advance(self, commands, to_step):
+    def advance(self, commands: np.ndarray, to_step: int) -> tuple[int, int]:
         """Move on to `to_step` with `commands` (2 x N) in force; returns the counts of the steps
         passed (each counted on its poses before the move)."""
         collisions = outside = 0
@@ -190,7 +197,7 @@ class UnfilteredReplay:
 
 
 @functools.lru_cache(maxsize=64)
-def robot_pairs(number_of_robots):
+def robot_pairs(number_of_robots: int) -> tuple[np.ndarray, np.ndarray]:
     """Index arrays (i, j) of every pair i < j, cached per N (the step's hot path uses them)."""
     return np.triu_indices(number_of_robots, k=1)
 
@@ -200,7 +207,7 @@ def robot_pairs(number_of_robots):
 SWEEP_MIN_ROBOTS = 100
 
 
-def candidate_pairs(x, radius):
+def candidate_pairs(x: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Index arrays (i, j) of every pair whose x coordinates differ by at most `radius` (padded by
     a relative 1e-9 so rounding never leaves a pair out), from one sort: a superset of the pairs
     within `radius` in the plane, about N * (pairs per strip) of them rather than N^2 / 2."""
@@ -215,7 +222,7 @@ def candidate_pairs(x, radius):
     return order[first], order[first + 1 + offset]
 
 
-def count_collisions(poses, robot_diameter=ROBOT_DIAMETER):
+def count_collisions(poses: np.ndarray, robot_diameter: float = ROBOT_DIAMETER) -> int:
     """Robot pairs whose centres are within one robot diameter (rps _validate counts each pair).
     Beyond SWEEP_MIN_ROBOTS the same test runs on candidate_pairs only: a pair within the diameter
     has |dx| = sqrt(dx^2) <= sqrt(dx^2 + dy^2) <= diameter (IEEE rounding is monotone), so it is
@@ -229,13 +236,13 @@ def count_collisions(poses, robot_diameter=ROBOT_DIAMETER):
     return int(np.count_nonzero(np.sqrt(dx * dx + dy * dy) <= robot_diameter))  # as np.linalg.norm in rps
 
 
-def outside_arena(poses, arena=ARENA):
+def outside_arena(poses: np.ndarray, arena: Sequence[float] = ARENA) -> np.ndarray:
     """Boolean mask of robots whose centre is outside the arena (rps _validate)."""
     x, y = poses[0], poses[1]
     return (x < arena[0]) | (x > arena[1]) | (y < arena[2]) | (y > arena[3])
 
 
-def validate_number_of_robots(number_of_robots, max_robots=MAX_ROBOTS):
+def validate_number_of_robots(number_of_robots: object, max_robots: int = MAX_ROBOTS) -> None:
     """The one check of a robot count (client, simulator, utilities), with rps's wording."""
     if isinstance(number_of_robots, bool) or not isinstance(number_of_robots, (int, np.integer)):
         raise RobotariumError(
@@ -248,8 +255,8 @@ def validate_number_of_robots(number_of_robots, max_robots=MAX_ROBOTS):
                 number_of_robots, MIN_ROBOTS, max_robots, DEFAULT.real_testbed_max_robots))
 
 
-def validate_initial_conditions(poses, number_of_robots, robot_diameter=ROBOT_DIAMETER,
-                                arena=ARENA):
+def validate_initial_conditions(poses: np.ndarray, number_of_robots: int, robot_diameter: float = ROBOT_DIAMETER,
+                                arena: Sequence[float] = ARENA) -> np.ndarray:
     """Raise RobotariumError unless `poses` is a finite 3xN array of robots inside the arena, no
     two of them closer than a robot diameter (they would start in collision)."""
     poses = np.asarray(poses, dtype=float)
@@ -277,7 +284,8 @@ def validate_initial_conditions(poses, number_of_robots, robot_diameter=ROBOT_DI
     return poses
 
 
-def random_initial_conditions(number_of_robots, rng, spacing=0.2, width=2.5, height=1.5):
+def random_initial_conditions(number_of_robots: int, rng: np.random.Generator | np.random.RandomState,
+                              spacing: float = 0.2, width: float = 2.5, height: float = 1.5) -> np.ndarray:
     """Random poses on a grid of `spacing` in a width x height box centred in the arena.
 
     The same algorithm and defaults as rps (misc.generate_initial_conditions called by
@@ -306,7 +314,7 @@ DROP_REASONS = {
 }
 
 
-def check_commands(ids, v, w, number_of_robots):
+def check_commands(ids: np.ndarray, v: np.ndarray, w: np.ndarray, number_of_robots: int) -> str | None:
     """Why an incoming command array must be dropped, or None if it is fine.
 
     Returns one of "length_mismatch" (ids, v and omega of different lengths, or an id twice),
@@ -350,11 +358,11 @@ class StepGate:
     Pure: the simulator node calls `admit` for every valid array before applying it, and the
     property test (robotarium_safety/test/test_safety_guarantee.py) runs the same object on adversarial streams."""
 
-    def __init__(self, real_time):
+    def __init__(self, real_time: bool) -> None:
         self.real_time = real_time
         self.in_force = 0   # real time: the step of the array in force (0: none yet)
 
-    def admit(self, step, steps, stop=False):
+    def admit(self, step: int, steps: int, stop: bool = False) -> str | None:
         """None when the array marked `step` may be applied now that the testbed has taken
         `steps` steps (then, in lockstep, the caller steps the testbed); else why not, in words
         (its drop reason is "stale")."""
@@ -378,8 +386,8 @@ ACCEPTANCE_LIKELY = "No errors in your simulation! Acceptance of your experiment
 RECORDING_INCOMPLETE = "No errors in your simulation, but its recording is incomplete, so there is no acceptance estimate.\n"
 
 
-def safety_lines(interventions=0, arrays=0, largest_change=0.0, mean_change=0.0, prevented_collisions=0,
-                 prevented_boundary=0):
+def safety_lines(interventions: int = 0, arrays: int = 0, largest_change: float = 0.0, mean_change: float = 0.0,
+                 prevented_collisions: int = 0, prevented_boundary: int = 0) -> list[str]:
     """What the always-on safety layer did, for the end of a debug report: how often and how much
     it changed the script's commands, and what the script's own commands would have made the
     Robotarium count (collisions, robots outside: the safety node's UnfilteredReplay). Empty when
@@ -398,9 +406,10 @@ def safety_lines(interventions=0, arrays=0, largest_change=0.0, mean_change=0.0,
     return ["\n"] + lines if lines else lines   # apart from the Robotarium's own text
 
 
-def debug_report(iterations, boundary_violations, collisions, actuator_limit_iterations, time_step=TIME_STEP,
-                 completed=True, number_of_robots=None, real_testbed_max_robots=DEFAULT.real_testbed_max_robots,
-                 hardware_seed=None, safety=None):
+def debug_report(iterations: int, boundary_violations: int, collisions: int, actuator_limit_iterations: int,
+                 time_step: float = TIME_STEP, completed: bool = True, number_of_robots: int | None = None,
+                 real_testbed_max_robots: int = DEFAULT.real_testbed_max_robots, hardware_seed: int | None = None,
+                 safety: Mapping[str, float] | None = None) -> str:
     """The text rps.Robotarium.call_at_scripts_end() prints, character for character, for a completed
     ideal run of at most real_testbed_max_robots robots. A run that did not complete (an error, an
     interruption, no call_at_scripts_end) gets the same counts but never the acceptance estimate:
@@ -450,7 +459,7 @@ class Testbed:
     and passes wall-clock times for the command timeout.
     """
 
-    def __init__(self, initial_poses, config=DEFAULT):
+    def __init__(self, initial_poses: np.ndarray, config: TestbedConfig = DEFAULT) -> None:
         self.poses = np.array(initial_poses, dtype=float)
         self.number_of_robots = self.poses.shape[1]
         validate_number_of_robots(self.number_of_robots, config.max_robots)
@@ -470,7 +479,9 @@ class Testbed:
         self.actuator_limit_iterations = 0
         self.command_timeouts = 0
 
-    def set_commands(self, ids, v, w, now=0.0, requested_exceeds_limits=False, offset=0.0):
+    def set_commands(self, ids: np.ndarray | Sequence[int], v: np.ndarray | Sequence[float] | float,
+                     w: np.ndarray | Sequence[float] | float, now: float = 0.0, requested_exceeds_limits: bool = False,
+                     offset: float = 0.0) -> None:
         """Set (v, omega) for the robots `ids` (already checked with check_commands).
 
         requested_exceeds_limits: these commands were filtered from ones that exceed the actuator
@@ -484,7 +495,7 @@ class Testbed:
         self.velocities[1, ids] = w
         self.command_times[ids] = now
 
-    def expire_commands(self, now, timeout=COMMAND_TIMEOUT):
+    def expire_commands(self, now: float, timeout: float = COMMAND_TIMEOUT) -> np.ndarray:
         """Stop robots whose command is older than `timeout` (guide §2.7.6); count each expiry once."""
         stale = (now - self.command_times > timeout) & np.any(self.velocities != 0, axis=0)
         if np.any(stale):
@@ -493,38 +504,38 @@ class Testbed:
             self.command_timeouts += int(np.count_nonzero(stale))
         return stale
 
-    def step(self):
+    def step(self) -> None:
         """Advance one time step, as rps.Robotarium.step(): count, threshold, integrate."""
         self._count()
         self._move()
         self.steps += 1
 
-    def _count(self):
+    def _count(self) -> None:
         """The debug report's errors, on the poses before the move and the commands in force."""
         self.boundary_violations += int(np.count_nonzero(outside_arena(self.poses, self.arena)))
         self.collisions += count_collisions(self.poses, self.robot_diameter)
         if is_actuator_limit_iteration(self.velocities, self.requested_exceeds_limits, **self.limits):
             self.actuator_limit_iterations += 1
 
-    def _move(self):
+    def _move(self) -> None:
         """Threshold the commands in force and integrate the unicycle over one time step."""
         self.poses[:] = unicycle_step(self.poses, threshold_keeping_arc(self.velocities, **self.limits),
                                       self.time_step)
 
     @property
-    def sim_time(self):
+    def sim_time(self) -> float:
         return self.steps * self.time_step
 
     # The seed of the hardware-like model; None: the ideal testbed (the report names the mode).
     seed = None
 
-    def report(self, completed=True, safety=None):
+    def report(self, completed: bool = True, safety: Mapping[str, float] | None = None) -> str:
         return debug_report(self.steps, self.boundary_violations, self.collisions, self.actuator_limit_iterations,
                             self.time_step, completed, self.number_of_robots, self.config.real_testbed_max_robots,
                             self.seed, safety)
 
 
-def is_intervention(filtered, max_change, tolerance):
+def is_intervention(filtered: bool, max_change: float, tolerance: float) -> bool:
     """Whether the safety layer intervened in one command array: it solved the barrier QP or sent a
     stop (`filtered`), and that changed a command by more than `tolerance` (max_change: the largest
     change; for a stop, the largest finite requested speed). A stop of a request that was at rest
@@ -539,7 +550,7 @@ class RunTally:
     did: its interventions (how often, how much) and what the script's own commands would have made
     the Robotarium count (SafetyReport.unfiltered_*, summed)."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.first_collision_step = 0    # the step (1: the first step() call) whose count made collisions > 0
         self.first_boundary_step = 0
         self.interventions = 0
@@ -548,14 +559,15 @@ class RunTally:
         self.prevented_collisions = 0
         self.prevented_boundary = 0
 
-    def after_step(self, testbed):
+    def after_step(self, testbed: Testbed) -> None:
         """Call after every testbed.step()."""
         if testbed.collisions and not self.first_collision_step:
             self.first_collision_step = testbed.steps
         if testbed.boundary_violations and not self.first_boundary_step:
             self.first_boundary_step = testbed.steps
 
-    def add_safety_report(self, intervention, max_change, unfiltered_collisions=0, unfiltered_boundary=0):
+    def add_safety_report(self, intervention: bool, max_change: float, unfiltered_collisions: int = 0,
+                          unfiltered_boundary: int = 0) -> None:
         if intervention:
             self.interventions += 1
             self.largest_change = max(self.largest_change, float(max_change))
@@ -563,7 +575,7 @@ class RunTally:
         self.prevented_collisions += int(unfiltered_collisions)
         self.prevented_boundary += int(unfiltered_boundary)
 
-    def safety(self, arrays):
+    def safety(self, arrays: int) -> dict[str, float]:
         """safety_lines' keyword arguments, `arrays` command arrays in all."""
         return dict(interventions=self.interventions, arrays=arrays, largest_change=self.largest_change,
                     mean_change=self.change_sum / self.interventions if self.interventions else 0.0,
