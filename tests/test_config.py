@@ -67,6 +67,10 @@ def test_the_configuration_travels_as_yaml():
     assert TestbedConfig.from_yaml(custom.to_yaml()) == custom
     # a run recorded before a value existed gets the default for it
     assert TestbedConfig.from_yaml("command_timeout: 0.25\n").command_timeout == 0.25
+    # a foreign or damaged config message: a ConfigError saying what it is, never an AttributeError
+    for text in ("- 1\n- 2\n", "just words", "{unclosed"):
+        with pytest.raises(ConfigError, match="a run's configuration"):
+            TestbedConfig.from_yaml(text)
 
 
 # -- the nodes ---------------------------------------------------------------------------------------

@@ -335,8 +335,14 @@ class _TestbedConfigBehaviour:
 
     @classmethod
     def from_yaml(cls, text: str, base: Self | None = None) -> Self:
-        """The configuration a run published; values it lacks (an older run) come from `base`."""
-        values = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader)) or {}   # libyaml's: 10 x faster
+        """The configuration a run published; values it lacks (an older run) come from `base`. Text that
+        is not a YAML mapping (a foreign or damaged `config` message) raises ConfigError."""
+        try:
+            values = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader)) or {}   # libyaml's: 10 x faster
+        except yaml.YAMLError as error:
+            raise ConfigError("a run's configuration is not YAML: %s" % error) from None
+        if not isinstance(values, dict):
+            raise ConfigError("a run's configuration must be a mapping of names to values; received %r." % (values,))
         known = {k: v for k, v in values.items() if k in FIELDS}
         return cls.from_dict(known, base if base is not None else DEFAULT)
 

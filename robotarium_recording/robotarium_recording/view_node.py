@@ -154,7 +154,7 @@ class ViewNode(Node):
     def on_config(self, data):
         try:
             config = TestbedConfig.from_yaml(deserialize_message(data, String).data)
-        except (ConfigError, ValueError, TypeError, AttributeError) as error:
+        except (ConfigError, ValueError, TypeError) as error:
             self.get_logger().warning("the testbed's configuration could not be read (%s); drawing with the "
                                       "default one" % error)
             return
