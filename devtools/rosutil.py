@@ -22,7 +22,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from devtools import PACKAGE_SOURCES, REPO
-from robotarium_core.node_tools import wait_for_quiet_discovery
+from robotarium_core.node_tools import init_context, wait_for_quiet_discovery
 from robotarium_core.topics import CMD_SAFE, SAFETY_ARM, SAFETY_REPORT, SAFETY_REPORT_QOS, TESTBED_QOS
 
 # Domain ids 1..101 only: DDS derives its UDP ports from the domain (7400 + 250 x domain + ...), and
@@ -121,7 +121,8 @@ class RosProbe:
     def __init__(self, domain_id, name="probe"):
         self.context = Context()
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-        rclpy.init(context=self.context, domain_id=domain_id)
+        # as the testbed's processes start theirs (UDP only): Fast DDS reads its profile once per process
+        init_context(context=self.context, domain_id=domain_id, node=False)
         self.node = Node(name, context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)

@@ -63,9 +63,9 @@ class Lab:
                         for name in NODES}
         self.probe.wait_for_publishers(60)
 
-    def start(self, name):
+    def start(self, name, **env):
         args = ["-p", "bags_dir:=%s" % self.bags] if name == "recorder" else []
-        self.nodes[name] = NodeProcess(NODES[name], self.domain, ros_args=args,
+        self.nodes[name] = NodeProcess(NODES[name], self.domain, ros_args=args, env=node_env(self.domain, **env) if env else None,
                                        log_path=self.tmp / ("%s_%d.log" % (name, time.time_ns())))
 
     def kill(self, name):
@@ -611,36 +611,61 @@ def test_a_lost_recorder_is_reported_and_its_bag_recovered(healthy, capsys):
     assert info["message_count"] == counted == Bag(bag_dir).message_count > 0
 
 
+def test_the_testbed_opens_no_shared_memory_port(healthy):
+    """The testbed's nodes and this process's client talk UDP only (dds_profile.xml): Fast DDS's
+    shared-memory transport deletes a port whose reader is slow to answer, and the reader then never
+    hears a process that starts later (the next test shows it; it happened on a loaded CI run)."""
+    lab = healthy
+    r = client(LINE3)
+    drive(r, [0.0] * 3, [0.0] * 3)
+    for name, node in lab.nodes.items():
+        assert node_tools.shared_memory_ports(node.proc.pid)[0] == set(), name
+    assert node_tools.shared_memory_ports()[0] == set()   # the client (and the probe) of this process
+    r.call_at_scripts_end()
+
+
+USERS_OWN_PROFILE = os.path.join(REPO, "tests", "data", "users_own_dds_profile.xml")
+
+
 @pytest.mark.parametrize("name", list(NODES))
 def test_a_node_whose_shared_memory_port_was_deleted_restarts_and_the_next_client_reaches_it(healthy, name):
-    """Fast DDS deletes a shared-memory port whose listeners did not answer a newcomer within 1 s
-    (a machine that stalls; it happened on a loaded CI run) and makes a new file: the node keeps
-    reading the deleted one, so every process that starts afterwards goes unheard ("no testbed
-    answers", run after run). Deleting the node's port files as Fast DDS does: the node restarts in
-    place (same process) and a new client runs a whole experiment on it, recorded in full."""
+    """With a user's own Fast DDS profile rmw's transports come back, shared memory among them, and
+    with it the fault: Fast DDS deletes a port whose reader did not answer a newcomer within 1 s (a
+    machine that stalls) and makes a new file; the node keeps reading the deleted one, so every
+    process that starts afterwards goes unheard ("no testbed answers", run after run). Deleting the
+    node's port files as Fast DDS does: the node restarts in place (same process) and a new client
+    runs a whole experiment on it, recorded in full."""
     lab = healthy
+    lab.nodes[name].close()
+    lab.start(name, FASTRTPS_DEFAULT_PROFILES_FILE=USERS_OWN_PROFILE)
     pid = lab.nodes[name].proc.pid
-    listening, lost = node_tools.shared_memory_ports(pid)
-    assert listening and not lost
-    for port in listening:
-        os.remove("/dev/shm/fastrtps_port%d" % port)
-    assert node_tools.shared_memory_ports(pid)[1] == listening
-    assert lab.probe.spin_until(lambda: "restarting: its shared-memory port" in lab.nodes[name].output(), 10), \
-        lab.nodes[name].output()
-    assert lab.probe.spin_until(lambda: node_tools.shared_memory_ports(pid)[0] and not node_tools.shared_memory_ports(pid)[1]
-                                and lab.watches[name].alive, 30)
-    assert lab.nodes[name].alive() and lab.nodes[name].proc.pid == pid
-    r = client(LINE3)
-    # (the client waits for the safety node's reader, not the recorder's: wait here until it knows it,
-    # so that all 20 arrays must reach it; a recorder still deaf knows it too, but hears none of them)
-    assert lab.probe.spin_until(lambda: readers_matched(r._node, r._command_pub, "recorder"), 10)
-    for _ in range(20):
-        drive(r, [0.05] * 3, [0.2] * 3)
-    r.call_at_scripts_end()
-    assert r.run_info["steps"] == 20 and r.run_info["outcome"] == "completed", r.run_info
-    from robotarium_recording.bag import Bag
-    assert lab.probe.spin_until(lambda: Bag(r.run_info["recording"]).complete, 10)   # the recorder closed it
-    assert Bag(r.run_info["recording"]).topics[NS + "/cmd_requested"].count == 20
+    try:
+        assert lab.probe.spin_until(lambda: lab.watches[name].alive and node_tools.shared_memory_ports(pid)[0], 30)
+        listening, lost = node_tools.shared_memory_ports(pid)
+        assert listening and not lost
+        for port in listening:
+            os.remove("/dev/shm/fastrtps_port%d" % port)
+        assert node_tools.shared_memory_ports(pid)[1] == listening
+        assert lab.probe.spin_until(lambda: "restarting: its shared-memory port" in lab.nodes[name].output(), 10), \
+            lab.nodes[name].output()
+        assert lab.probe.spin_until(lambda: node_tools.shared_memory_ports(pid)[0]
+                                    and not node_tools.shared_memory_ports(pid)[1] and lab.watches[name].alive, 30)
+        assert lab.nodes[name].alive() and lab.nodes[name].proc.pid == pid
+        r = client(LINE3)
+        # (the client waits for the safety node's reader, not the recorder's: wait here until it knows it,
+        # so that all 20 arrays must reach it; a recorder still deaf knows it too, but hears none of them)
+        assert lab.probe.spin_until(lambda: readers_matched(r._node, r._command_pub, "recorder"), 10)
+        for _ in range(20):
+            drive(r, [0.05] * 3, [0.2] * 3)
+        r.call_at_scripts_end()
+        assert r.run_info["steps"] == 20 and r.run_info["outcome"] == "completed", r.run_info
+        from robotarium_recording.bag import Bag
+        assert lab.probe.spin_until(lambda: Bag(r.run_info["recording"]).complete, 10)   # the recorder closed it
+        assert Bag(r.run_info["recording"]).topics[NS + "/cmd_requested"].count == 20
+    finally:
+        lab.nodes[name].close()   # the testbed's own settings again for the tests after this one
+        lab.start(name)
+        lab.heal()
 
 
 # -- the SROS2 policy ------------------------------------------------------------------------------

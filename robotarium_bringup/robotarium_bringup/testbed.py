@@ -298,9 +298,10 @@ def _probe_context(domain=None, discovery_range=None):
     destroying a participant while discovery callbacks run, spinning for ever (a ./robotarium run
     once spun at 100 % CPU for 28 minutes in rcl_node_fini right after a probe, under load). The
     probes' own nodes come and go; the command ends with os._exit (robotarium_cli.main), never tearing it down."""
-    import rclpy
     from rclpy.context import Context
     from rclpy.node import Node
+
+    from robotarium_core.node_tools import init_context
     # What rcl will read: the environment's, unless given (a test changes ROS_DOMAIN_ID in process).
     key = (str(domain) if domain is not None else os.environ.get("ROS_DOMAIN_ID", "").strip() or "0",
            discovery_range or os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", ""))
@@ -311,7 +312,7 @@ def _probe_context(domain=None, discovery_range=None):
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = discovery_range
     try:
         context = Context()
-        rclpy.init(context=context, args=[], domain_id=None if domain is None else int(domain))
+        init_context(context=context, args=[], domain_id=None if domain is None else int(domain), node=False)
     finally:
         if discovery_range:
             if saved is None:

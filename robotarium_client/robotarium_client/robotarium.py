@@ -250,14 +250,13 @@ class Robotarium(RobotariumABC):
     # -- talking to the testbed ------------------------------------------------------------------
 
     def _connect(self) -> None:
-        import rclpy
         from rclpy.context import Context
         from rclpy.node import Node
         from std_msgs.msg import String
 
         from robotarium_bringup.testbed import LocalTestbed, security_enabled
         from robotarium_core.executor import LeanExecutor
-        from robotarium_core.node_tools import dds_defaults
+        from robotarium_core.node_tools import init_context
         from robotarium_core.topics import (
             CMD_REQUESTED,
             CONFIG,
@@ -291,13 +290,12 @@ class Robotarium(RobotariumABC):
         self._recorder_lost_at = None
         self._recording_stopped_because = None   # "the recorder is gone", "disk full", ...
         self._stopped_recording = ""             # the bag of a recording stopped by a write error
-        # The testbed's Fast DDS settings for the script's participant too (node_tools.dds_defaults): its
-        # writers' heartbeat every 0.1 s, so a lost packet of cmd_requested is sent again at once, not 3 s later.
-        dds_defaults(node=False)
+        # The testbed's Fast DDS settings for the script's participant too (node_tools.init_context): UDP
+        # only; its writers' heartbeat every 0.1 s, so a lost packet of cmd_requested is sent again at once.
         self._context = Context()
         # With DDS Security (sros2/README.md) a script runs in the client enclave of the policy.
-        rclpy.init(context=self._context, args=["--ros-args", "--enclave", "/robotarium/client"]
-                   if security_enabled() else [])
+        init_context(context=self._context, node=False,
+                     args=["--ros-args", "--enclave", "/robotarium/client"] if security_enabled() else [])
         self._node = Node("robotarium_client_%d" % os.getpid(), namespace=self._ns, context=self._context)
         self._executor = LeanExecutor(context=self._context)
         self._executor.add_node(self._node)

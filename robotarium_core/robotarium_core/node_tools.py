@@ -5,11 +5,13 @@ of rclpy's default executor) until a signal or its lifeline says stop, then wind
 Kept apart from model.py and config.py (no ROS there); the nodes themselves stay thin shells.
 """
 import ctypes
+import hashlib
 import math
 import os
 import re
 import signal
 import sys
+import tempfile
 import time
 
 import rclpy
@@ -183,20 +185,74 @@ MMAP_THRESHOLD = 256 * 1024   # bytes: larger blocks are mapped for themselves a
 _M_MMAP_THRESHOLD = -3         # glibc's mallopt parameter
 
 
+def localhost_profile():
+    """dds_profile.xml with its LOCALHOST blocks in force (loopback locators, localhost as the initial
+    peer), written once per content to the temporary directory; None where it cannot be written."""
+    with open(DDS_PROFILE, encoding="utf-8") as f:
+        text = f.read().replace("<!--LOCALHOST", "").replace("LOCALHOST-->", "")
+    path = os.path.join(tempfile.gettempdir(), "robotarium-dds-localhost-%s.xml"
+                        % hashlib.sha256(text.encode()).hexdigest()[:16])
+    if not os.path.exists(path):
+        try:
+            with tempfile.NamedTemporaryFile("w", dir=os.path.dirname(path), delete=False, suffix=".tmp") as f:
+                f.write(text)
+            os.replace(f.name, path)   # whole or not at all, for a process that reads it meanwhile
+        except OSError:
+            return None
+    return path
+
+
+def _ours(profile):
+    """Whether a FASTRTPS_DEFAULT_PROFILES_FILE value is one of ours (inherited from a process of the
+    testbed that started this one), not the user's choice."""
+    return profile == DDS_PROFILE or os.path.basename(profile).startswith("robotarium-dds-localhost-")
+
+
 def dds_defaults(node=True):
     """The testbed's Fast DDS settings (dds_profile.xml; a profile file the user set is kept, and with
-    it their choice), for its nodes and a script's client alike: a participant announced every 0.2 s,
-    so a process that joins later finds it at once; writers that send a heartbeat every 0.1 s, so a
-    lost packet is sent again at once. A node's readers also allocate a sample's buffer when it arrives
-    and free it when it is taken (issue 22: a flood costs no memory that stays), for which rmw_fastrtps
-    must take the policies it would set itself from the file (RMW_FASTRTPS_USE_QOS_FROM_XML), data
-    sharing among them; a client (node=False) keeps rmw's, data sharing off: a script in a job box runs
-    as an account that may not open the testbed's shared segments. Called before rclpy.init."""
-    # (ours, inherited from a client that started a testbed for its script, is not the user's choice)
-    if os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE", DDS_PROFILE) == DDS_PROFILE:
+    it their choice), for its nodes and a script's client alike: UDP only (never the shared-memory
+    transport, see the file); a participant announced every 0.2 s, so a process that joins later
+    finds it at once; writers that send a heartbeat every 0.1 s, so a lost packet is sent again at
+    once. A node's readers also allocate a sample's buffer when it arrives and free it when it is
+    taken (issue 22: a flood costs no memory that stays), for which rmw_fastrtps must take the
+    policies it would set itself from the file (RMW_FASTRTPS_USE_QOS_FROM_XML), data sharing among
+    them; a client (node=False) keeps rmw's, data sharing off: a script in a job box runs as an
+    account that may not open the testbed's shared segments. Called before rclpy.init (init_context
+    calls it)."""
+    if _ours(os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE", DDS_PROFILE)):
         os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = DDS_PROFILE
         if node:
             os.environ["RMW_FASTRTPS_USE_QOS_FROM_XML"] = "1"   # only for the policies our code leaves to it
+
+
+def _localhost_only():
+    """Whether rcl would start a participant with the LOCALHOST discovery range and nothing else
+    (no static peers; not the deprecated ROS_LOCALHOST_ONLY, which rcl lets prevail)."""
+    return (os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").strip().upper() == "LOCALHOST"
+            and not os.environ.get("ROS_STATIC_PEERS", "").strip() and os.environ.get("ROS_LOCALHOST_ONLY") != "1")
+
+
+def init_context(context=None, args=None, domain_id=None, node=True, **options):
+    """rclpy.init with the testbed's Fast DDS settings (dds_defaults). Under
+    ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, with our profile, rmw_fastrtps would put its own
+    transports in place (shared memory among them): the participant starts with the range
+    SYSTEM_DEFAULT and localhost_profile() instead, which keeps discovery on this machine just as
+    well; the environment is as it was afterwards (the profile file stays: Fast DDS reads it once per
+    process, and a child process is to find it)."""
+    dds_defaults(node)
+    saved = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE")
+    if _ours(os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"]) and _localhost_only():
+        profile = localhost_profile()
+        if profile is not None:
+            os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = profile
+            os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SYSTEM_DEFAULT"
+    try:
+        rclpy.init(context=context, args=args, domain_id=domain_id, **options)
+    finally:
+        if saved is None:
+            os.environ.pop("ROS_AUTOMATIC_DISCOVERY_RANGE", None)
+        else:
+            os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = saved
 
 
 def return_freed_memory():
@@ -323,10 +379,9 @@ def run_node(make_node, name, args=None, before_destroy=None, claim=None):
     with claim.REFUSED (4), before it offers anything, or as soon as it hears of it later."""
     if not lifeline.pass_start_gate():
         return 0
-    dds_defaults()
     return_freed_memory()
     # rclpy's own handlers would shut the context down at the first signal, before the wind-down.
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    init_context(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop = StopRequest()
     claim_node = None
     if claim is not None:

@@ -32,6 +32,7 @@ from rclpy.serialization import serialize_message
 from rclpy.utilities import remove_ros_args
 from std_srvs.srv import SetBool
 
+from robotarium_core.node_tools import init_context
 from robotarium_recording.bag import Bag
 from robotarium_recording.recorder_node import message_class
 from robotarium_recording.replay_display import Figure, Keyboard
@@ -295,7 +296,7 @@ def replay(args, error, ros_args=()):
         print("replay: %s" % error, file=sys.stderr)
         return 2
     timing = args.timing or ("experiment" if any(s.mode == "lockstep" for s in bag.statuses()[:50]) else "recorded")
-    rclpy.init(args=["replay"] + list(ros_args))
+    init_context(args=["replay"] + list(ros_args))
     node = keyboard = figure = view = None
     try:
         node = ReplayNode(bag, rate=args.rate, loop=args.loop, namespace=args.namespace, timing=timing)
