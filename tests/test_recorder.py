@@ -18,7 +18,9 @@ from mcap_ros2.decoder import DecoderFactory
 from devtools.stack import NS, Stack, rosbags_messages
 from robotarium_msgs.msg import RobotPoses, TwistArray
 from robotarium_recording import bag as bagmod
+from robotarium_recording.bag_writer import PROVISIONAL_TAIL, BagWriter
 from robotarium_recording.recorder_node import RunRecorder
+from robotarium_recording.schema import qos_profile, stamp_from_cdr
 
 pytestmark = pytest.mark.node   # real testbed nodes in subprocesses
 
@@ -207,13 +209,13 @@ def test_recorder_killed_mid_run_leaves_a_readable_bag(stack):
 
 def _write_sample(path, messages=300, flush_every=40):
     from rclpy.serialization import serialize_message
-    writer = bagmod.BagWriter(str(path))
-    writer.add_topic(NS + "/poses", "robotarium_msgs/msg/RobotPoses", [bagmod.qos_profile(depth=50)])
+    writer = BagWriter(str(path))
+    writer.add_topic(NS + "/poses", "robotarium_msgs/msg/RobotPoses", [qos_profile(depth=50)])
     for k in range(messages):
         msg = RobotPoses(step=k, ids=[0, 1], x=[0.01 * k, 1.0], y=[0.0, -0.5], theta=[0.1, 0.2])
         msg.header.stamp.sec, msg.header.stamp.nanosec = 1000 + k, 5
         data = serialize_message(msg)
-        writer.write(NS + "/poses", data, 2_000_000_000_000 + k * 1000, bagmod.stamp_from_cdr(data))
+        writer.write(NS + "/poses", data, 2_000_000_000_000 + k * 1000, stamp_from_cdr(data))
         if k % flush_every == flush_every - 1:
             writer.flush()
     return writer
@@ -247,11 +249,11 @@ def _torn_bag_filling_its_last_page(path, messages=5):
     provisional end written, where the file ends exactly at a 4 KiB page boundary (so putting the end
     back needs one more page). Returns (bag dir, mcap path, the messages' data)."""
     from rclpy.serialization import serialize_message
-    tail = bagmod._PROVISIONAL_TAIL
+    tail = PROVISIONAL_TAIL
 
     def write(where, pad):
-        writer = bagmod.BagWriter(where, compression="")
-        writer.add_topic(NS + "/poses", "robotarium_msgs/msg/RobotPoses", [bagmod.qos_profile(depth=50)])
+        writer = BagWriter(where, compression="")
+        writer.add_topic(NS + "/poses", "robotarium_msgs/msg/RobotPoses", [qos_profile(depth=50)])
         sent = []
         for k in range(messages):
             msg = RobotPoses(step=k, ids=[0, 1], x=[0.0, 1.0], y=[0.0, 0.5], theta=[0.1, 0.2])
@@ -314,7 +316,7 @@ def test_a_bag_torn_on_a_full_disk_is_recovered_by_giving_up_its_last_chunk(tmp_
 def test_bag_writer_never_overwrites_and_closes_with_a_summary(tmp_path):
     writer = _write_sample(tmp_path / "run", messages=50)
     with pytest.raises(FileExistsError):
-        bagmod.BagWriter(str(tmp_path / "run"))
+        BagWriter(str(tmp_path / "run"))
     writer.close()
     with open(os.path.join(writer.path, writer.file_name), "rb") as f:
         summary = make_reader(f).get_summary()

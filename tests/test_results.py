@@ -152,7 +152,7 @@ def test_the_results_page_wraps_long_report_and_log_lines(tmp_path):
 
 def _copy_without_poses(source, target, steps):
     """A copy of the bag at `source` (with the project's bag writer) without the poses of `steps`."""
-    from robotarium_recording.bag import BagWriter
+    from robotarium_recording.bag_writer import BagWriter
     bag = Bag(source)
     poses_topic = bag.topic("poses")
     writer = BagWriter(str(target), custom_data=(bag.metadata or {}).get("custom_data") or {})

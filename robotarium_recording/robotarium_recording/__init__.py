@@ -1,5 +1,6 @@
-"""Recording of Robotarium runs: bag I/O (`bag`), the recorder and replay nodes, and the results
-of a run made from its bag alone (`results`).
+"""Recording of Robotarium runs: bag I/O (`bag` reads, `bag_writer` writes, `schema`: the message
+definitions and QoS profiles they store), the recorder and replay nodes, and the results of a run
+made from its bag alone (`results`).
 
 What other packages use of it (robotarium_client: the live figure and what a script draws on it,
 a run's bag and results, the replay, view and report commands) is the public API below, imported

@@ -1,4 +1,4 @@
-"""Recorded runs: rosbag2 folders with MCAP storage, written and read without ROS (no rclpy).
+"""Recorded runs: rosbag2 folders with MCAP storage, read without ROS (no rclpy).
 
 A run folder, as `ros2 bag record -s mcap` makes it and `ros2 bag info/play`, rosbags and Foxglove
 read it:
@@ -6,12 +6,9 @@ read it:
     <run_id>/<run_id>_0.mcap     MCAP, profile "ros2": one `ros2msg` schema per type holding the whole
                                  concatenated .msg text, `cdr` messages, zstd-compressed chunks
 
-Writing (BagWriter) is built to survive a SIGKILL: chunks are closed at least every
-`chunk_seconds`, and every flush writes the new chunks *and* a provisional end of file (DataEnd,
-a Footer without summary, the closing magic) in one system call, overwritten by the next flush.
-So at any moment the file on disk is a complete MCAP file without a summary, which the mcap
-library and rosbags open by scanning; metadata.yaml is replaced atomically after each flush.
-`close()` writes the real summary (indexes, statistics) and the final metadata.yaml.
+The recorder writes it with robotarium_recording.bag_writer (BagWriter: a killed writer leaves a
+readable file), from the message definitions, type hashes and QoS profiles of
+robotarium_recording.schema.
 
 Reading (Bag) scans the records in file order and stops cleanly at a torn tail, so even a file cut
 in the middle of a write gives back every complete chunk; `recover_bag()` rewrites such a file's
@@ -24,343 +21,28 @@ import functools
 import glob
 import hashlib
 import os
-import re
 import struct
-import time
 from collections import namedtuple
 
 import numpy as np
 import yaml
 from mcap.records import Channel, Chunk, Footer, Message, Schema
 from mcap.stream_reader import StreamReader
-from mcap.writer import CompressionType, Writer
 
-ROS_DISTRO = "jazzy"
-METADATA_VERSION = 9          # rosbag2 of Jazzy: QoS policies written as names
-SEPARATOR = "=" * 80          # between the concatenated .msg texts of a ros2msg schema
-MAGIC = b"\x89MCAP0\r\n"
-LIBRARY = "robotarium recorder (mcap-python)"
+from robotarium_recording.bag_writer import (
+    MAGIC,
+    METADATA_TMP,
+    METADATA_VERSION,
+    PROVISIONAL_TAIL,
+    ROS_DISTRO,
+    write_metadata_file,
+)
 
-# A DataEnd record (crc 0 = not computed), a Footer with no summary, the magic.
-_PROVISIONAL_TAIL = (struct.pack("<BQI", 0x0F, 4, 0) + struct.pack("<BQQQI", 0x02, 20, 0, 0, 0) + MAGIC)
-
-_PRIMITIVES = {"bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16", "int32",
-               "uint32", "int64", "uint64", "string", "wstring"}
-_STAMP_FIRST = {"std_msgs/Header", "Header", "std_msgs/msg/Header", "builtin_interfaces/Time",
-                "builtin_interfaces/msg/Time"}
-_INFINITE = {"sec": 9223372036, "nsec": 854775807}   # RMW_DURATION_INFINITE as rosbag2 writes it
-# libyaml's emitter when PyYAML has it: the pure-Python one costs the recorder ~5 % of a core.
-_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+# libyaml's parser when PyYAML has it.
 _LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 # A bag of up to this many bytes keeps its messages in memory from the scan that opens it, so the
 # report, the plot and the video read the file once, not once per topic they need.
 KEEP_IN_MEMORY = 64 * 1024 * 1024
-
-
-def _repo_root():
-    here = os.path.dirname(os.path.abspath(__file__))
-    for root in (os.environ.get("ROBOTARIUM_ROOT", ""), os.path.dirname(os.path.dirname(here))):
-        if root and os.path.isdir(os.path.join(root, "robotarium_msgs", "msg")):
-            return root
-    return None
-
-
-# -- interface definitions ---------------------------------------------------------------------
-
-def interface_file(type_name, ext="msg"):
-    """Path of `pkg/msg/Name.<ext>` in an ament share folder (AMENT_PREFIX_PATH), falling back to
-    this repository's source of robotarium_msgs; None if not found."""
-    pkg, _, name = split_type(type_name)
-    candidates = [os.path.join(prefix, "share", pkg, "msg", "%s.%s" % (name, ext))
-                  for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if prefix]
-    root = _repo_root()
-    if root:
-        candidates.append(os.path.join(root, pkg, "msg", "%s.%s" % (name, ext)))
-    return next((c for c in candidates if os.path.isfile(c)), None)
-
-
-def split_type(type_name):
-    """'pkg/msg/Name' or 'pkg/Name' -> (pkg, 'msg', Name)."""
-    parts = type_name.split("/")
-    if len(parts) == 2:
-        return parts[0], "msg", parts[1]
-    if len(parts) == 3:
-        return tuple(parts)
-    raise ValueError("not a message type name: %r" % type_name)
-
-
-def _fields(text):
-    """(type, name) of each field of a .msg text, constants left out."""
-    for line in text.splitlines():
-        line = line.split("#", 1)[0].strip()
-        words = line.split()
-        if len(words) < 2 or "=" in words[1] or "=" in words[0]:
-            continue
-        yield words[0], words[1]
-
-
-def _base_type(field_type, package):
-    """Full 'pkg/msg/Name' of a field's type, or None for a primitive."""
-    base = re.sub(r"\[[^\]]*\]$", "", field_type).split("<=")[0]
-    if base in _PRIMITIVES:
-        return None
-    if base == "Header":
-        return "std_msgs/msg/Header"
-    if "/" in base:
-        pkg, _, name = split_type(base)
-        return "%s/msg/%s" % (pkg, name)
-    return "%s/msg/%s" % (package, base)
-
-
-def message_definition(type_name):
-    """The ros2msg schema text of a type: its .msg text, then every nested type once (depth first)
-    as 'MSG: pkg/Name' blocks, the way rosbag2 stores them."""
-    blocks, seen = [], set()
-
-    def visit(full, top):
-        if full in seen:
-            return
-        seen.add(full)
-        path = interface_file(full)
-        if path is None:
-            raise FileNotFoundError("no .msg file for %s (is AMENT_PREFIX_PATH set?)" % full)
-        with open(path, encoding="utf-8") as f:
-            text = f.read()
-        pkg, _, name = split_type(full)
-        blocks.append(text if top else "%s\nMSG: %s/%s\n%s" % (SEPARATOR, pkg, name, text))
-        for field_type, _ in _fields(text):
-            nested = _base_type(field_type, pkg)
-            if nested:
-                visit(nested, False)
-
-    pkg, _, name = split_type(type_name)
-    visit("%s/msg/%s" % (pkg, name), True)
-    return "\n".join(block.rstrip("\n") for block in blocks) + "\n"
-
-
-def type_hash(type_name):
-    """RIHS01 hash of a type from the .json that rosidl installs beside the .msg, or ''."""
-    path = interface_file(type_name, "json")
-    if not path:
-        return ""
-    import json
-    with open(path, encoding="utf-8") as f:
-        hashes = json.load(f).get("type_hashes", [])
-    pkg, _, name = split_type(type_name)
-    full = "%s/msg/%s" % (pkg, name)
-    return next((h["hash_string"] for h in hashes if h.get("type_name") == full), "")
-
-
-def has_leading_stamp(definition):
-    """True when the first field is a std_msgs/Header or a builtin_interfaces/Time, so that the
-    CDR bytes 4..12 are its stamp (rcl_interfaces/Log too)."""
-    first = next(_fields(definition.split(SEPARATOR)[0]), None)
-    return first is not None and first[0] in _STAMP_FIRST
-
-
-def stamp_from_cdr(data):
-    """Nanoseconds of a leading stamp in a CDR message (after the 4-byte encapsulation header), or
-    None when the stamp is zero (publisher left it unset) or the data is too short."""
-    if len(data) < 12:
-        return None
-    sec, nanosec = struct.unpack_from("<iI" if data[1] & 1 else ">iI", data, 4)
-    if sec == 0 and nanosec == 0:
-        return None
-    return sec * 1_000_000_000 + nanosec
-
-
-def qos_profile(history="keep_last", depth=10, reliability="reliable", durability="volatile",
-                deadline_ns=None, lifespan_ns=None, liveliness="automatic", lease_ns=None,
-                avoid_ros_namespace_conventions=False):
-    """One offered QoS profile as rosbag2 (metadata version 9) writes it; None durations = infinite."""
-    def duration(ns):
-        if ns is None or ns >= 9223372036854775807 or ns < 0:
-            return dict(_INFINITE)
-        return {"sec": int(ns // 1_000_000_000), "nsec": int(ns % 1_000_000_000)}
-    return {"history": history, "depth": int(depth), "reliability": reliability, "durability": durability,
-            "deadline": duration(deadline_ns), "lifespan": duration(lifespan_ns), "liveliness": liveliness,
-            "liveliness_lease_duration": duration(lease_ns),
-            "avoid_ros_namespace_conventions": bool(avoid_ros_namespace_conventions)}
-
-
-def _dump_qos(profiles):
-    return yaml.dump(list(profiles), Dumper=_DUMPER, sort_keys=False, default_flow_style=False).strip() if profiles else ""
-
-
-# -- writing -----------------------------------------------------------------------------------
-
-class _TailGuardedFile:
-    """The output stream of mcap.Writer. Writes are kept in memory; flush() puts them on disk
-    followed by a provisional end of file in one pwrite, which the next flush overwrites, so the
-    file is always a readable MCAP file (barring a kill inside that one system call)."""
-
-    def __init__(self, path):
-        self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
-        self._pos = 0
-        self._pending = bytearray()
-
-    def write(self, data):
-        self._pending += data
-        return len(data)
-
-    def tell(self):
-        return self._pos + len(self._pending)
-
-    def flush(self, tail=True):
-        data = bytes(self._pending) + (_PROVISIONAL_TAIL if tail else b"")
-        written = 0
-        while written < len(data):
-            written += os.pwrite(self._fd, data[written:], self._pos + written)
-        self._pos += len(self._pending)
-        self._pending.clear()
-
-    def close(self):
-        self.flush(tail=False)
-        os.ftruncate(self._fd, self._pos)   # the last provisional tail may be longer than the summary
-        os.close(self._fd)
-
-    def abandon(self):
-        """Stop writing (a write failed: a full disk): close the file as it is on disk."""
-        self._pending.clear()
-        try:
-            os.close(self._fd)
-        except OSError:
-            pass
-
-
-TopicRecord = namedtuple("TopicRecord", "name type channel_id offered_qos type_hash count")
-
-
-class BagWriter:
-    """A rosbag2 folder with one MCAP file, written so that a killed writer leaves it readable.
-
-    `chunk_seconds`: a chunk is closed and flushed at the latest this long after the previous flush
-    (call `maybe_flush()` often, e.g. from a timer, and on every message); `chunk_size` bounds a
-    chunk's uncompressed size. `custom_data` goes to metadata.yaml (strings only).
-    """
-
-    def __init__(self, path, chunk_seconds=1.0, chunk_size=4 * 1024 * 1024, custom_data=None,
-                 compression="zstd"):
-        os.makedirs(path)   # raises if it exists: a run is never overwritten
-        self.path = os.path.abspath(path)
-        self.name = os.path.basename(self.path)
-        self.file_name = "%s_0.mcap" % self.name
-        self.chunk_seconds = chunk_seconds
-        self.custom_data = dict(custom_data or {})
-        self.topics = {}
-        self.message_count = 0
-        self.start_ns = None
-        self.end_ns = None
-        self.closed = False
-        self._schemas = {}
-        self._file = _TailGuardedFile(os.path.join(self.path, self.file_name))
-        self._writer = Writer(self._file, chunk_size=chunk_size, compression={
-            "zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "": CompressionType.NONE}[compression])
-        self._writer.start(profile="ros2", library=LIBRARY)
-        self._last_flush = time.monotonic()
-        self._dirty = False
-        self._file.flush()
-        self.write_metadata()
-
-    def add_topic(self, topic, type_name, offered_qos=(), definition=None, hash_string=None):
-        """Register a topic (once) with its type's schema and the QoS profiles its publishers offer."""
-        if topic in self.topics:
-            return self.topics[topic]
-        if type_name not in self._schemas:
-            text = definition if definition is not None else message_definition(type_name)
-            self._schemas[type_name] = self._writer.register_schema(type_name, "ros2msg", text.encode())
-        hash_string = type_hash(type_name) if hash_string is None else hash_string
-        offered_qos = list(offered_qos)
-        channel_metadata = {"offered_qos_profiles": _dump_qos(offered_qos)}
-        if hash_string:
-            channel_metadata["topic_type_hash"] = hash_string
-        channel_id = self._writer.register_channel(topic, "cdr", self._schemas[type_name], channel_metadata)
-        record = TopicRecord(topic, type_name, channel_id, offered_qos, hash_string, [0])
-        self.topics[topic] = record
-        return record
-
-    def write(self, topic, data, log_time, publish_time=None):
-        """Write one serialized message of a registered topic (times in ns since the epoch)."""
-        record = self.topics[topic]
-        self._writer.add_message(record.channel_id, log_time=int(log_time), data=bytes(data),
-                                 publish_time=int(log_time if publish_time is None else publish_time),
-                                 sequence=record.count[0])
-        record.count[0] += 1
-        self.message_count += 1
-        self.start_ns = log_time if self.start_ns is None else min(self.start_ns, log_time)
-        self.end_ns = log_time if self.end_ns is None else max(self.end_ns, log_time)
-        self._dirty = True
-
-    def maybe_flush(self, now=None):
-        if self._dirty and (now or time.monotonic()) - self._last_flush >= self.chunk_seconds:
-            self.flush()
-
-    def flush(self):
-        """Close the chunk in progress, put it on disk with a provisional end, refresh metadata.yaml."""
-        self._writer.flush()
-        self._file.flush()
-        self._last_flush = time.monotonic()
-        self._dirty = False
-        self.write_metadata()
-
-    def close(self):
-        if self.closed:
-            return
-        self.closed = True
-        self._writer.flush()
-        self.custom_data["complete"] = "true"
-        self._writer.add_metadata("rosbag2", {"serialized_metadata": yaml.dump(
-            self.metadata()["rosbag2_bagfile_information"], Dumper=_DUMPER, sort_keys=False), "ROS_DISTRO": ROS_DISTRO})
-        self._writer.finish()
-        self._file.close()
-        self.write_metadata()
-
-    def abandon(self):
-        """After a write failed (a full disk): write nothing more. What is on disk stays readable up
-        to its last complete chunk; recover_bag() makes the file and metadata.yaml agree."""
-        self.closed = True
-        self._file.abandon()
-
-    def metadata(self):
-        start = self.start_ns or 0
-        duration = (self.end_ns - self.start_ns) if self.start_ns is not None else 0
-        custom = dict(self.custom_data)
-        custom.setdefault("complete", "false")
-        return {"rosbag2_bagfile_information": {
-            "version": METADATA_VERSION,
-            "storage_identifier": "mcap",
-            "duration": {"nanoseconds": int(duration)},
-            "starting_time": {"nanoseconds_since_epoch": int(start)},
-            "message_count": self.message_count,
-            "topics_with_message_count": [
-                {"topic_metadata": {"name": t.name, "type": t.type, "serialization_format": "cdr",
-                                    "offered_qos_profiles": list(t.offered_qos),
-                                    "type_description_hash": t.type_hash},
-                 "message_count": t.count[0]} for t in self.topics.values()],
-            "compression_format": "",
-            "compression_mode": "",
-            "relative_file_paths": [self.file_name],
-            "files": [{"path": self.file_name, "starting_time": {"nanoseconds_since_epoch": int(start)},
-                       "duration": {"nanoseconds": int(duration)}, "message_count": self.message_count}],
-            "custom_data": custom,
-            "ros_distro": ROS_DISTRO,
-        }}
-
-    def write_metadata(self):
-        write_metadata_file(self.path, self.metadata())
-
-
-def write_metadata_file(bag_dir, metadata):
-    """Replace metadata.yaml atomically (a reader never sees half of it)."""
-    tmp = os.path.join(bag_dir, ".metadata.yaml.tmp")
-    try:
-        with open(tmp, "w", encoding="utf-8") as f:
-            yaml.dump(metadata, f, Dumper=_DUMPER, sort_keys=False, default_flow_style=False)
-        os.replace(tmp, os.path.join(bag_dir, "metadata.yaml"))
-    except OSError:
-        if os.path.exists(tmp):   # a full disk: the old metadata.yaml stays, no half-written copy beside it
-            os.remove(tmp)
-        raise
 
 
 # -- reading -----------------------------------------------------------------------------------
@@ -638,7 +320,7 @@ def recover_bag(path):
     in the middle of replacing metadata.yaml leaves. Returns the Bag; a no-op if complete.
     Only for a bag no recorder writes any more."""
     bag = Bag(path)
-    leftover = os.path.join(bag.path, ".metadata.yaml.tmp")
+    leftover = os.path.join(bag.path, METADATA_TMP)
     if os.path.exists(leftover):
         os.remove(leftover)
     if bag.complete and not bag.truncated:
@@ -670,7 +352,7 @@ def _cut_after_record(file_path, ends):
             with open(file_path, "r+b") as f:
                 f.truncate(ends[-1])
                 f.seek(ends[-1])
-                f.write(_PROVISIONAL_TAIL)
+                f.write(PROVISIONAL_TAIL)
             return
         except OSError as error:
             if error.errno not in (errno.ENOSPC, errno.EDQUOT) or len(ends) < 2:

@@ -6,10 +6,11 @@ cmd_requested, cmd_safe, safety_report, status, and any other that appears there
 An experiment begins when <ns>/status says RUNNING with a run id not seen before and ends with
 the IDLE status that follows (the simulator publishes a last RUNNING status with the final
 counters first). Each run goes to <bags_dir>/<run_id>/ (see robotarium_recording.bag for the format and
-why a killed recorder still leaves a readable bag); its absolute path is announced on
-<ns>/recording (std_msgs/String, reliable + transient local), which the simulator hands back in
-end_experiment's `recording`, and an empty string is announced when the run is closed. The hidden
-<ns>/_recording/runs keeps the last runs' {"run_id", "path"}, for a command that asks after the close.
+robotarium_recording.bag_writer for why a killed recorder still leaves a readable bag); its absolute
+path is announced on <ns>/recording (std_msgs/String, reliable + transient local), which the
+simulator hands back in end_experiment's `recording`, and an empty string is announced when the run
+is closed. The hidden <ns>/_recording/runs keeps the last runs' {"run_id", "path"}, for a command
+that asks after the close.
 
 Subscriptions: a topic is subscribed once it has publishers, with one reader per kind of publisher
 it has (robotarium_recording.samples): reliable transient-local for the testbed's own (robotarium_core.topics),
@@ -68,7 +69,7 @@ from robotarium_core.topics import (
     STATUS_STREAM,
 )
 from robotarium_msgs.msg import TestbedStatus
-from robotarium_recording import bag, samples
+from robotarium_recording import bag, bag_writer, samples, schema
 
 # Our own announcement is not part of a run; the viewers' markers are drawn from the poses (a subscription
 # here would make the simulator build them all the time, and they would fill the bag).
@@ -225,7 +226,7 @@ class RunRecorder:
             for suffix in range(1000):   # never overwrite an old run
                 path = os.path.join(self.bags_dir, run_id if suffix == 0 else "%s_%d" % (run_id, suffix))
                 try:
-                    self.writer = bag.BagWriter(path, chunk_seconds=self.chunk_seconds, custom_data={
+                    self.writer = bag_writer.BagWriter(path, chunk_seconds=self.chunk_seconds, custom_data={
                         "run_id": run_id, "namespace": self.namespace, "recorder": "robotarium_recording recorder"})
                     break
                 except FileExistsError:
@@ -289,7 +290,7 @@ class RunRecorder:
 
 
 def message_class(type_name):
-    pkg, kind, name = bag.split_type(type_name)
+    pkg, kind, name = schema.split_type(type_name)
     return getattr(importlib.import_module("%s.%s" % (pkg, kind)), name)
 
 
@@ -298,7 +299,7 @@ def offered_qos(endpoints):
     profiles = []
     for info in endpoints:
         q = info.qos_profile
-        profiles.append(bag.qos_profile(
+        profiles.append(schema.qos_profile(
             history=HistoryPolicy(q.history).name.lower(), depth=q.depth,
             reliability=ReliabilityPolicy(q.reliability).name.lower(),
             durability=DurabilityPolicy(q.durability).name.lower(),
@@ -361,7 +362,7 @@ class RecorderNode(Node):
     def subscribe(self, topic, type_name, qos):
         try:
             cls = message_class(type_name)
-            leading_stamp = bag.has_leading_stamp(bag.message_definition(type_name))
+            leading_stamp = schema.has_leading_stamp(schema.message_definition(type_name))
         except (ImportError, AttributeError, FileNotFoundError, ValueError) as error:
             self.get_logger().warning("cannot record %s (%s): %s" % (topic, type_name, error))
             self.topics[topic] = None
@@ -375,7 +376,7 @@ class RecorderNode(Node):
                 # Publish time: the header's stamp, else when the writer wrote it (DDS's source timestamp),
                 # never when it came: a sample repaired after a lost packet comes up to a heartbeat later
                 # (a run's `experiment` message came after the run's end and was left out of its bag).
-                sent = (leading_stamp and bag.stamp_from_cdr(data)) or (info or {}).get("source_timestamp") or recv
+                sent = (leading_stamp and schema.stamp_from_cdr(data)) or (info or {}).get("source_timestamp") or recv
                 self.session.on_message(topic, data, recv, sent)
 
         def callback(data, info, topic=topic, handle=handle):

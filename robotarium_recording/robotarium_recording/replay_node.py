@@ -87,7 +87,7 @@ class ReplayNode(Node):
         another definition than the one installed (a message gained fields since): republishing the
         recorded bytes as they are would reach no subscriber (they fail to deserialize). Fields that are
         gone are dropped, new ones keep their defaults."""
-        from robotarium_recording.bag import message_definition
+        from robotarium_recording.schema import message_definition
         converters = {}
         for type_name in {self.bag.topics[t].type for t in self.publishers_by_topic}:
             recorded = self.bag.schemas.get(type_name)

@@ -63,7 +63,7 @@ from robotarium_core.topics import (
 )
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
 from robotarium_recording import drawing, foxglove_scene
-from robotarium_recording.bag import message_definition
+from robotarium_recording.schema import message_definition
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8765
