@@ -214,6 +214,28 @@ class Layout:
             kind.write(writer, values.get(name, kind.default))
 
 
+_STAMP = struct.Struct("<iI")   # builtin_interfaces/Time: sec, nanosec
+
+
+def stamp_head(sec: int, nanosec: int) -> bytes:
+    """The first bytes of a message that starts with a std_msgs/Header: the encapsulation header and
+    the stamp (its frame_id follows: header_tail)."""
+    return ENCAPSULATION + _STAMP.pack(sec, nanosec)
+
+
+def header_tail(frame_id: str, following: bytes = b"", align: int = 1) -> bytes:
+    """The bytes of such a message from its frame_id on: the frame_id, the encoded fields that follow
+    it (`following`, fields of their own alignment 1), then the padding to `align`, the alignment of
+    the next field. For a message sent as stamp_head + header_tail + a fixed-size rest that numpy
+    builds (rps2_io's sensor_msgs per robot), the part that never changes is built once."""
+    writer = _Writer()
+    writer.put(bytes(_STAMP.size))   # the stamp's place: the frame_id is aligned counting it
+    _String().write(writer, frame_id)
+    writer.put(following)
+    writer.align(align)
+    return b"".join(writer.parts[2:])   # without the encapsulation header and the stamp
+
+
 def build_sequence(layout: Layout, elements: Sequence[Mapping[str, object]]) -> bytes:
     """The bytes of a message whose only field is a sequence of `layout` structs (a MarkerArray):
     `elements` is a list of {field: value} dicts."""

@@ -7,7 +7,6 @@ robotarium_core.rps2 and robotarium_core.sensors.
 """
 import array
 import math
-import struct
 
 import numpy as np
 import yaml
@@ -113,21 +112,6 @@ IMU_QOS, MAG_QOS = standard_sensor_qos(1), standard_sensor_qos(1)
 RANGE_QOS = standard_sensor_qos(NUMBER_OF_DISTANCE_SENSORS)
 
 
-def _header_tail(frame_id, align):
-    """The CDR bytes of a std_msgs/Header's frame_id after its stamp (which ends at offset 8 of the
-    body), then zero padding to `align` (the next field's alignment)."""
-    encoded = frame_id.encode() + b"\x00"
-    tail = struct.pack("<I", len(encoded)) + encoded
-    return tail + b"\x00" * ((-(8 + len(tail))) % align)
-
-
-def _range_tail(frame_id):
-    """A Range's bytes from its frame_id to its first float32: the frame_id, radiation_type
-    (INFRARED: the Range message knows only it and ULTRASOUND) and the padding to 4."""
-    tail = _header_tail(frame_id, 1) + bytes([Range.INFRARED])
-    return tail + b"\x00" * ((-(8 + len(tail))) % 4)
-
-
 def _diagonal(values):
     """Row-major 3 x 3 covariance with `values` on the diagonal."""
     return [values[0], 0.0, 0.0, 0.0, values[1], 0.0, 0.0, 0.0, values[2]]
@@ -231,8 +215,10 @@ class StandardSensors:
                 self.node.create_publisher(Imu, IMU % i, IMU_QOS, event_callbacks=no_events),
                 self.node.create_publisher(MagneticField, MAG % i, MAG_QOS, event_callbacks=no_events),
                 self.node.create_publisher(Range, RANGE % i, RANGE_QOS, event_callbacks=no_events),
-                _header_tail(frame, 8),
-                [_range_tail("%s/distance_%d" % (frame, k)) for k in range(NUMBER_OF_DISTANCE_SENSORS)]))
+                cdr.header_tail(frame, align=8),   # Imu, MagneticField: float64s follow the header
+                # Range: radiation_type (INFRARED: it knows only that and ULTRASOUND), then float32s
+                [cdr.header_tail("%s/distance_%d" % (frame, k), bytes([Range.INFRARED]), align=4)
+                 for k in range(NUMBER_OF_DISTANCE_SENSORS)]))
 
     def due(self, testbed):
         """Whether this step is the first at or past the next multiple of the period."""
@@ -246,7 +232,7 @@ class StandardSensors:
 
     def publish(self, testbed, sec, nanosec):
         sensors, config = testbed.sensors, testbed.config
-        head = cdr.ENCAPSULATION + struct.pack("<iI", sec, nanosec)
+        head = cdr.stamp_head(sec, nanosec)
         imu = imu_rows(sensors, config)
         mag = magnetic_field_rows(sensors, config)
         ranges = range_rows(sensors, config) if sensors.distance_sensors else None
