@@ -98,7 +98,7 @@ def test_requirements_pin_every_python_package_the_code_imports():
         pinned = {re.split(r"[=<>\[]", line.strip())[0].lower() for line in f if line.strip() and line[0] != "#"}
     modules = set().union(*(imported(p, tests) for p in packages() for tests in (False, True)))
     unknown = sorted(m for m in modules if m not in PYTHON_DEPENDENCIES and not m.startswith(("rcl", "robotarium_"))
-                     and not m.endswith(("_msgs", "_srvs")) and m not in ("rps", "rps2", "launch", "launch_ros",
+                     and not m.endswith(("_msgs", "_srvs")) and m not in ("rps", "launch", "launch_ros",
                                                                              "ament_index_python", "rclpy",
                                                                              "ros2cli"))   # a ROS install's (ros2 robotarium)
     assert not unknown, "imports not mapped in PYTHON_DEPENDENCIES (test_manifests.py): %s" % unknown

@@ -1,5 +1,5 @@
 """The 2.x API's plain modules: sensors (robotarium_core.sensors), 2.x's rules and where robots
-start (robotarium_core.rps2), the 2.x utilities (robotarium_client/rps2), how a script is
+start (robotarium_core.rps2), the 2.x utilities (robotarium_client/rps/_v2), how a script is
 recognised as a 2.x script (robotarium_client.api_level), and the drive-on phase in-process.
 
 Compared against the Robotarium simulator 2.1.0 where it is right: its source
@@ -358,8 +358,7 @@ def guide_initial_conditions(n, seed):
 def rps2_utilities():
     """The 2.x utilities as a 2.x script imports them (rps with the 2.x modules first)."""
     import rps
-    import rps2 as tree
-    path = os.path.dirname(tree.__file__)
+    path = os.path.join(os.path.dirname(rps.__file__), "_v2")
     saved = {k: v for k, v in sys.modules.items() if k == "rps.utilities" or k.startswith("rps.utilities.")}
     for k in saved:
         del sys.modules[k]

@@ -20,10 +20,9 @@ from robotarium_client import api_level as _api_level
 from robotarium_client import session as _session
 
 # The guide's API or the simulator 2.x's, decided once, when a script first imports rps (see
-# robotarium_client.api_level). For 2.x, the 2.x modules (robotarium_client/rps2/) come first.
+# robotarium_client.api_level). For 2.x, the 2.x modules (rps/_v2/, under the same names) come first.
 API, API_REASON = _api_level.decide(_session.options.rps_api)
 if API == _api_level.V2:
-    import rps2 as _rps2
-    __path__.insert(0, _os.path.dirname(_rps2.__file__))
+    __path__.insert(0, _os.path.join(_os.path.dirname(__file__), "_v2"))
     print("[robotarium] Robotarium simulator 2.x API: %s (./robotarium run --rps guide to change)" % API_REASON,
           file=_sys.stderr)

@@ -1,1 +1,1 @@
-../../../../robotarium_client/rps2/examples/state_estimation/extended_kalman_filter/uni_ekf.py
+../../../../robotarium_client/rps/_v2/examples/state_estimation/extended_kalman_filter/uni_ekf.py
