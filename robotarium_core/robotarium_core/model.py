@@ -53,6 +53,24 @@ def wrap_angle(theta: np.ndarray | float) -> np.ndarray | float:
     return np.arctan2(np.sin(theta), np.cos(theta))
 
 
+def at_pose_mask(poses: np.ndarray, goals: np.ndarray, position_error: float, rotation_error: float,
+                 strict: bool = False) -> np.ndarray:
+    """Per robot (N booleans): within position_error (m) of its goal position and rotation_error (rad,
+    the heading error wrapped) of its goal heading. poses, goals: 3xN. strict: < instead of <= (2.x's
+    parking controllers)."""
+    distance = np.linalg.norm(poses[:2] - goals[:2], axis=0)
+    heading = np.abs(wrap_angle(poses[2] - goals[2]))
+    if strict:
+        return (distance < position_error) & (heading < rotation_error)
+    return (distance <= position_error) & (heading <= rotation_error)
+
+
+def at_position_mask(points: np.ndarray, goals: np.ndarray, position_error: float) -> np.ndarray:
+    """Per robot (N booleans): within position_error (m) of its goal. points: 2xN or more rows (x, y
+    first); goals: 2xN."""
+    return np.linalg.norm(points[:2] - goals[:2], axis=0) <= position_error
+
+
 def unicycle_to_wheels(dxu: np.ndarray, wheel_radius: float = WHEEL_RADIUS, base_length: float = BASE_LENGTH) -> np.ndarray:
     """2xN (v, omega) -> 2xN (left, right) wheel speeds in rad/s (rps _uni_to_diff, guide §2.5.1)."""
     v, w = dxu[0], dxu[1]
@@ -290,7 +308,8 @@ def random_initial_conditions(number_of_robots: int, rng: np.random.Generator | 
 
     The same algorithm and defaults as rps (misc.generate_initial_conditions called by
     RobotariumABC with spacing=0.2, width=2.5, height=1.5), drawn from `rng` (a
-    numpy.random.Generator or RandomState) so that a seed reproduces them.
+    numpy.random.Generator or RandomState, or np.random itself: the global stream, which the
+    guide's generate_initial_conditions draws from) so that a seed reproduces them.
     """
     x_range, y_range = int(np.floor(width / spacing)), int(np.floor(height / spacing))
     choices = rng.choice(x_range * y_range, number_of_robots, replace=False) + 1

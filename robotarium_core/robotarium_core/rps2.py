@@ -18,7 +18,7 @@ robots always fail, and it draws random poses 0.5 m apart, which 18 or more robo
 """
 import numpy as np
 
-from robotarium_core import model
+from robotarium_core import kinematics, model
 from robotarium_core.model import RobotariumError
 from robotarium_core.sensors import SensorModel
 
@@ -77,7 +77,7 @@ def point_segment_distances(points, segments):
 
 def colliders(poses, offset):
     """2 x N centres of the 2.x colliders, `offset` ahead of each axle."""
-    return poses[:2] + offset * np.stack([np.cos(poses[2]), np.sin(poses[2])])
+    return kinematics.points_ahead(poses, offset)
 
 
 def count_too_close(poses, diameter, offset):
@@ -103,9 +103,7 @@ def exceeds_wheel_limit(dxu, config):
 
 def at_pose(poses, goals, position_error, rotation_error):
     """(all there, per robot mask) as 2.x's create_at_pose."""
-    near = np.linalg.norm(poses[:2] - goals[:2], axis=0) <= position_error
-    turned = np.abs(model.wrap_angle(poses[2] - goals[2])) <= rotation_error
-    mask = near & turned
+    mask = model.at_pose_mask(poses, goals, position_error, rotation_error)
     return bool(np.all(mask)), mask
 
 
@@ -254,6 +252,20 @@ def drive_on_waiting(poses, start, goals, arrived, margin):
     return np.any(ahead & (depth[None, :] < line), axis=1)
 
 
+def spaced_random_positions(number, spacing, width, height, rng, attempts=10000):
+    """2 x number positions uniform in a centred width x height box, at least `spacing` apart, by 2.x's
+    rejection sampling (rps/utilities/misc.py): per attempt one candidate from rng.random(2), kept if
+    far enough from those kept so far; None if not all are placed within `attempts` (2.x's budget)."""
+    accepted = []
+    for _ in range(attempts):
+        candidate = (rng.random(2) - 0.5) * [width, height]
+        if not accepted or np.all(np.linalg.norm(np.array(accepted) - candidate, axis=1) >= spacing):
+            accepted.append(candidate)
+            if len(accepted) == number:
+                return np.array(accepted).T
+    return None
+
+
 def random_poses(number_of_robots, rng, config=model.DEFAULT):
     """3 x N random initial conditions as 2.x draws them (uniform in a centred box, at least
     `random_pose_spacing` apart, headings uniform), with the spacing lowered in steps of 5 cm down
@@ -262,16 +274,10 @@ def random_poses(number_of_robots, rng, config=model.DEFAULT):
     width, height = config.random_pose_area
     spacing, floor = config.random_pose_spacing, config.random_pose_min_spacing
     while spacing >= floor - 1e-9:
-        accepted = []
+        positions = None
         if number_of_robots <= int(np.floor(width * height / spacing ** 2)):
-            for _ in range(10000):   # 2.x's rejection sampling, with its attempt budget
-                candidate = (rng.random(2) - 0.5) * [width, height]
-                if not accepted or np.all(np.linalg.norm(np.array(accepted) - candidate, axis=1) >= spacing):
-                    accepted.append(candidate)
-                    if len(accepted) == number_of_robots:
-                        break
-        if len(accepted) == number_of_robots:
-            positions = np.array(accepted).T
+            positions = spaced_random_positions(number_of_robots, spacing, width, height, rng)
+        if positions is not None:
             break
         spacing -= 0.05
     else:

@@ -34,6 +34,7 @@ Where we differ from 2.1.0, on purpose:
 """
 import numpy as np
 
+from robotarium_core.kinematics import points_ahead
 from robotarium_core.model import unicycle_to_wheels
 
 NUMBER_OF_DISTANCE_SENSORS = 7
@@ -79,7 +80,7 @@ def true_distances(poses, segments, sensor_poses, origin_offset, robot_diameter,
     n = poses.shape[1]
     if n > 1:
         radius = robot_diameter / 2
-        centres = poses[:2] + origin_offset * np.stack([np.cos(poses[2]), np.sin(poses[2])])   # 2 x N
+        centres = points_ahead(poses, origin_offset)   # 2 x N
         ux, uy = directions
         # to[k, s, i]: from ray (s, i)'s origin to robot k's disc centre
         tx = centres[0][:, None, None] - ox[None]

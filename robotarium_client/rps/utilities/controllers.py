@@ -15,9 +15,15 @@ Differences from rps 0.0.0, each marked "Fix:" in the code:
   Its default position_epsilon is the guide's 0.03 (rps 0.0.0 had 0.02; later rps also uses 0.03).
 * create_si_position_controller's type-check message for velocity_magnitude_limit named
   y_velocity_gain.
+
+The laws themselves (proportional single-integrator control, the CLF pose law, the hybrid pose
+controller's step) are robotarium_core.control's, which 2.x's module (rps/_v2/utilities/
+controllers.py) shares; this module keeps the guide's names, defaults, checks and messages and
+passes the guide's choices where the two APIs differ.
 """
 import numpy as np
 
+from robotarium_core import control
 from rps.utilities import RobotariumError, _check_array, _check_number, _describe
 from rps.utilities.transformations import *  # noqa: F401,F403 (rps re-exports them from here)
 from rps.utilities.transformations import __all__ as _transformations_all
@@ -28,11 +34,6 @@ __all__ = list(_transformations_all) + [
     "create_clf_unicycle_pose_controller",
     "create_hybrid_unicycle_pose_controller",
 ]
-
-
-def _wrap(angle):
-    """Wrap angles to (-pi, pi], as rps does: arctan2(sin, cos)."""
-    return np.arctan2(np.sin(angle), np.cos(angle))
 
 
 def create_si_position_controller(x_velocity_gain=1, y_velocity_gain=1, velocity_magnitude_limit=0.15):
@@ -56,11 +57,7 @@ def create_si_position_controller(x_velocity_gain=1, y_velocity_gain=1, velocity
         xi = _check_array(xi, "xi", where_ctl, 2, what="of single-integrator states [x; y]")
         positions = _check_array(positions, "positions", where_ctl, 2, xi.shape[1],
                                  "of goal points [x_goal; y_goal], one column per column of xi")
-        dxi = gains * (positions - xi)
-        norms = np.linalg.norm(dxi, axis=0)
-        too_fast = norms > limit
-        dxi[:, too_fast] *= limit / norms[too_fast]
-        return dxi
+        return control.si_position_law(xi, positions, gains, limit)
 
     return si_position_controller
 
@@ -114,19 +111,10 @@ def create_clf_unicycle_pose_controller(approach_angle_gain=1, desired_angle_gai
         states = _check_array(states, "states", where_ctl, 3, what="of unicycle states [x; y; theta]")
         poses = _check_array(poses, "poses", where_ctl, 3, states.shape[1],
                              "of goal poses [x_goal; y_goal; theta_goal], one column per column of states")
-        # Robot-to-goal vector rotated into the goal's frame (rps: R(-theta_goal) . (goal - robot)).
-        dx, dy = poses[:2] - states[:2]
-        c, s = np.cos(poses[2]), np.sin(poses[2])
-        along = c * dx + s * dy + 0.0   # +0.0: at the goal, arctan2 must see (+0, +0), not a -0.0
-        across = -s * dx + c * dy + 0.0
-        e = np.hypot(along, across)
-        theta = np.arctan2(across, along)
-        alpha = _wrap(theta - (states[2] - poses[2]))
-        ca = np.cos(alpha)
-        # Fix: rps computed cos(a) sin(a) / a, NaN at a = 0; sin(a)/a = sinc(a/pi) -> 1 there.
+        # Fix: rps computed cos(a) sin(a) / a, NaN at a = 0; sin(a)/a = sinc(a/pi) -> 1 there (exact_sinc).
+        # At the goal, arctan2 must see (+0, +0), not a -0.0 (no_spin_at_goal). 2.x's port does neither.
         # Fix: rps printed gamma, e and cos(alpha) for every robot on every call.
-        omega = k * alpha + gamma * ca * np.sinc(alpha / np.pi) * (alpha + h * theta)
-        return np.vstack((gamma * e * ca, omega))
+        return control.clf_pose_law(states, poses, gamma, k, h, exact_sinc=True, no_spin_at_goal=True)
 
     return pose_uni_clf_controller
 
@@ -189,24 +177,12 @@ def create_hybrid_unicycle_pose_controller(linear_velocity_gain=1, angular_veloc
                                       % where_ctl)
             approaching = given.reshape(-1) != 0
 
-        heading_error = _wrap(poses[2] - states[2])
-        dxi = poses[:2] - states[:2]
-        distance = np.linalg.norm(dxi, axis=0)
-
-        dxu = np.zeros((2, n))
-        # Mode 1: approach the goal position in a straight line.
-        drive = approaching & (distance > close_enough - epsilon)
-        fast = drive & (distance > speed_limit)
-        dxi[:, fast] = speed_limit * dxi[:, fast] / distance[fast]
-        if np.any(drive):
-            dxu[:, drive] = si_to_uni_dyn(dxi[:, drive], states[:, drive])
-        # Mode 2: turn on the spot; leave the approach mode unless the robot has drifted away.
-        # Fix: rps wrote `approach_state = 1` (the whole array) for `approach_state[i] = 1`.
-        turn = ~drive & (np.abs(heading_error) > aligned)
-        approaching = np.where(turn, distance > close_enough, approaching)
-        dxu[1, turn] = k_w * heading_error[turn]
-        # Otherwise (at the pose): zero command, already in dxu.
-
+        # Approach in a straight line, then turn on the spot (angular_velocity_gain; 2.x: 2), leaving the
+        # approach mode unless the robot has drifted away; else stand still. The speed cap rounds as rps's
+        # (divide_last). Fix: rps wrote `approach_state = 1` (the whole array) for `approach_state[i] = 1`.
+        dxu, approaching, _ = control.hybrid_pose_step(
+            states, poses, approaching, si_to_uni_dyn, speed_limit=speed_limit, turn_gain=k_w,
+            position_error=close_enough, position_epsilon=epsilon, rotation_error=aligned, divide_last=True)
         if given is not None:
             given[...] = approaching.reshape(given.shape)
         return dxu

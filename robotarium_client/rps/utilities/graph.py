@@ -3,6 +3,9 @@
 A graph Laplacian is L = D - A: node degrees on the diagonal, -1 for every edge off it, so each
 row sums to zero and the neighbours of i are the nonzero off-diagonal entries of row i.
 
+The graphs are built by robotarium_core.graphs, which 2.x's module (rps/_v2/utilities/graph.py)
+shares; this module keeps the guide's names, argument checks and messages.
+
 Differences from rps 0.0.0, each marked "Fix:" in the code:
 * cycle_GL(1) was [[-1]], cycle_GL(2) [[2, -1], [-1, 2]] and lineGL(1) [[1]]: not Laplacians
   (rows must sum to zero), and consensus on them drives robots towards the origin.
@@ -13,6 +16,7 @@ Differences from rps 0.0.0, each marked "Fix:" in the code:
 """
 import numpy as np
 
+from robotarium_core import graphs
 from rps.utilities import RobotariumError, _check_array, _check_number
 
 __all__ = [
@@ -27,15 +31,6 @@ __all__ = [
 ]
 
 
-def _laplacian(n, rows, cols):
-    """Laplacian of the simple undirected graph on n nodes with edges (rows[k], cols[k])."""
-    L = np.zeros((n, n))
-    L[rows, cols] = -1
-    L[cols, rows] = -1
-    L[np.diag_indices(n)] = np.count_nonzero(L, axis=1)   # degree = number of edges at the node
-    return L
-
-
 def cycle_GL(N):
     """N x N Laplacian of the cycle 0-1-...-(N-1)-0 (guide 4.8.1). N >= 1.
 
@@ -43,10 +38,7 @@ def cycle_GL(N):
     returned matrices whose rows do not sum to zero.
     """
     N = _check_number(N, "N (number of nodes)", "cycle_GL", low=1, integer=True)
-    nodes = np.arange(N)
-    if N <= 2:
-        return lineGL(N)
-    return _laplacian(N, nodes, (nodes + 1) % N)
+    return graphs.cycle_laplacian(N)
 
 
 def lineGL(N):
@@ -55,26 +47,13 @@ def lineGL(N):
     Fix: lineGL(1) is [[0]] (rps: [[1]]).
     """
     N = _check_number(N, "N (number of nodes)", "lineGL", low=1, integer=True)
-    nodes = np.arange(N - 1)
-    return _laplacian(N, nodes, nodes + 1)
+    return graphs.path_laplacian(N)
 
 
 def completeGL(N):
     """N x N Laplacian of the complete graph: N - 1 on the diagonal, -1 elsewhere (guide 4.8.3). N >= 1."""
     N = _check_number(N, "N (number of nodes)", "completeGL", low=1, integer=True)
-    return N * np.identity(N) - np.ones((N, N))
-
-
-def _add_random_edges(L, candidates, count):
-    """Add `count` of the candidate edges (row-major (rows, cols) of free upper-triangle cells),
-    chosen by np.random.permutation over all of them, as rps does (same draws)."""
-    chosen = np.random.permutation(len(candidates[0]))[:count]
-    rows, cols = candidates[0][chosen], candidates[1][chosen]
-    L[rows, cols] = -1
-    L[cols, rows] = -1
-    np.add.at(L, (rows, rows), 1)
-    np.add.at(L, (cols, cols), 1)
-    return L
+    return graphs.complete_laplacian(N)
 
 
 def random_connectedGL(v, e):
@@ -87,18 +66,7 @@ def random_connectedGL(v, e):
     where = "random_connectedGL"
     v = _check_number(v, "v (number of vertices)", where, low=1, integer=True)
     e = _check_number(e, "e (number of additional edges)", where, low=0, integer=True)
-
-    # The tree: one np.random.randint(i, size=(1, 1)) per node i >= 1, as rps draws them.
-    parents = np.array([np.random.randint(i, size=(1, 1))[0, 0] for i in range(1, v)], dtype=int)
-    L = _laplacian(v, np.arange(1, v), parents)
-
-    # Free pairs: upper-triangle cells of L that are still zero (rps: np.where on that mask).
-    free = np.triu(L == 0, 1)
-    candidates = np.nonzero(free)
-    count = min(e, len(candidates[0]))
-    if count <= 0:
-        return L   # rps draws nothing more in this case
-    return _add_random_edges(L, candidates, count)
+    return graphs.random_connected_laplacian(v, e)
 
 
 def randomGL(v, e):
@@ -111,8 +79,8 @@ def randomGL(v, e):
     # Fix: rps checked neither argument.
     v = _check_number(v, "v (number of vertices)", where, low=1, integer=True)
     e = _check_number(e, "e (number of edges)", where, low=0, integer=True)
-    candidates = np.nonzero(np.triu(np.ones((v, v), dtype=bool), 1))
-    return _add_random_edges(np.zeros((v, v)), candidates, min(e, len(candidates[0])))
+    # rps draws the permutation even when no edge is added (2.x does not): the stream moves on as in rps.
+    return graphs.random_laplacian(v, e, draw_without_edges=True)
 
 
 def _check_agent(agent, n, where):
@@ -132,9 +100,7 @@ def topological_neighbors(L, agent):
         raise RobotariumError("%s: L must be a square N x N graph Laplacian; received an array of shape %s."
                               % (where, L.shape))
     agent = _check_agent(agent, L.shape[0], where)
-    row = L[agent] != 0
-    row[agent] = False
-    return np.nonzero(row)[0]
+    return graphs.topological_neighbors(L, agent)
 
 
 def delta_disk_neighbors(poses, agent, delta):
@@ -151,6 +117,4 @@ def delta_disk_neighbors(poses, agent, delta):
     agent = _check_agent(agent, poses.shape[1], where)
     # Fix: rps's message for a bad delta named agent.
     delta = _check_number(delta, "delta", where, low=0, allow_inf=True)
-    near = np.linalg.norm(poses[:2] - poses[:2, [agent]], axis=0) <= delta
-    near[agent] = False
-    return np.nonzero(near)[0]
+    return graphs.delta_disk_neighbors(poses, agent, delta)

@@ -13,6 +13,7 @@ Differences from rps 0.0.0, each marked "Fix:" in the code:
 """
 import numpy as np
 
+from robotarium_core import model
 from robotarium_core.model import MAX_ROBOTS, MIN_ROBOTS
 from rps.utilities import RobotariumError, _check_array, _check_number, _describe
 
@@ -67,15 +68,10 @@ def generate_initial_conditions(N, spacing=0.3, width=3, height=1.8):
             "%s: N must be less than the %d grid cells that a %r x %r m area holds at spacing %r; received N=%d."
             % (where, x_range * y_range, width, height, spacing, N))
 
-    # rps numbers cells from 1 and takes (column, row) = divmod(cell, y_range).
-    cells = np.random.choice(x_range * y_range, N, replace=False) + 1
-    column, row = np.divmod(cells, y_range)
-    poses = np.zeros((3, N))
-    poses[0] = column * spacing - width / 2
-    poses[1] = row * spacing - height / 2
-    # One draw per robot after the choice, as rps's loop did (rand(N) is the same stream).
-    poses[2] = np.random.rand(N) * 2 * np.pi - np.pi
-    return poses
+    # rps's grid and draws, which the simulator's random initial conditions share: N distinct cells
+    # from np.random.choice (numbered from 1, (column, row) = divmod(cell, y_range)), then one heading
+    # per robot from the global stream (random(N) is rps's loop of rand()).
+    return model.random_initial_conditions(N, np.random, spacing, width, height)
 
 
 def _check_error(value, name, where):
@@ -96,10 +92,7 @@ def at_pose(states, poses, position_error=0.05, rotation_error=0.2):
     position_error = _check_error(position_error, "position_error", where)
     rotation_error = _check_error(rotation_error, "rotation_error", where)
 
-    heading = states[2] - poses[2]
-    heading = np.abs(np.arctan2(np.sin(heading), np.cos(heading)))
-    distance = np.linalg.norm(states[:2] - poses[:2], 2, 0)
-    return np.nonzero((heading <= rotation_error) & (distance <= position_error))
+    return np.nonzero(model.at_pose_mask(states, poses, position_error, rotation_error))
 
 
 def at_position(states, points, position_error=0.02):
@@ -113,7 +106,7 @@ def at_position(states, points, position_error=0.02):
     points = _check_array(points, "points", where, 2, states.shape[1],
                           "of desired points [x; y], one column per column of states")
     position_error = _check_error(position_error, "position_error", where)
-    return np.nonzero(np.linalg.norm(states[:2] - points, 2, 0) <= position_error)
+    return np.nonzero(model.at_position_mask(states, points, position_error))
 
 
 def _figure_of(robotarium_instance, where):

@@ -10,6 +10,10 @@ single-integrator velocity dxi = (x_dot, y_dot):
       [x_dot_p; y_dot_p] = [cos theta, -l sin theta; sin theta, l cos theta] [v; omega]
   and the matrix is invertible for l > 0 (guide 4.3.3-4.3.4; rps transformations.py).
 
+The maps themselves are robotarium_core.kinematics', which 2.x's module
+(rps/_v2/utilities/transformations.py) shares; this module keeps the guide's names, defaults,
+argument checks and messages, and passes the guide's choices where the two APIs differ.
+
 Differences from rps 0.0.0, each marked "Fix:" in the code:
 * create_si_to_uni_dynamics_with_backwards_motion was a copy of the forward mapping; it now
   drives backwards when that needs less rotation, as the guide (4.3.2) and the Robotarium MATLAB
@@ -22,6 +26,7 @@ Differences from rps 0.0.0, each marked "Fix:" in the code:
 """
 import numpy as np
 
+from robotarium_core import kinematics
 from rps.utilities import _check_array, _check_number
 
 __all__ = [
@@ -31,18 +36,6 @@ __all__ = [
     "create_si_to_uni_mapping",
     "create_uni_to_si_dynamics",
 ]
-
-
-def _heading_frame(dxi, theta):
-    """dxi expressed in the robot's frame: (component along the heading, component to its left).
-
-    For a zero command these can come out as -0.0 (0 times a negative cosine), and
-    arctan2(+0.0, -0.0) = pi: the callers add +0.0 to arctan2's second argument, which turns -0.0
-    into +0.0 and leaves every other number alone, so a robot asked to stand still gets omega = 0
-    (Fix: rps made it spin at 2*angular_velocity_limit).
-    """
-    c, s = np.cos(theta), np.sin(theta)
-    return c * dxi[0] + s * dxi[1], -s * dxi[0] + c * dxi[1]
 
 
 def _inputs(dxi, poses, where):
@@ -70,10 +63,10 @@ def create_si_to_uni_dynamics(linear_velocity_gain=1, angular_velocity_limit=np.
     def si_to_uni_dyn(dxi, poses):
         """dxi: 2xN single-integrator velocities; poses: 3xN unicycle poses -> 2xN [v; omega]."""
         dxi, poses = _inputs(dxi, poses, "si_to_uni_dyn (from create_si_to_uni_dynamics)")
-        along, left = _heading_frame(dxi, poses[2])
-        v = gain * along
-        # rps and MATLAB measure the angle of (v, left), so the gain also shapes the turn rate.
-        return np.vstack((v, limit * np.arctan2(left, v + 0.0) / (np.pi / 2)))
+        # rps and MATLAB measure the angle of (v, left), so the gain also shapes the turn rate (2.x's
+        # forward map does not). Fix: a zero command no longer spins a robot at 2*angular_velocity_limit
+        # (no_spin_at_rest: arctan2(+0.0, -0.0) = pi in rps).
+        return kinematics.si_to_uni_heading(dxi, poses[2], gain, limit, gain_in_angle=True, no_spin_at_rest=True)
 
     return si_to_uni_dyn
 
@@ -119,14 +112,13 @@ def create_si_to_uni_mapping(projection_distance=0.05, angular_velocity_limit=np
     def si_to_uni_dyn(dxi, poses):
         """dxi: 2xN velocities of the projected points; poses: 3xN unicycle poses -> 2xN [v; omega]."""
         dxi, poses = _inputs(dxi, poses, "si_to_uni_dyn (from create_si_to_uni_mapping)")
-        along, left = _heading_frame(dxi, poses[2])
-        return np.vstack((along, np.clip(left / distance, -limit, limit)))
+        return kinematics.si_to_uni_projected(dxi, poses[2], distance, limit)   # clipped, as rps (2.x is not)
 
     def uni_to_si_states(poses):
         """poses: 3xN unicycle poses -> 2xN positions of the projected control points."""
         poses = _check_array(poses, "poses", "uni_to_si_states (from create_si_to_uni_mapping)", 3,
                              what="of unicycle poses [x; y; theta]")
-        return poses[:2] + distance * np.vstack((np.cos(poses[2]), np.sin(poses[2])))
+        return kinematics.points_ahead(poses, distance)
 
     return si_to_uni_dyn, uni_to_si_states
 
@@ -146,8 +138,6 @@ def create_uni_to_si_dynamics(projection_distance=0.05):
         dxu = _check_array(dxu, "dxu", where_dyn, 2, what="of unicycle commands [v; omega]")
         poses = _check_array(poses, "poses", where_dyn, 3, dxu.shape[1],
                              "of unicycle poses [x; y; theta], one column per column of dxu")
-        c, s = np.cos(poses[2]), np.sin(poses[2])
-        v, omega = dxu
-        return np.vstack((c * v - distance * s * omega, s * v + distance * c * omega))
+        return kinematics.uni_to_si_projected(dxu, poses[2], distance)
 
     return uni_to_si_dyn

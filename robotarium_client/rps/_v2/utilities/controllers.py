@@ -1,16 +1,17 @@
-"""Position and pose controllers with 2.x's names and defaults (2.1.0 rps/utilities/controllers.py)."""
+"""Position and pose controllers with 2.x's names and defaults (2.1.0 rps/utilities/controllers.py).
+
+The laws themselves are robotarium_core.control's, which the guide's module shares; this module
+keeps 2.x's names, defaults, asserts and messages and passes 2.x's choices where the two APIs differ."""
 import numpy as np
 
+from robotarium_core import control
+from robotarium_core.model import at_pose_mask
 from rps.utilities.transformations import *  # noqa: F401,F403 (2.x's module brings them too)
 from rps.utilities.transformations import create_si_to_uni_dynamics, create_si_to_uni_mapping
 
 __all__ = ["np", "create_si_position_controller", "create_uni_position_controller", "create_pose_controller_clf",
            "create_pose_controller_hybrid", "create_pose_parking_controller_clf",
            "create_pose_parking_controller_hybrid", "create_si_to_uni_dynamics", "create_si_to_uni_mapping"]
-
-
-def _wrap(angle):
-    return np.arctan2(np.sin(angle), np.cos(angle))
 
 
 def create_si_position_controller(x_velocity_gain=0.8, y_velocity_gain=0.8, velocity_magnitude_limit=0.15):
@@ -24,11 +25,7 @@ def create_si_position_controller(x_velocity_gain=0.8, y_velocity_gain=0.8, velo
     def position_controller_si(states, poses):
         assert states.shape[0] == 2 and poses.shape[0] == 2, "states and poses must be 2xN."
         assert poses.shape[1] == states.shape[1], "states and poses must have the same number of columns."
-        dx = gains * (poses - states)
-        norms = np.linalg.norm(dx, axis=0)
-        over = norms > velocity_magnitude_limit
-        dx[:, over] *= velocity_magnitude_limit / norms[over]
-        return dx
+        return control.si_position_law(states, poses, gains, velocity_magnitude_limit)
     return position_controller_si
 
 
@@ -51,17 +48,9 @@ def create_pose_controller_clf(approach_angle_gain=1, desired_angle_gain=2.7, ro
     def controller_clf(states, poses):
         assert states.shape[0] == 3 and poses.shape[0] == 3, "states and poses must be 3xN."
         assert poses.shape[1] == states.shape[1], "states and poses must have the same number of columns."
-        goal = poses[2]
-        dx, dy = poses[0] - states[0], poses[1] - states[1]
-        c, s = np.cos(-goal), np.sin(-goal)
-        ex, ey = c * dx - s * dy, s * dx + c * dy
-        e = np.hypot(ex, ey)
-        theta = np.arctan2(ey, ex)
-        alpha = _wrap(theta - (states[2] - goal))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            sinc = np.where(np.abs(alpha) < 1e-6, 1.0, np.sin(alpha) / alpha)
-        v = approach_angle_gain * e * np.cos(alpha)
-        w = desired_angle_gain * alpha + approach_angle_gain * np.cos(alpha) * sinc * (alpha + rotation_error_gain * theta)
+        # 2.1.0's sin(a)/a (1 below |a| = 1e-6) and no +0.0 at the goal (the guide's API: exact sinc, +0.0)
+        v, w = control.clf_pose_law(states, poses, approach_angle_gain, desired_angle_gain, rotation_error_gain,
+                                    exact_sinc=False, no_spin_at_goal=False)
         left = (v - base_length / 2 * w) / wheel_radius
         right = (v + base_length / 2 * w) / wheel_radius
         fastest = np.maximum(np.abs(left), np.abs(right))
@@ -87,19 +76,12 @@ def create_pose_controller_hybrid(linear_velocity_gain=0.8, angular_velocity_lim
             if internal["approach_state"].shape[0] != n:
                 internal["approach_state"] = np.ones(n)
             approach = internal["approach_state"]
-        vec = poses[:2] - states[:2]
-        dist = np.linalg.norm(vec, axis=0)
-        heading_error = _wrap(poses[2] - states[2])
-        dxu = np.zeros((2, n))
-        moving = (approach != 0) & (dist > position_error - position_epsilon)
-        if np.any(moving):
-            step = vec[:, moving].copy()
-            long = dist[moving] > velocity_magnitude_limit
-            step[:, long] *= velocity_magnitude_limit / dist[moving][long]
-            dxu[:, moving] = si_to_uni(step, states[:, moving])
-        turning = ~moving & (np.abs(heading_error) > rotation_error)
-        approach[turning] = (dist[turning] > position_error).astype(approach.dtype)
-        dxu[1, turning] = 2 * heading_error[turning]
+        # 2.x turns with a fixed gain of 2 (the guide's API: angular_velocity_gain) and writes only the
+        # turning robots' flags back, in the array's own dtype.
+        dxu, approaching, turning = control.hybrid_pose_step(
+            states, poses, approach != 0, si_to_uni, speed_limit=velocity_magnitude_limit, turn_gain=2,
+            position_error=position_error, position_epsilon=position_epsilon, rotation_error=rotation_error)
+        approach[turning] = approaching[turning].astype(approach.dtype)
         if in_approach_state is not None:
             return dxu, approach
         return dxu
@@ -115,9 +97,7 @@ def create_pose_parking_controller_clf(approach_angle_gain=1, desired_angle_gain
 
     def controller_clf_parking(states, poses):
         dxu = clf(states, poses)
-        there = (np.linalg.norm(states[:2] - poses[:2], axis=0) < position_error) & (
-            np.abs(_wrap(states[2] - poses[2])) < rotation_error)
-        dxu[:, there] = 0
+        dxu[:, at_pose_mask(states, poses, position_error, rotation_error, strict=True)] = 0   # 2.x: strict <
         return dxu
     return controller_clf_parking
 
@@ -131,8 +111,6 @@ def create_pose_parking_controller_hybrid(linear_velocity_gain=0.8, angular_velo
 
     def controller_hybrid_parking(states, poses):
         dxu = hybrid(states, poses)
-        there = (np.linalg.norm(states[:2] - poses[:2], axis=0) < position_error) & (
-            np.abs(_wrap(states[2] - poses[2])) < rotation_error)
-        dxu[:, there] = 0
+        dxu[:, at_pose_mask(states, poses, position_error, rotation_error, strict=True)] = 0   # 2.x: strict <
         return dxu
     return controller_hybrid_parking

@@ -8,6 +8,7 @@ from datetime import datetime
 
 import numpy as np
 
+from robotarium_core import model as _model
 from robotarium_core import rps2 as _rps2
 from robotarium_core.config import DEFAULT as _DEFAULT
 
@@ -37,16 +38,11 @@ def _random_points(N, spacing, width, height):
     approx_max = int(np.floor((width * height) / (spacing ** 2)))
     assert N <= approx_max, ("Cannot fit %d poses with spacing %.2f m into a %.2f x %.2f m area. Approximate maximum: "
                              "%d." % (N, spacing, width, height, approx_max))
-    accepted = []
-    for _ in range(10000):
-        if len(accepted) == N:
-            break
-        candidate = np.array([(np.random.rand() - 0.5) * width, (np.random.rand() - 0.5) * height])
-        if not accepted or np.all(np.linalg.norm(np.array(accepted) - candidate, axis=1) >= spacing):
-            accepted.append(candidate)
-    assert len(accepted) == N, ("Could not place %d poses with spacing %.2f m after 10000 attempts. Try reducing N or "
-                                "Spacing." % (N, spacing))
-    return np.array(accepted).T
+    # 2.x's rejection sampling from the global stream, shared with the testbed's random initial conditions
+    positions = _rps2.spaced_random_positions(N, spacing, width, height, np.random, attempts=10000)
+    assert positions is not None, ("Could not place %d poses with spacing %.2f m after 10000 attempts. Try reducing N "
+                                   "or Spacing." % (N, spacing))
+    return positions
 
 
 def generate_random_poses(N, spacing=0.5, width=3.0, height=1.8):
@@ -74,7 +70,7 @@ def create_at_position(position_error=0.05):
     def check_at_position(states, positions):
         assert states.shape[0] >= 2 and positions.shape[0] == 2, "states must be at least 2xN, positions 2xN."
         assert positions.shape[1] == states.shape[1], "states and positions must have the same number of columns."
-        mask = np.linalg.norm(states[:2, :] - positions[:2, :], axis=0) <= position_error
+        mask = _model.at_position_mask(states, positions, position_error)
         return bool(np.all(mask)), mask
     return check_at_position
 

@@ -1,38 +1,31 @@
 """Single-integrator <-> unicycle mappings with 2.x's names and defaults (2.1.0
-rps/utilities/transformations.py), vectorised."""
+rps/utilities/transformations.py), vectorised.
+
+The maps themselves are robotarium_core.kinematics', which the guide's module shares; this module
+keeps 2.x's names and defaults and passes 2.x's choices where the two APIs differ."""
 import numpy as np
+
+from robotarium_core import kinematics
 
 __all__ = ["np", "create_si_to_uni_dynamics", "create_si_to_uni_dynamics_with_backwards_motion",
            "create_si_to_uni_mapping", "create_uni_to_si_mapping"]
-
-
-def _frames(theta):
-    return np.cos(theta), np.sin(theta)
 
 
 def create_si_to_uni_dynamics(linear_velocity_gain=1, angular_velocity_limit=np.pi):
     """f(dxi 2xN, states 3xN) -> dxu: v = gain * (heading . dxi), w = limit * atan2(left . dxi,
     heading . dxi) / (pi / 2)."""
     def si_to_uni(dxi, states):
-        c, s = _frames(states[2])
-        along = c * dxi[0] + s * dxi[1]
-        across = -s * dxi[0] + c * dxi[1]
-        return np.vstack([linear_velocity_gain * along,
-                          angular_velocity_limit * np.arctan2(across, along) / (np.pi / 2)])
+        # 2.x: the angle of dxi itself (the guide's: of (v, left)), and a zero command may turn, as in 2.1.0.
+        return kinematics.si_to_uni_heading(dxi, states[2], linear_velocity_gain, angular_velocity_limit,
+                                            gain_in_angle=False, no_spin_at_rest=False)
     return si_to_uni
 
 
 def create_si_to_uni_dynamics_with_backwards_motion(linear_velocity_gain=1, angular_velocity_limit=np.pi):
     """As create_si_to_uni_dynamics, driving backwards where that needs less turning."""
     def si_to_uni(dxi, states):
-        relative = np.arctan2(dxi[1], dxi[0]) - states[2]
-        relative = np.arctan2(np.sin(relative), np.cos(relative))
-        forward = (relative > -np.pi / 2) & (relative < np.pi / 2)
-        heading = np.where(forward, states[2], np.arctan2(np.sin(states[2] + np.pi), np.cos(states[2] + np.pi)))
-        c, s = _frames(heading)
-        v = linear_velocity_gain * (c * dxi[0] + s * dxi[1])
-        w = angular_velocity_limit * np.arctan2(-s * dxi[0] + c * dxi[1], v) / (np.pi / 2)
-        return np.vstack([np.where(forward, v, -v), w])
+        # 2.x really backs up (the guide's API keeps rps 0.0.0's forward mapping under this name).
+        return kinematics.si_to_uni_heading_reversible(dxi, states[2], linear_velocity_gain, angular_velocity_limit)
     return si_to_uni
 
 
@@ -41,11 +34,10 @@ def create_si_to_uni_mapping(projection_distance=0.05):
     d = projection_distance
 
     def si_to_uni(dxi, states):
-        c, s = _frames(states[2])
-        return np.vstack([c * dxi[0] + s * dxi[1], (-s * dxi[0] + c * dxi[1]) / d])
+        return kinematics.si_to_uni_projected(dxi, states[2], d)   # 2.x does not clip omega (the guide's API does)
 
     def uni_to_si(states):
-        return states[:2, :] + d * np.array([np.cos(states[2, :]), np.sin(states[2, :])])
+        return kinematics.points_ahead(states, d)
     return si_to_uni, uni_to_si
 
 
@@ -54,9 +46,8 @@ def create_uni_to_si_mapping(projection_distance=0.05):
     d = projection_distance
 
     def uni_to_si(dxu, states):
-        c, s = _frames(states[2])
-        return np.vstack([c * dxu[0] - d * s * dxu[1], s * dxu[0] + d * c * dxu[1]])
+        return kinematics.uni_to_si_projected(dxu, states[2], d)
 
     def si_to_uni(uni_states, si_states):
-        return si_states[:2, :] - d * np.array([np.cos(uni_states[2, :]), np.sin(uni_states[2, :])])
+        return kinematics.axles_behind(si_states, uni_states[2], d)
     return uni_to_si, si_to_uni
