@@ -220,6 +220,17 @@ def testbed_answers(ns=None, timeout=3.0):
         return wait_for_service(client, timeout)
 
 
+def nodes_seen(domain=None, discovery_range=None):
+    """The nodes (full names, sorted) this process's probe context sees on the DDS graph of `domain`,
+    its own probes left out: what a "no testbed answers" can name, so that a testbed in another
+    namespace, one without its simulator, or a graph with nothing at all (discovery not reaching
+    this process) tell themselves apart."""
+    with probe_node("robotarium_probe", domain, discovery_range) as (node, _):
+        own = "_%d" % os.getpid()
+        return sorted("%s/%s" % (ns.rstrip("/"), name) for name, ns in node.get_node_names_and_namespaces()
+                      if not name.endswith(own) and not name.startswith("robotarium_graph_"))
+
+
 RECORDING_LOOKUP_WAIT = 10.0   # s to wait for the recorder to say where a run is recorded (announced_recording)
 RECORDER_SEEN_WAIT = 3.0       # s of it, at most, where the graph shows no recorder at all
 

@@ -16,6 +16,7 @@ from robotarium_bringup.testbed import (
     RECORDING_LOOKUP_WAIT,
     LocalTestbed,
     announced_recording,
+    nodes_seen,
     repository_root,
     testbed_answers,
 )
@@ -261,6 +262,9 @@ def _run_script(request, interruption, started_at):
         else:
             say("no testbed answers in %s on ROS_DOMAIN_ID %s (--no-local-testbed forbids starting one); "
                 "start it with ./robotarium up" % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
+            seen = nodes_seen()
+            say("the DDS graph of this domain shows %s" % (", ".join(seen) if seen else
+                                                          "no node at all: discovery does not reach this process"))
             return outcomes.EXIT_CODES[outcomes.TESTBED_LOST], None, None
     elif interruption.signum is None:
         testbed = find_or_start_testbed(ns, record, bags_dir, config_file)
