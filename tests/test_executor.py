@@ -17,6 +17,7 @@ from std_srvs.srv import Trigger
 from devtools.rosutil import unique_domain_id
 from robotarium_core import cdr, presence
 from robotarium_core.executor import LeanExecutor
+from robotarium_core.node_tools import init_context
 from robotarium_core.topics import TESTBED_QOS
 
 
@@ -24,7 +25,7 @@ from robotarium_core.topics import TESTBED_QOS
 def node():
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     context = Context()
-    rclpy.init(context=context, domain_id=unique_domain_id())
+    init_context(context=context, domain_id=unique_domain_id(), node=False)
     node = Node("lean", context=context)
     executor = LeanExecutor(context=context)
     executor.add_node(node)
@@ -102,7 +103,7 @@ def test_liveliness_events_are_served(node):
     lost = []
     watch = presence.Watch(node, "_alive/thing", 0.6, on_lost=lambda: lost.append(True))
     other = Context()
-    rclpy.init(context=other, domain_id=node.context.get_domain_id())
+    init_context(context=other, domain_id=node.context.get_domain_id(), node=False)
     try:
         holder = presence.Presence(Node("holder", context=other), "_alive/thing", 0.6)
         assert node.spin_until(lambda: watch.alive, timeout=30)

@@ -7,6 +7,7 @@ from test_simulator_node import as_array, command, lockstep
 
 from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id
 from robotarium_core import model
+from robotarium_core.node_tools import init_context
 from robotarium_core.topics import TESTBED_QOS, readers_matched
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
 from robotarium_msgs.srv import ArmSafety, EndExperiment, StartExperiment
@@ -191,7 +192,7 @@ def test_first_commands_of_quick_starts_are_never_lost(stack):
     for run in range(10):
         started = start(probe, np.array([[-0.5, 0.5], [0.0, 0.0], [0.0, np.pi]]))
         context = Context()
-        rclpy.init(context=context, domain_id=probe.context.get_domain_id())
+        init_context(context=context, domain_id=probe.context.get_domain_id(), node=False)
         try:
             client = Node("quick_start_%d" % run, namespace=NS, context=context)
             requests = client.create_publisher(TwistArray, "cmd_requested", TESTBED_QOS)

@@ -237,8 +237,9 @@ def init_context(context=None, args=None, domain_id=None, node=True, **options):
     ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, with our profile, rmw_fastrtps would put its own
     transports in place (shared memory among them): the participant starts with the range
     SYSTEM_DEFAULT and localhost_profile() instead, which keeps discovery on this machine just as
-    well; the environment is as it was afterwards (the profile file stays: Fast DDS reads it once per
-    process, and a child process is to find it)."""
+    well; the environment is as it was afterwards (the profile file stays: a child process is to find
+    it). Fast DDS reads its profile file once, when a process makes its first participant, so every
+    participant of ours starts here (tests/test_lint.py checks that no other rclpy.init remains)."""
     dds_defaults(node)
     saved = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE")
     if _ours(os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"]) and _localhost_only():
