@@ -88,29 +88,28 @@ def create_pose_controller_hybrid(linear_velocity_gain=0.8, angular_velocity_lim
     return controller_hybrid
 
 
+def _parking(controller, position_error, rotation_error):
+    """`controller` with the robots already at their pose (2.x: strictly within both errors) stopped."""
+    def parking(states, poses):
+        dxu = controller(states, poses)
+        dxu[:, at_pose_mask(states, poses, position_error, rotation_error, strict=True)] = 0
+        return dxu
+    return parking
+
+
 def create_pose_parking_controller_clf(approach_angle_gain=1, desired_angle_gain=2.7, rotation_error_gain=1,
                                        wheel_velocity_limit=10.0, wheel_radius=0.016, base_length=0.105,
                                        position_error=0.05, rotation_error=0.2):
     """create_pose_controller_clf, with robots already at their pose stopped."""
-    clf = create_pose_controller_clf(approach_angle_gain, desired_angle_gain, rotation_error_gain,
-                                     wheel_velocity_limit, wheel_radius, base_length)
-
-    def controller_clf_parking(states, poses):
-        dxu = clf(states, poses)
-        dxu[:, at_pose_mask(states, poses, position_error, rotation_error, strict=True)] = 0   # 2.x: strict <
-        return dxu
-    return controller_clf_parking
+    return _parking(create_pose_controller_clf(approach_angle_gain, desired_angle_gain, rotation_error_gain,
+                                               wheel_velocity_limit, wheel_radius, base_length),
+                    position_error, rotation_error)
 
 
 def create_pose_parking_controller_hybrid(linear_velocity_gain=0.8, angular_velocity_limit=np.pi,
                                           velocity_magnitude_limit=0.15, position_error=0.05,
                                           position_epsilon=0.01, rotation_error=0.2):
     """create_pose_controller_hybrid, with robots already at their pose stopped."""
-    hybrid = create_pose_controller_hybrid(linear_velocity_gain, angular_velocity_limit, velocity_magnitude_limit,
-                                           position_error, position_epsilon, rotation_error)
-
-    def controller_hybrid_parking(states, poses):
-        dxu = hybrid(states, poses)
-        dxu[:, at_pose_mask(states, poses, position_error, rotation_error, strict=True)] = 0   # 2.x: strict <
-        return dxu
-    return controller_hybrid_parking
+    return _parking(create_pose_controller_hybrid(linear_velocity_gain, angular_velocity_limit, velocity_magnitude_limit,
+                                                  position_error, position_epsilon, rotation_error),
+                    position_error, rotation_error)
