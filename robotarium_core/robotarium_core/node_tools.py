@@ -208,23 +208,6 @@ def _ours(profile):
     return profile == DDS_PROFILE or os.path.basename(profile).startswith("robotarium-dds-localhost-")
 
 
-def dds_defaults(node=True):
-    """The testbed's Fast DDS settings (dds_profile.xml; a profile file the user set is kept, and with
-    it their choice), for its nodes and a script's client alike: UDP only (never the shared-memory
-    transport, see the file); a participant announced every 0.2 s, so a process that joins later
-    finds it at once; writers that send a heartbeat every 0.1 s, so a lost packet is sent again at
-    once. A node's readers also allocate a sample's buffer when it arrives and free it when it is
-    taken (issue 22: a flood costs no memory that stays), for which rmw_fastrtps must take the
-    policies it would set itself from the file (RMW_FASTRTPS_USE_QOS_FROM_XML), data sharing among
-    them; a client (node=False) keeps rmw's, data sharing off: a script in a job box runs as an
-    account that may not open the testbed's shared segments. Called before rclpy.init (init_context
-    calls it)."""
-    if _ours(os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE", DDS_PROFILE)):
-        os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = DDS_PROFILE
-        if node:
-            os.environ["RMW_FASTRTPS_USE_QOS_FROM_XML"] = "1"   # only for the policies our code leaves to it
-
-
 def _localhost_only():
     """Whether rcl would start a participant with the LOCALHOST discovery range and nothing else
     (no static peers; not the deprecated ROS_LOCALHOST_ONLY, which rcl lets prevail)."""
@@ -233,20 +216,30 @@ def _localhost_only():
 
 
 def init_context(context=None, args=None, domain_id=None, node=True, **options):
-    """rclpy.init with the testbed's Fast DDS settings (dds_defaults). Under
-    ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, with our profile, rmw_fastrtps would put its own
-    transports in place (shared memory among them): the participant starts with the range
-    SYSTEM_DEFAULT and localhost_profile() instead, which keeps discovery on this machine just as
-    well; the environment is as it was afterwards (the profile file stays: a child process is to find
-    it). Fast DDS reads its profile file once, when a process makes its first participant, so every
-    participant of ours starts here (tests/test_lint.py checks that no other rclpy.init remains)."""
-    dds_defaults(node)
+    """rclpy.init with the testbed's Fast DDS settings (dds_profile.xml; a profile file the user set is
+    kept, and with it their choice), for its nodes and a script's client alike: UDP only (never the
+    shared-memory transport, see the file); a participant announced every 0.2 s, so a process that
+    joins later finds it at once; writers that send a heartbeat every 0.1 s, so a lost packet is sent
+    again at once. A node's readers also allocate a sample's buffer when it arrives and free it when
+    it is taken (issue 22: a flood costs no memory that stays), for which rmw_fastrtps must take the
+    policies it would set itself from the file (RMW_FASTRTPS_USE_QOS_FROM_XML), data sharing among
+    them; a client (node=False) keeps rmw's, data sharing off: a script in a job box runs as an
+    account that may not open the testbed's shared segments.
+
+    Under ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST rmw_fastrtps would put its own transports in place
+    (shared memory among them): the participant starts with the range SYSTEM_DEFAULT and
+    localhost_profile() instead, which keeps discovery on this machine just as well; the range is as
+    it was afterwards (the profile file stays: a child process is to find it). Fast DDS reads its
+    profile file once, when a process makes its first participant, so every participant of ours
+    starts here (tests/test_lint.py checks that no other rclpy.init remains)."""
     saved = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE")
-    if _ours(os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"]) and _localhost_only():
-        profile = localhost_profile()
-        if profile is not None:
-            os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = profile
+    if _ours(os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE", DDS_PROFILE)):
+        localhost = localhost_profile() if _localhost_only() else None
+        os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = localhost or DDS_PROFILE
+        if localhost is not None:
             os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SYSTEM_DEFAULT"
+        if node:
+            os.environ["RMW_FASTRTPS_USE_QOS_FROM_XML"] = "1"   # only for the policies our code leaves to it
     try:
         rclpy.init(context=context, args=args, domain_id=domain_id, **options)
     finally:
