@@ -268,7 +268,8 @@ def return_freed_memory():
 # (a machine stalled for a second, a busy 2-core CI box) keeps reading the deleted one: whoever
 # joins later writes into the new file and is never heard ("no testbed answers" for a minute, then
 # for every later run), while everyone it already knew still reaches it. The node cannot reopen its
-# port inside rmw, so it starts afresh once it holds no run (restart_in_place).
+# port inside rmw, so it starts afresh once it holds no run (restart_in_place). Our profile keeps
+# the testbed off shared memory altogether; this is for a user's own profile (run_node watches only then).
 
 PORT_CHECK_PERIOD = 1.0   # s between looks at this process's shared-memory ports
 _PORT_LOCK = re.compile(r"^/dev/shm/fastrtps_port(\d+)_el(?: \(deleted\))?$")   # held while listening
@@ -396,11 +397,13 @@ def run_node(make_node, name, args=None, before_destroy=None, claim=None):
     if claim_node is not None:
         executor.add_node(claim_node)
     stop.attach(node)
+    # Only a user's own profile brings the shared-memory transport back: ours has no port to lose.
+    watch_ports = not _ours(os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE", DDS_PROFILE))
     ports_lost, next_check = False, time.monotonic() + PORT_CHECK_PERIOD
     try:
         while stop.reason is None and rclpy.ok():
             executor.spin_once(timeout_sec=0.2)   # a signal's Python handler runs between waits
-            if time.monotonic() >= next_check:
+            if watch_ports and time.monotonic() >= next_check:
                 ports_lost, next_check = check_ports(node, stop, ports_lost), time.monotonic() + PORT_CHECK_PERIOD
         if stop.reason is not None and rclpy.ok():
             node.get_logger().info("stopping: %s" % stop.reason)
