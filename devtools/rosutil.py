@@ -175,6 +175,11 @@ class RosProbe:
         service = namespace.rstrip("/") + "/start_experiment"
         if (StartExperiment, service) not in self._clients:
             self.call(StartExperiment, service, StartExperiment.Request(name="!"), timeout=30.0, resend=1.0)
+        # The streams are volatile: the run's first poses wait for our reader of them, if we have one.
+        ns = namespace.rstrip("/")
+        topics = {s.topic_name for s in self._subscriptions}
+        if not request.client_node and ns + "/poses" in topics and (request.api != "2" or ns + "/sensors" in topics):
+            request.client_node = self.node.get_fully_qualified_name()
         return self.hold_client_presence(self.call(StartExperiment, service, request))
 
     def hold_client_presence(self, response):
@@ -193,7 +198,7 @@ class RosProbe:
 
     def collect(self, msg_type, topic, qos=TESTBED_QOS):
         """Subscribe and return the list that received messages are appended to. With the
-        testbed's QoS the publisher's recent history is delivered too, whenever matching happens."""
+        testbed's QoS (volatile streams) what comes once matched: subscribe before the run starts."""
         received = []
         self._subscriptions.append(self.node.create_subscription(msg_type, topic, received.append, qos))
         return received

@@ -243,10 +243,11 @@ def test_ros2_launch_starts_the_testbed_that_robotarium_run_uses(ros2, tmp_path)
 
 
 
-def test_ros2_topic_echo_once_shows_the_newest_status(ros2, tmp_path):
+def test_ros2_topic_echo_once_shows_the_newest_status_and_no_old_stream_sample(ros2, tmp_path):
     """The status is the testbed's state (issue 23): after two runs, `ros2 topic echo --once` prints
     the second run's end, not a status from before it (the topic kept a history of 50, and a late
-    joiner got its oldest)."""
+    joiner got its oldest). The streams are volatile: echo on poses, cmd_safe, safety_report or the
+    status stream after the runs prints nothing (it got a run's poses from a history of 1000)."""
     from robotarium_msgs.srv import EndExperiment, StartExperiment
     domain = unique_domain_id()
     cli = Cli(ros2, domain)
@@ -269,6 +270,13 @@ def test_ros2_topic_echo_once_shows_the_newest_status(ros2, tmp_path):
         echoed = cli.run("topic", "echo", "--once", "--qos-durability", "transient_local", "--qos-reliability",
                          "reliable", "/robotarium/status", "robotarium_msgs/msg/TestbedStatus")
         assert "run_id: %s" % run_ids[1] in echoed and "state: 0" in echoed, echoed   # IDLE after the second run
+        streams = (("poses", "RobotPoses"), ("cmd_safe", "TwistArray"), ("safety_report", "SafetyReport"),
+                   ("_status/stream", "TestbedStatus"))
+        # echo's own choice of QoS (it asks for transient local where every publisher offers it)
+        outputs = cli.gather([("topic", "echo", "--once", "--timeout", "3", "/robotarium/" + topic,
+                               "robotarium_msgs/msg/" + type_name) for topic, type_name in streams])
+        for (topic, _), out in zip(streams, outputs):
+            assert "stamp" not in out and "run_id" not in out, (topic, out)
     finally:
         probe.close()
         cli.close()

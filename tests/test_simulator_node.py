@@ -150,6 +150,28 @@ def test_a_late_joiner_gets_only_the_newest_status_and_the_stream_every_one(test
     assert (late[0].run_id, late[0].state) == (runs[1], idle), [(s.run_id, s.state) for s in late]
 
 
+def test_a_runs_first_poses_wait_for_the_client_readers_it_names(testbed):
+    """The streams are volatile (issue 23): the run's first poses go out once the simulator's writer
+    matched the reader of the client that StartExperiment.client_node names, so a reader made just
+    before the start gets step 0; a client that never shows is waited for LISTENERS_WAIT s, and the
+    log names whose reader was missing."""
+    from robotarium_core.topics import LISTENERS_WAIT
+    sim, probe, _ = testbed
+    poses = probe.collect(RobotPoses, NS + "/poses")   # made now, the start follows at once
+    started = start(probe, n=2, poses=LINE[:, :2], name="fresh")
+    assert started.success, started.message
+    assert probe.spin_until(lambda: any(p.run_id == started.run_id and p.step == 0 for p in poses), 5)
+    assert end(probe, started).success
+    request = StartExperiment.Request(name="nobody", number_of_robots=2, real_time=False, seed=1,
+                                      client_node=NS + "/nobody")
+    request.x, request.y, request.theta = (list(map(float, row)) for row in LINE[:, :2])
+    began = time.monotonic()
+    started = probe.start_experiment(request, NS)
+    assert started.success and time.monotonic() - began >= LISTENERS_WAIT, started.message
+    assert end(probe, started).success
+    assert "starting without %s/nobody's reader of %s/poses" % (NS, NS) in sim.output(), sim.output()
+
+
 def test_an_invalid_start_is_refused_with_its_reason(testbed):
     """Every reason is tested in process (robotarium_sim/test/test_experiment.py); here that one reaches the client."""
     _, probe, _ = testbed

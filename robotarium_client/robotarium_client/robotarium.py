@@ -383,6 +383,8 @@ class Robotarium(RobotariumABC):
         request.x, request.y, request.theta = (row.tolist() for row in self.initial_conditions)
         self._complete_start_request(request)
         request.wait, request.holder = bool(self._options.wait), holder_of_this_process()
+        # the streams are volatile: the run's first poses wait for our reader of them
+        request.client_node = self._node.get_fully_qualified_name()
         # rmw_fastrtps drops a reply when the service has not matched the caller's reply reader within
         # 100 ms (a testbed found a moment ago, a loaded machine), and a start must not be sent twice:
         # first a start it refuses however often it comes, sent until answered; then the real one.
@@ -409,6 +411,11 @@ class Robotarium(RobotariumABC):
         if not self._spin_until(self._safety_node_matched, STEP_TIMEOUT):
             self._end_quietly()
             raise TestbedIncomplete(incomplete_testbed_message(self._ns))
+        # The recorder's too, where there is one: else our first commands would be missing from the bag.
+        from robotarium_core.presence import RECORDER
+        from robotarium_core.topics import LISTENERS_WAIT, node_names, readers_matched
+        if RECORDER in node_names(self._node):
+            self._spin_until(lambda: readers_matched(self._node, self._command_pub, RECORDER), LISTENERS_WAIT)
         # Until the simulator follows our presence, a crash of this process would free the testbed
         # only after its discovery wait (10 s) instead of client_lease: wait for it (it takes moments).
         if self._spin_until(lambda: self._presence.publisher.get_subscription_count() > 0, STEP_TIMEOUT):

@@ -4,21 +4,29 @@ DDS discovery is asymmetric: a reader may know a writer well before the writer k
 reader, and a reliable writer delivers nothing to readers it does not know yet. With slow
 discovery (a loaded 2-core machine takes seconds) a message published too early is lost.
 
-Outputs (poses, cmd_safe, safety_report, ...) are reliable and transient-local (`OUTPUT_QOS`): a
-writer keeps its last 1000 samples and hands them to a reader as soon as it matches, so a late viewer
-or recorder still gets the current poses; a reader asks for the last 50 of them (`TESTBED_QOS`). The
-writers' depth is also how far a reader may fall behind: a reliable keep-last writer lets go of
-samples a reader has not acknowledged once its history is full, and a lockstep run makes 200 steps a
-second, so with 50 a recorder starved of CPU for a quarter of a second lost 60 steps of poses,
-commands and status.
+Streams (poses, cmd_requested, cmd_safe, safety_report, sensors, the status stream) are reliable
+and *volatile* (`OUTPUT_QOS` for writers, `TESTBED_QOS` for readers): a late joiner (`ros2 topic
+echo`, a viewer) gets what comes from then on, never a sample of an earlier run. Nothing of a run
+may be lost for that, so a writer publishes a run's first sample only once its writer has matched
+the readers that need all of it (`readers_matched`): the simulator's start waits for the client's,
+the safety node's and the recorder's readers (`listeners`), the client's first command for the
+safety node's and the recorder's, the safety node's first cmd_safe for the simulator's and the
+recorder's. The recorder reads the testbed's streams from its start (it does not wait for the graph
+to show a writer). The writers' depth (1000) is how far a reader may fall behind: a reliable
+keep-last writer lets go of samples a reader has not acknowledged once its history is full, and a
+lockstep run makes 200 steps a second, so with 50 a recorder starved of CPU for a quarter of a
+second lost 60 steps of poses, commands and status.
+
+The drawing (client -> recorder, viewers) is the script's figure as a list of changes: its writer
+is the client's, lives as long as its run and keeps the run's changes (`DRAWING_QOS`, transient
+local), so a viewer opened mid-run draws the whole figure; no other run's drawing outlives its client.
 
 The status is a state, not a stream: `<ns>/status` keeps only its newest message (`STATUS_QOS`,
 depth 1), so a late joiner (`ros2 topic echo --once`, ./robotarium status) gets what holds now,
 never a status from before the last run. A keep-last-1 writer may replace a sample a reliable
 reader has not acknowledged yet (the final RUNNING status with the run's counters is followed at
-once by IDLE), so every status also goes on the hidden `<ns>/_status/stream` (`STATUS_STREAM_QOS`,
-the outputs' history, transient local so that a recorder matching late still gets the run's
-first RUNNING status), which the recorder records under the name `<ns>/status`.
+once by IDLE), so every status also goes on the hidden stream `<ns>/_status/stream`
+(`STATUS_STREAM_QOS`), which the recorder records under the name `<ns>/status`.
 
 The two command inputs (the safety node's cmd_requested, the simulator's cmd_safe) subscribe
 reliable and *volatile* (`COMMAND_INPUT_QOS`): a volatile reader matches every reliable writer,
@@ -51,13 +59,19 @@ def namespace_from_environment():
     /robotarium by default (nodes take theirs from ROS: `__ns`)."""
     return "/" + os.environ.get("ROBOTARIUM_NAMESPACE", DEFAULT_NAMESPACE).strip("/")
 
-# What a reader of the testbed's outputs asks for: reliable, transient local, the last 50 samples.
+# What a reader of the testbed's streams asks for: reliable, volatile (nothing from before it joined),
+# a queue of 50 samples.
 TESTBED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-# What the testbed's writers (and the client's) offer: the same, with a history a reader may trail by.
+                         durability=DurabilityPolicy.VOLATILE)
+# What the streams' writers (the testbed's and the client's) offer: the same, with a history a matched
+# reader may trail by.
 OUTPUT_HISTORY = 1000   # samples: 5 s of a lockstep run at 200 steps/s, 33 s in real time
 OUTPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=OUTPUT_HISTORY,
-                        reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+                        reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+# How long a writer waits for the readers that need a run's first sample (`listeners`) before it
+# publishes anyway (and says whose reader was missing): matching takes milliseconds on a quiet
+# machine, a recorder subscribes to a new topic within its discovery period (0.5 s).
+LISTENERS_WAIT = 5.0
 
 
 
@@ -79,13 +93,12 @@ COMMAND_INPUT_QOS = command_input_qos(DEFAULT.command_queue_depth)
 # of 243 interventions while another process flooded the machine's loopback. The outputs' depth, for
 # the simulator's reader too.
 SAFETY_REPORT_QOS = OUTPUT_QOS
-# What the script drew on r.axes, change by change (robotarium_recording.drawing): the outputs' depth,
-# so that a recorder matching late still gets the first drawing of a fast lockstep run.
-DRAWING_QOS = OUTPUT_QOS
-# pose_array for viewers: the ROS default (reliable, volatile: no history for a late joiner) with the
-# outputs' depth, so that a recorder that falls behind loses none either.
-POSE_ARRAY_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=OUTPUT_HISTORY,
-                            reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+# What the script drew on r.axes, change by change (robotarium_recording.drawing), kept for the run by
+# the client's writer: a viewer or recorder matching late still gets the whole figure.
+DRAWING_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=OUTPUT_HISTORY,
+                         reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# pose_array for viewers: a stream like the others.
+POSE_ARRAY_QOS = OUTPUT_QOS
 
 # A topic that keeps only its last message for late subscribers (announcements, the run's configuration).
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -135,7 +148,8 @@ def offer_meets_request(offered, requested):
 def readers_matched(node, publisher, required_node=None):
     """True when `publisher` has matched every reader of its topic that the graph shows and that
     can match it (same type, compatible QoS), and, if `required_node` is given, the graph shows a
-    reader of that node (a name, in the topic's namespace: "safety" for /robotarium/cmd_requested).
+    reader of that node (a name in the topic's namespace: "safety" for /robotarium/cmd_requested, or
+    a fully qualified one: "/robotarium/safety").
 
     The graph learns of a reader in the same discovery step in which our writer matches it, so
     "matched at least as many as the graph shows" means that each of them, the required one
@@ -145,10 +159,24 @@ def readers_matched(node, publisher, required_node=None):
     our_type = "%s/msg/%s" % (publisher.msg_type.__module__.split(".")[0], publisher.msg_type.__name__)
     ns = topic.rsplit("/", 1)[0] or "/"
     can_match = [r for r in readers if r.topic_type == our_type and offer_meets_request(publisher.qos_profile, r.qos_profile)]
-    if required_node is not None and not any(r.node_name == required_node and r.node_namespace == ns
-                                             for r in can_match):
+    if required_node is not None and not any(
+            "%s/%s" % (r.node_namespace.rstrip("/"), r.node_name) == required_node if required_node.startswith("/")
+            else r.node_name == required_node and r.node_namespace == ns for r in can_match):
         return False
     return publisher.get_subscription_count() >= len(can_match)
+
+
+def node_names(node):
+    """The names of the nodes the graph shows in `node`'s namespace."""
+    ns = node.get_namespace()
+    return {name for name, namespace in node.get_node_names_and_namespaces() if namespace == ns}
+
+
+def listeners(node, publishers_and_readers):
+    """The (publisher, node name) pairs whose reader the publisher has not matched yet, of
+    `publishers_and_readers`: (publisher, node name or None) pairs, None for "every reader the graph
+    shows". A writer of a stream publishes a run's first sample once this is empty (above)."""
+    return [(publisher, who) for publisher, who in publishers_and_readers if not readers_matched(node, publisher, who)]
 
 
 def warn_on_incompatible_qos(node, topic):

@@ -12,10 +12,12 @@ simulator hands back in end_experiment's `recording`, and an empty string is ann
 is closed. The hidden <ns>/_recording/runs keeps the last runs' {"run_id", "path"}, for a command
 that asks after the close.
 
-Subscriptions: a topic is subscribed once it has publishers, with one reader per kind of publisher
-it has (robotarium_recording.samples): reliable transient-local for the testbed's own (robotarium_core.topics),
-so the history a publisher keeps is handed over on matching and nothing published before discovery
-completed is lost; reliable volatile for a default-QoS publisher (`ros2 topic pub`, plain rclpy), which
+Subscriptions: the testbed's streams (robotarium_core.topics: volatile; their writers wait for our
+readers before a run's first sample) and the client's drawing (transient local) are subscribed from
+the start, so that a new client's writers match them in a discovery round trip. Any other topic is
+subscribed once it has publishers (looked up every 0.5 s), with one reader per kind of publisher it
+has (robotarium_recording.samples): reliable transient-local for a latched one, so the history it keeps
+is handed over on matching; reliable volatile for a volatile one (`ros2 topic pub`, plain rclpy), which
 a transient-local reader never matches; best effort for a best-effort one. Kinds that appear later get
 their reader then. A sample that two readers hear is recorded once (samples.SeenSamples, the last
 recorder_dedup_window samples of a topic). /rosout is taken live only (volatile).
@@ -57,14 +59,20 @@ from robotarium_core import cdr, presence
 from robotarium_core.config import DEFAULT, FIELDS
 from robotarium_core.node_tools import declare_parameter, run_node, take_waiting
 from robotarium_core.topics import (
+    CMD_REQUESTED,
+    CMD_SAFE,
     DEFAULT_NAMESPACE,
+    DRAWING,
     LATCHED,
     MARKERS,
+    POSE_ARRAY,
     POSES,
     RECORDED_RUNS,
     RECORDED_RUNS_QOS,
     RECORDING,
     RECORDING_ERROR,
+    SAFETY_REPORT,
+    SENSORS,
     STATUS,
     STATUS_STREAM,
 )
@@ -74,6 +82,11 @@ from robotarium_recording import bag, bag_writer, samples, schema
 # Our own announcement is not part of a run; the viewers' markers are drawn from the poses (a subscription
 # here would make the simulator build them all the time, and they would fill the bag).
 EXCLUDED_TOPICS = {RECORDING, RECORDING_ERROR, MARKERS}
+# Subscribed from the start, with the kind of reader their writers need (robotarium_core.topics).
+STREAMS = {CMD_REQUESTED: "robotarium_msgs/msg/TwistArray", CMD_SAFE: "robotarium_msgs/msg/TwistArray",
+           POSES: "robotarium_msgs/msg/RobotPoses", POSE_ARRAY: "geometry_msgs/msg/PoseArray",
+           SAFETY_REPORT: "robotarium_msgs/msg/SafetyReport", SENSORS: "robotarium_msgs/msg/SensorReadings"}
+LATCHED_STREAMS = {DRAWING: "std_msgs/msg/String"}
 
 # Deep queues: at N = 50 and 30 Hz a topic carries 30 messages a second; nothing may be dropped
 # while a chunk is compressed.
@@ -348,9 +361,12 @@ class RecorderNode(Node):
         self.readers_and_callbacks = []   # (subscription, callback(data, info)) of everything recorded
         statuses = self.create_subscription(TestbedStatus, "%s/%s" % (self.ns, STATUS_STREAM), self.on_status,
                                             QoSProfile(depth=SUBSCRIPTION_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
-                                                       durability=DurabilityPolicy.TRANSIENT_LOCAL), raw=True)
+                                                       durability=DurabilityPolicy.VOLATILE), raw=True)
         self.readers_and_callbacks.append((statuses, lambda data, info: self.on_status(data)))
         self.subscribe("/rosout", "rcl_interfaces/msg/Log", QoSProfile(depth=SUBSCRIPTION_DEPTH))
+        for topics, kind in ((STREAMS, samples.RELIABLE_VOLATILE), (LATCHED_STREAMS, samples.RELIABLE_LATCHED)):
+            for topic, type_name in topics.items():
+                self.subscribe_kind("%s/%s" % (self.ns, topic), type_name, kind)
         self._sim_missing_since = None
         self.create_timer(0.2, self.tick)
         self.create_timer(0.5, self.discover)
@@ -398,15 +414,21 @@ class RecorderNode(Node):
             offers = [(o.qos_profile.reliability == ReliabilityPolicy.RELIABLE,
                        o.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL)
                       for o in self.get_publishers_info_by_topic(name)]
-            have = self.readers.setdefault(name, set())
-            for reliable, latched in sorted(samples.reader_kinds(offers) - have, reverse=True):
-                self.subscribe(name, types[0], QoSProfile(
-                    depth=SUBSCRIPTION_DEPTH,
-                    reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-                    durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE))
-                if self.topics.get(name) is None:
+            for kind in sorted(samples.reader_kinds(offers) - self.readers.get(name, set()), reverse=True):
+                if not self.subscribe_kind(name, types[0], kind):
                     break   # cannot be recorded
-                have.add((reliable, latched))
+
+    def subscribe_kind(self, topic, type_name, kind):
+        """A reader of `kind` ((reliable, transient_local)) on `topic`; False when it cannot be recorded."""
+        reliable, latched = kind
+        self.subscribe(topic, type_name, QoSProfile(
+            depth=SUBSCRIPTION_DEPTH,
+            reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE))
+        if self.topics.get(topic) is None:
+            return False
+        self.readers.setdefault(topic, set()).add(kind)
+        return True
 
     def describe(self, topic):
         return self.topics[topic], offered_qos(self.get_publishers_info_by_topic(topic))

@@ -89,7 +89,8 @@ from robotarium_core.topics import (
     SAFETY_REPORT_QOS,
     TESTBED_QOS,
     command_input_qos,
-    readers_matched,
+    listeners,
+    node_names,
     warn_on_incompatible_qos,
 )
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TwistArray
@@ -271,15 +272,19 @@ class SafetyNode(Node):
         self.accept(request)
 
     def simulator_listens(self):
-        """Whether what we publish on cmd_safe now reaches the simulator. Asked once the run's poses
-        came (before that every command becomes a stop anyway). Looked up in the graph only while not
-        matched, or when our writer's match count changed."""
+        """Whether what we publish on cmd_safe and safety_report now reaches the simulator and the
+        recorder where there is one (the streams are volatile: robotarium_core.topics). Asked once
+        the run's poses came (before that every command becomes a stop anyway). Looked up in the graph
+        only while not matched, or when our writers' match counts changed."""
         if self.poses is None:
             return True
-        count = self.safe_pub.get_subscription_count()
+        counts = (self.safe_pub.get_subscription_count(), self.report_pub.get_subscription_count())
         matched, checked_at = self._simulator_matched
-        if not matched or count != checked_at:
-            self._simulator_matched = (readers_matched(self, self.safe_pub, "simulator"), count)
+        if not matched or counts != checked_at:
+            readers = [presence.SIMULATOR] + ([presence.RECORDER] if presence.RECORDER in node_names(self) else [])
+            missing = listeners(self, [(publisher, who) for publisher in (self.safe_pub, self.report_pub)
+                                       for who in readers])
+            self._simulator_matched = (not missing, counts)
         return self._simulator_matched[0]
 
     def release_held(self):
@@ -289,8 +294,8 @@ class SafetyNode(Node):
         if not self.simulator_listens():
             if waited <= self.config.lockstep_wait:
                 return
-            self.warn_once("simulator_unmatched", "the simulator has not matched our cmd_safe publisher after "
-                                                  "%.1f s; sending anyway" % waited)
+            self.warn_once("simulator_unmatched", "the simulator (or the recorder) has not matched our cmd_safe "
+                                                  "and safety_report writers after %.1f s; sending anyway" % waited)
         while self.held:
             self.accept(self.held.popleft()[0])
 

@@ -102,10 +102,11 @@ TESLA_PER_MICROTESLA = 1e-6
 
 def standard_sensor_qos(messages_per_period):
     """Reliable (rviz, Foxglove and ros2 topic echo subscribe reliable or best effort; a best-effort
-    writer would match neither a reliable reader) and transient local with 5 s of simulated time at
-    10 Hz, so the recorder, which finds new topics by polling the graph, still gets the first ones."""
+    writer would match neither a reliable reader) and volatile, a stream (robotarium_core.topics: a
+    run's start waits for the recorder's readers of a new robot's topics), with a history of 5 s of
+    simulated time at 10 Hz a matched reader may trail by."""
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50 * messages_per_period,
-                      reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+                      reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
 
 
 IMU_QOS, MAG_QOS = standard_sensor_qos(1), standard_sensor_qos(1)

@@ -79,6 +79,7 @@ from robotarium_core.topics import (
     END_EXPERIMENT,
     EXPERIMENT,
     LATCHED,
+    LISTENERS_WAIT,
     MARKERS,
     OBSTACLES,
     OUTPUT_QOS,
@@ -97,6 +98,8 @@ from robotarium_core.topics import (
     STATUS_STREAM_QOS,
     VIEWER_QOS,
     command_input_qos,
+    listeners,
+    node_names,
     warn_on_incompatible_qos,
 )
 from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, SensorReadings, TestbedStatus, TwistArray
@@ -245,6 +248,10 @@ class SimulatorNode(Node):
             armed = await self.arm_safety(ArmSafety.Request(
                 run_id=run.run_id, number_of_robots=n, real_time=run.real_time, token=run.token,
                 safety_key=run.safety_key, poses_key=run.poses_key, audit=run.audit))
+            if armed is True:
+                if isinstance(testbed, rps2.Testbed2):
+                    self.standard_sensors.start(testbed)
+                await self.wait_for_listeners(request.client_node, testbed)
         finally:
             self._starting = False
         if armed is not True:
@@ -254,8 +261,6 @@ class SimulatorNode(Node):
         self.testbed, self.run = testbed, run
         self.trails.reset()
         self.watch_client(run.run_id)
-        if isinstance(testbed, rps2.Testbed2):
-            self.standard_sensors.start(testbed)
         if run.real_time:
             self._tick_timer = self.create_timer(1.0 / c.rate, self.tick)
         self.publish_state()
@@ -305,6 +310,34 @@ class SimulatorNode(Node):
                 return True if result.success else "the safety node refused the experiment: %s" % result.message
             self.arm_client.remove_pending_request(future)
         return "the safety node did not answer on %s within %.0f s." % (self.arm_client.srv_name, SAFETY_WAIT)
+
+    async def wait_for_listeners(self, client_node, testbed):
+        """The streams are volatile (robotarium_core.topics): a run's first poses, status and sensors
+        go out once the readers that need all of the run matched our writers (the client's, the safety
+        node's, the recorder's), or after LISTENERS_WAIT s, with a warning naming the missing ones."""
+        # every reader the graph shows already; the safety node's and the recorder's where the graph
+        # shows them (a test's stand-in for the safety node is not one); the client's, which named itself
+        pairs = [(self.poses_pub, None), (self.status_stream_pub, None), (self.sensors_pub, None)]
+        second_api = isinstance(testbed, rps2.Testbed2)
+        if client_node:
+            pairs += [(self.poses_pub, client_node)] + ([(self.sensors_pub, client_node)] if second_api else [])
+        nodes = node_names(self)
+        if presence.SAFETY in nodes:
+            pairs.append((self.poses_pub, presence.SAFETY))
+        if presence.RECORDER in nodes:
+            recorded = [self.poses_pub, self.pose_array_pub, self.status_stream_pub, self.sensors_pub]
+            if second_api:
+                recorded += [p for row in self.standard_sensors.publishers[:testbed.number_of_robots] for p in row[:3]]
+            pairs += [(publisher, presence.RECORDER) for publisher in recorded]
+        deadline = time.monotonic() + LISTENERS_WAIT
+        while missing := listeners(self, pairs):
+            if time.monotonic() > deadline:
+                self.get_logger().warning("starting without %s: not matched within %g s (a slow machine? their "
+                                          "first samples may be lost)" % (", ".join(sorted(
+                                              "%s's reader of %s" % (who or "a", p.topic_name) for p, who in missing)),
+                                              LISTENERS_WAIT))
+                return
+            await self.sleep(0.005)
 
     async def sleep(self, seconds):
         """Wait inside a coroutine callback while the executor goes on serving the others."""
