@@ -5,6 +5,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 
 from devtools.rosutil import node_env, unique_domain_id
 from robotarium_bringup.testbed import LocalTestbed, testbed_answers
@@ -83,12 +84,26 @@ def own_domain_testbed(tmp_path_factory):
         try:
             # up before the first run, or `run` would start a second testbed of its own
             assert testbed_answers(timeout=60), "the testbed did not come up: %s" % tb.failed()
+            # and its recorder ready (a test may freeze it: frozen while it starts, it would miss the run)
+            recorder_log = os.path.join(tb.log_dir, "recorder.log")
+            deadline = time.monotonic() + 60
+            while not _says(recorder_log, "recorder ready"):
+                assert time.monotonic() < deadline and not tb.failed(), "the recorder did not come up: %s" % tb.failed()
+                time.sleep(0.05)
         finally:
             os.environ.clear()
             os.environ.update(saved)
         yield env, bags, tb
     finally:
         tb.stop()   # also when it never came up
+
+
+def _says(path, text):
+    try:
+        with open(path, errors="replace") as f:
+            return text in f.read()
+    except FileNotFoundError:
+        return False
 
 
 @contextlib.contextmanager

@@ -18,12 +18,14 @@ from robotarium_msgs.srv import EndExperiment, StartExperiment
 pytestmark = pytest.mark.node   # real testbed nodes in subprocesses
 
 NS = "/robotarium"
+LISTENERS_WAIT_HERE = 2.0   # s (the simulator's listeners_wait): what a start waits for a reader that never comes
 
 
 @pytest.fixture
 def testbed(tmp_path):
     domain = unique_domain_id()
-    sim = NodeProcess("robotarium_sim.simulator_node", domain, log_path=tmp_path / "simulator.log")
+    sim = NodeProcess("robotarium_sim.simulator_node", domain, log_path=tmp_path / "simulator.log",
+                      ros_args=["-p", "listeners_wait:=%r" % LISTENERS_WAIT_HERE])
     probe = RosProbe(domain)
     try:
         safety = SafetyStandIn(probe)   # the test plays the safety node: arms, and publishes on cmd_safe
@@ -153,9 +155,8 @@ def test_a_late_joiner_gets_only_the_newest_status_and_the_stream_every_one(test
 def test_a_runs_first_poses_wait_for_the_client_readers_it_names(testbed):
     """The streams are volatile (issue 23): the run's first poses go out once the simulator's writer
     matched the reader of the client that StartExperiment.client_node names, so a reader made just
-    before the start gets step 0; a client that never shows is waited for LISTENERS_WAIT s, and the
-    log names whose reader was missing."""
-    from robotarium_core.topics import LISTENERS_WAIT
+    before the start gets step 0; a client that never shows is waited for listeners_wait s (set low
+    here), and the log names whose reader was missing."""
     sim, probe, _ = testbed
     poses = probe.collect(RobotPoses, NS + "/poses")   # made now, the start follows at once
     started = start(probe, n=2, poses=LINE[:, :2], name="fresh")
@@ -167,7 +168,7 @@ def test_a_runs_first_poses_wait_for_the_client_readers_it_names(testbed):
     request.x, request.y, request.theta = (list(map(float, row)) for row in LINE[:, :2])
     began = time.monotonic()
     started = probe.start_experiment(request, NS)
-    assert started.success and time.monotonic() - began >= LISTENERS_WAIT, started.message
+    assert started.success and time.monotonic() - began >= LISTENERS_WAIT_HERE, started.message
     assert end(probe, started).success
     assert "starting without %s/nobody's reader of %s/poses" % (NS, NS) in sim.output(), sim.output()
 

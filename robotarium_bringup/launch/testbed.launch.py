@@ -46,7 +46,9 @@ def generate_launch_description():
     namespace = LaunchConfiguration("namespace")
     parameters = [LaunchConfiguration("config")]
     nodes = [
-        Node(package="robotarium_sim", executable="simulator", namespace=namespace, parameters=parameters,
+        # with a recorder, a run's first steps wait for its readers (the streams are volatile)
+        Node(package="robotarium_sim", executable="simulator", namespace=namespace,
+             parameters=parameters + [{"wait_for_recorder": LaunchConfiguration("record")}],
              output="screen", emulate_tty=True),
         Node(package="robotarium_safety", executable="safety", namespace=namespace, parameters=parameters,
              output="screen", emulate_tty=True),

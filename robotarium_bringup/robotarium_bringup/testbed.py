@@ -129,8 +129,9 @@ class LocalTestbed:
             env, pass_fds = self.gate.for_child(env, pass_fds)
         for name in self.names:
             extra = ["-p", "bags_dir:=%s" % self.bags_dir] if name == "recorder" and self.bags_dir else []
-            if name == "simulator" and self.hardware:
-                extra = ["-p", "hardware:=true"]
+            if name == "simulator":   # a run's first steps wait for the recorder's readers where it records
+                extra = (["-p", "hardware:=true"] if self.hardware else []) + (
+                    ["-p", "wait_for_recorder:=true"] if "recorder" in self.names else [])
             log = open(os.path.join(self.log_dir, name + ".log"), "wb") if self.quiet else None
             self.processes[name] = (subprocess.Popen(
                 node_command(name, self.ns, extra, self.config_file), stdout=log, stderr=subprocess.STDOUT if log else None,

@@ -71,7 +71,7 @@ from visualization_msgs.msg import MarkerArray
 
 from robotarium_core import cdr, markers, model, outcomes, presence, rps2, scene
 from robotarium_core.line import Line
-from robotarium_core.node_tools import declare_config, run_node, take_waiting
+from robotarium_core.node_tools import declare_config, declare_parameter, run_node, take_waiting
 from robotarium_core.topics import (
     CMD_SAFE,
     CONFIG,
@@ -158,6 +158,15 @@ class SimulatorNode(Node):
     def __init__(self):
         super().__init__("simulator", namespace=DEFAULT_NAMESPACE)
         self.config = declare_config(self)
+        # The streams are volatile (robotarium_core.topics): a start waits for the readers a run needs.
+        self.wait_for_recorder = declare_parameter(
+            self, "wait_for_recorder", False, "true: a start waits for the recorder's readers even where the graph "
+            "shows no recorder yet (./robotarium up and the launch file set it when they start one), so a run's first "
+            "steps are never missing from its bag")
+        self.listeners_wait = declare_parameter(
+            self, "listeners_wait", LISTENERS_WAIT, "s a start waits for the readers a run needs (its client's, the "
+            "safety node's, the recorder's) before it goes on without them, saying whose were missing",
+            low=0.0, high=60.0)
         self.testbed = None          # the running experiment's model (None: idle)
         self.run = Experiment()      # the running experiment, or the last one (how it ended)
         self.run_ids = RunIds()
@@ -314,7 +323,7 @@ class SimulatorNode(Node):
     async def wait_for_listeners(self, client_node, testbed):
         """The streams are volatile (robotarium_core.topics): a run's first poses, status and sensors
         go out once the readers that need all of the run matched our writers (the client's, the safety
-        node's, the recorder's), or after LISTENERS_WAIT s, with a warning naming the missing ones."""
+        node's, the recorder's), or after listeners_wait s, with a warning naming the missing ones."""
         # every reader the graph shows already; the safety node's and the recorder's where the graph
         # shows them (a test's stand-in for the safety node is not one); the client's, which named itself
         pairs = [(self.poses_pub, None), (self.status_stream_pub, None), (self.sensors_pub, None)]
@@ -324,18 +333,18 @@ class SimulatorNode(Node):
         nodes = node_names(self)
         if presence.SAFETY in nodes:
             pairs.append((self.poses_pub, presence.SAFETY))
-        if presence.RECORDER in nodes:
+        if self.wait_for_recorder or presence.RECORDER in nodes:
             recorded = [self.poses_pub, self.pose_array_pub, self.status_stream_pub, self.sensors_pub]
             if second_api:
                 recorded += [p for row in self.standard_sensors.publishers[:testbed.number_of_robots] for p in row[:3]]
             pairs += [(publisher, presence.RECORDER) for publisher in recorded]
-        deadline = time.monotonic() + LISTENERS_WAIT
+        deadline = time.monotonic() + self.listeners_wait
         while missing := listeners(self, pairs):
             if time.monotonic() > deadline:
                 self.get_logger().warning("starting without %s: not matched within %g s (a slow machine? their "
                                           "first samples may be lost)" % (", ".join(sorted(
                                               "%s's reader of %s" % (who or "a", p.topic_name) for p, who in missing)),
-                                              LISTENERS_WAIT))
+                                              self.listeners_wait))
                 return
             await self.sleep(0.005)
 
