@@ -148,8 +148,8 @@ def offer_meets_request(offered, requested):
 def readers_matched(node, publisher, required_node=None):
     """True when `publisher` has matched every reader of its topic that the graph shows and that
     can match it (same type, compatible QoS), and, if `required_node` is given, the graph shows a
-    reader of that node (a name in the topic's namespace: "safety" for /robotarium/cmd_requested, or
-    a fully qualified one: "/robotarium/safety").
+    reader of that node (a name in the topic's namespace: "safety" for /robotarium/cmd_requested,
+    "recorder" for /robotarium/_status/stream; or a fully qualified one: "/robotarium/safety").
 
     The graph learns of a reader in the same discovery step in which our writer matches it, so
     "matched at least as many as the graph shows" means that each of them, the required one
@@ -157,11 +157,12 @@ def readers_matched(node, publisher, required_node=None):
     topic = publisher.topic_name
     readers = node.get_subscriptions_info_by_topic(topic)
     our_type = "%s/msg/%s" % (publisher.msg_type.__module__.split(".")[0], publisher.msg_type.__name__)
-    ns = topic.rsplit("/", 1)[0] or "/"
     can_match = [r for r in readers if r.topic_type == our_type and offer_meets_request(publisher.qos_profile, r.qos_profile)]
     if required_node is not None and not any(
             "%s/%s" % (r.node_namespace.rstrip("/"), r.node_name) == required_node if required_node.startswith("/")
-            else r.node_name == required_node and r.node_namespace == ns for r in can_match):
+            # a node of the namespace the topic is in, or one above it (/robotarium/_status/stream)
+            else r.node_name == required_node and topic.startswith(r.node_namespace.rstrip("/") + "/")
+            for r in can_match):
         return False
     return publisher.get_subscription_count() >= len(can_match)
 

@@ -34,7 +34,10 @@ ArmSafety request, and puts it on cmd_safe: this node applies nothing else) and 
 every poses message: the client and the safety node take no others). The start is refused when
 no safety node answers. The client holds a presence on the topic the start names; when it is gone
 for `client_lease` s the experiment ends by itself ("client lost at step k"). When the safety
-node's presence is lost, every robot stops at once.
+node's presence is lost, every robot stops at once. The streams are volatile (robotarium_core.topics):
+a start sends the run's first poses, status and sensors once its writers matched the readers the run
+needs (the client's that StartExperiment.client_node names, the safety node's, the recorder's, also
+before the graph shows a recorder with the parameter wait_for_recorder), at most `listeners_wait` s.
 
 Modes, chosen per experiment: real time (a timer at `rate` Hz; a robot whose last command is older
 than `command_timeout` stops) or lockstep (exactly one step per accepted command array, as fast as
