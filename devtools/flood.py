@@ -126,7 +126,7 @@ def main(argv=None):
     ns = args.namespace.rstrip("/")
     topics = ["%s/cmd_requested" % ns, "%s/cmd_safe" % ns]
     publishers = {topic: node.create_publisher(TwistArray, topic, QOS) for topic in topics}
-    # (poses as the simulator offers them: the safety node's poses reader is transient-local)
+    # (poses as the simulator offers them: reliable and volatile, as the safety node reads them)
     poses_pub = node.create_publisher(RobotPoses, ns + "/poses", TESTBED_QOS) if args.poses else None
     # The safety node listens on cmd_requested, the simulator on cmd_safe (a recorder on both):
     # wait until every reader is matched, so that every array sent reaches each.

@@ -130,7 +130,7 @@ def test_run_through_the_stack_is_recorded_completely(stack):
 
 def test_a_default_qos_publisher_is_recorded_once_beside_the_testbeds_own(stack):
     """Arrays from a plain rclpy publisher with default QoS (reliable, volatile: as ros2 topic pub) on
-    cmd_safe, beside the testbed's transient-local writer: the testbed hears them (its inputs are
+    cmd_safe, beside the testbed's own writer (the safety node's): the testbed hears them (its inputs are
     volatile), so the bag holds them, each once, and the testbed's own arrays once too (the recorder
     used to have one transient-local reader there, which no volatile writer matches)."""
     stack.start(2, name="injected")

@@ -147,7 +147,10 @@ def test_a_late_joiner_gets_only_the_newest_status_and_the_stream_every_one(test
         states = [s.state for s in stream if s.run_id == run_id]
         closing = states.index(idle)
         assert states[0] == running and closing >= 2 and states[closing - 1] == running, (run_id, states)
-    late = probe.collect(TestbedStatus, NS + "/status")   # the testbed's QoS: transient local, a history of 50
+    # as a late joiner asks for a latched topic (transient local; a volatile reader would only see the
+    # next heartbeat): the newest status comes from the writer's history at once
+    from robotarium_core.topics import STATUS_QOS
+    late = probe.collect(TestbedStatus, NS + "/status", STATUS_QOS)
     assert probe.spin_until(lambda: late, 10), "the late joiner got no status"
     assert (late[0].run_id, late[0].state) == (runs[1], idle), [(s.run_id, s.state) for s in late]
 
