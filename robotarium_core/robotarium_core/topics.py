@@ -154,17 +154,24 @@ def readers_matched(node, publisher, required_node=None):
     The graph learns of a reader in the same discovery step in which our writer matches it, so
     "matched at least as many as the graph shows" means that each of them, the required one
     included, is matched: whatever we publish from now on reaches it (reliable)."""
+    return not _unmatched(node, publisher, [required_node])
+
+
+def _unmatched(node, publisher, required_nodes):
+    """Of `required_nodes` (names as readers_matched takes them, None for "every reader the graph
+    shows"), those whose reader `publisher` has not matched yet; one look at the graph for all."""
     topic = publisher.topic_name
     readers = node.get_subscriptions_info_by_topic(topic)
     our_type = "%s/msg/%s" % (publisher.msg_type.__module__.split(".")[0], publisher.msg_type.__name__)
     can_match = [r for r in readers if r.topic_type == our_type and offer_meets_request(publisher.qos_profile, r.qos_profile)]
-    if required_node is not None and not any(
-            "%s/%s" % (r.node_namespace.rstrip("/"), r.node_name) == required_node if required_node.startswith("/")
-            # a node of the namespace the topic is in, or one above it (/robotarium/_status/stream)
-            else r.node_name == required_node and topic.startswith(r.node_namespace.rstrip("/") + "/")
-            for r in can_match):
-        return False
-    return publisher.get_subscription_count() >= len(can_match)
+
+    def shown(required):
+        return any("%s/%s" % (r.node_namespace.rstrip("/"), r.node_name) == required if required.startswith("/")
+                   # a node of the namespace the topic is in, or one above it (/robotarium/_status/stream)
+                   else r.node_name == required and topic.startswith(r.node_namespace.rstrip("/") + "/")
+                   for r in can_match)
+    all_matched = publisher.get_subscription_count() >= len(can_match)
+    return [who for who in required_nodes if not all_matched or (who is not None and not shown(who))]
 
 
 def node_names(node):
@@ -176,8 +183,13 @@ def node_names(node):
 def listeners(node, publishers_and_readers):
     """The (publisher, node name) pairs whose reader the publisher has not matched yet, of
     `publishers_and_readers`: (publisher, node name or None) pairs, None for "every reader the graph
-    shows". A writer of a stream publishes a run's first sample once this is empty (above)."""
-    return [(publisher, who) for publisher, who in publishers_and_readers if not readers_matched(node, publisher, who)]
+    shows". A writer of a stream publishes a run's first sample once this is empty (above). The graph
+    is looked at once per publisher (a 2.x start of 50 robots waits on some 150 writers)."""
+    by_publisher = {}
+    for publisher, who in publishers_and_readers:
+        by_publisher.setdefault(publisher, []).append(who)
+    return [(publisher, who) for publisher, wanted in by_publisher.items()
+            for who in _unmatched(node, publisher, wanted)]
 
 
 def warn_on_incompatible_qos(node, topic):
