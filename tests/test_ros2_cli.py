@@ -27,8 +27,9 @@ PARAMS = os.path.join(REPO, "install", "share", "robotarium_core", "config", "te
 
 @pytest.fixture(scope="module")
 def ros2():
-    """The ros2 command, built into .ros2-tools/ by the shared setup.sh when missing (~40 s once;
-    under a second when up to date)."""
+    """The ros2 command in .ros2-tools/, which ./robotarium test builds with the shared setup.sh
+    before the tests start (~40 s once); here a stamp check (under a second), or the build where a
+    plain pytest runs without it."""
     if not os.path.isfile(ROS2):
         pytest.skip("the ROS 2 command-line tools are not here (%s is missing: a clone without ../shared); "
                     "these tests need the real ros2 CLI" % TOOLS)
