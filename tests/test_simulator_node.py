@@ -415,10 +415,15 @@ def test_viewers_get_the_scene_at_the_viewer_rate_not_every_step(testbed):
     started = start(probe, n=3, poses=LINE)
     safety.wait_for_simulator()
     steps = 120
+    began, before = time.monotonic(), len(scenes)
     for k in range(1, steps + 1):
         lockstep(probe, safety, command(range(3), [0.1, 0.1, 0.1], [0.5, 0.0, -0.5], step=k), poses)
     probe.spin_for(3.0 / DEFAULT.viewer_rate)   # a scene or more after the last step
-    assert 0 < len(scenes) < steps / 3, "%d scenes for %d lockstep steps" % (len(scenes), steps)
+    # At most one scene per viewer period of the time it took, however many steps that was (a scene
+    # per step would be 120): a loaded machine makes the timer fire less often, never more.
+    periods = (time.monotonic() - began) * DEFAULT.viewer_rate
+    assert 0 < len(scenes) - before <= periods + 2, (
+        "%d scenes for %d lockstep steps in %.1f viewer periods" % (len(scenes) - before, steps, periods))
     latest = scenes[-1].markers
     assert latest[0].action == Marker.DELETEALL and all(m.header.frame_id == "arena" for m in latest)
     bodies = sorted((m for m in latest if m.ns == "robots"), key=lambda m: m.id)
