@@ -114,6 +114,16 @@ class NodeProcess:
         with open(self.log_path, "rb") as f:
             return f.read().decode(errors="replace")
 
+    def stacks(self, wait=0.5):
+        """Every thread's Python stack of a node started by node_tools.run_node (SIGUSR1 makes it
+        write them to its log), as its log has them; for the message of a test that found it stuck."""
+        if not self.alive() or not self.log_path:
+            return ""
+        before = len(self.output())
+        os.kill(self.proc.pid, signal.SIGUSR1)
+        time.sleep(wait)
+        return self.output()[before:]
+
 
 class RosProbe:
     """An rclpy node in its own context on `domain_id`, spun by hand from the test."""

@@ -81,8 +81,11 @@ class Lab:
             if not node.alive():
                 node.close()
                 self.start(name)
-        assert self.probe.spin_until(lambda: all(w.alive for w in self.watches.values()), 60), \
-            {name: w.alive for name, w in self.watches.items()}
+        if not self.probe.spin_until(lambda: all(w.alive for w in self.watches.values()), 60):
+            stuck = {name: w.alive for name, w in self.watches.items()}
+            stacks = "".join("\n%s (%s):\n%s" % (name, "alive" if node.alive() else "exited", node.stacks()[-6000:])
+                             for name, node in self.nodes.items() if not stuck[name])
+            raise AssertionError("not every node is there: %s%s" % (stuck, stacks))
 
     def last_status(self, run_id):
         self.probe.spin_for(0.02)
@@ -670,6 +673,20 @@ def test_a_node_whose_shared_memory_port_was_deleted_restarts_and_the_next_clien
         lab.nodes[name].close()   # the testbed's own settings again for the tests after this one
         lab.start(name)
         lab.heal()
+
+
+def test_a_node_asked_with_sigusr1_writes_where_each_thread_stands_and_goes_on(healthy):
+    """kill -USR1 of a testbed node (docs/faults.md: a node alive but deaf): every thread's Python
+    stack goes to its log, and the node serves on (SIGUSR1 would otherwise end it)."""
+    lab = healthy
+    for name, node in lab.nodes.items():
+        stacks = node.stacks()
+        assert "Current thread" in stacks and "in run_node" in stacks, (name, stacks)
+    lab.probe.spin_for(2 * DEFAULT.node_lease)
+    assert all(node.alive() for node in lab.nodes.values()) and all(w.alive for w in lab.watches.values())
+    r = client(FACING)
+    drive(r, [0.0, 0.0], [0.0, 0.0])
+    r.call_at_scripts_end()
 
 
 # -- the SROS2 policy ------------------------------------------------------------------------------

@@ -5,6 +5,7 @@ of rclpy's default executor) until a signal or its lifeline says stop, then wind
 Kept apart from model.py and config.py (no ROS there); the nodes themselves stay thin shells.
 """
 import ctypes
+import faulthandler
 import hashlib
 import math
 import os
@@ -375,6 +376,8 @@ def run_node(make_node, name, args=None, before_destroy=None, claim=None):
     if not lifeline.pass_start_gate():
         return 0
     return_freed_memory()
+    # kill -USR1 PID: every thread's Python stack into the node's log (where is a node that stopped answering?)
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
     # rclpy's own handlers would shut the context down at the first signal, before the wind-down.
     init_context(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop = StopRequest()
