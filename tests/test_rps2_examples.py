@@ -3,8 +3,9 @@ through ./robotarium run against one testbed, recognised as 2.x scripts, with th
 
 All of them run in CI, in lockstep, numpy seeded as devtools/run_seeded.py does, each to its end
 (debug() and its report). Scripts with a top-level `iterations = N` line (N = 1000-5000) run with
-it read as `iterations = 120` (run_seeded.py --iterations: nothing else of the script changes) to
-keep CI's time short; ROBOTARIUM_SLOW_TESTS=1 runs them at their own length.
+it read as `iterations = 120`, and three long ones with one top-level number read smaller (SHORTER:
+run_seeded.py --set, nothing else of the script changes) to keep CI's time short;
+ROBOTARIUM_SLOW_TESTS=1 runs them at their own length.
 """
 import glob
 import os
@@ -28,6 +29,10 @@ ALL = sorted(os.path.relpath(p, EXAMPLES) for p in glob.glob(os.path.join(EXAMPL
 SHORT_ITERATIONS = 120
 # Scripts whose loop has no iteration count and no end of their own within a test's time.
 SCRIPT_ARGS = {"state_estimation/extended_kalman_filter/ekf_experiment.py": ["--cycles", "1"]}
+# Long loops without an iteration count: one top-level number read smaller (12-22 s each -> a third).
+SHORTER = {"sensors/sensor_readings.py": ["resolution_x=1.2", "resolution_y=0.6"],   # 9 goals of 28
+           "plotting/dead_reckoning_with_plotting.py": ["final_count=1"],             # 1 goal set of 3
+           "plotting/barriers_with_plotting.py": ["count=2"]}                         # 1 swap of 3 (it ends at 3)
 
 
 def run_example(env, name):
@@ -36,6 +41,8 @@ def run_example(env, name):
         long_loop = "\niterations = " in f.read()
     full_length = os.environ.get("ROBOTARIUM_SLOW_TESTS")
     shorten = ["--iterations", str(SHORT_ITERATIONS)] if long_loop and not full_length else []
+    if not full_length:
+        shorten += [arg for setting in SHORTER.get(name, []) for arg in ("--set", setting)]
     completed = run(env, os.path.join(REPO, "devtools", "run_seeded.py"), "--lockstep", "--no-video", "--",
                     *shorten, "1", script, *SCRIPT_ARGS.get(name, []), timeout=300)
     out = completed.stdout + completed.stderr
