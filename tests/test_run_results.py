@@ -220,8 +220,11 @@ def test_a_guide_plotting_scripts_video_shows_its_goals_and_labels(testbed, tmp_
     steps = run["runs"][-1]["steps"]
     assert frames == steps + 1 and seconds == pytest.approx((steps + 1) * bag.config().time_step, abs=0.05)
 
-    # Frame 1 of the video against the same frame drawn without the script's drawing.
-    plain = render_video(bag.poses(), [], bag.config(), str(tmp_path), progress=False, name="plain")
+    # Frame 1 of the video against the same frame drawn without the script's drawing (a video of the
+    # first three steps: the whole run's would take seconds for one frame).
+    track = bag.poses()
+    head = track._replace(**{field: getattr(track, field)[:3] for field in track._fields if field != "ids"})
+    plain = render_video(head, [], bag.config(), str(tmp_path), progress=False, name="plain")
     with_drawing, without = _frame(os.path.join(folder, "run.mp4"), 1), _frame(plain, 1)
     assert with_drawing.shape[:2] == (800, 1280)
     view = ArenaFigure.offscreen(bag.config().arena, bag.config().robot_radius, np.zeros((3, 5)))
