@@ -182,6 +182,23 @@ def in_namespace(netns):
     return found
 
 
+def pin_namespace(pid, own):
+    """(identity, descriptor) of process pid's network namespace ("net:[inode]"), the namespace held
+    open: it lives while a descriptor of it is open, so its number cannot pass to a namespace made
+    later. Without the pin a job's cleanup (kill_namespace) once killed a job that had just started on
+    another worker: the ended job's namespace was gone and the new one had been given its number.
+    (None, None) while pid still shares `own` (the door has not made its namespace yet), or is gone."""
+    try:
+        fd = os.open("/proc/%d/ns/net" % pid, os.O_RDONLY | os.O_CLOEXEC)
+    except OSError:
+        return None, None
+    netns = os.readlink("/proc/self/fd/%d" % fd)
+    if netns == own:
+        os.close(fd)
+        return None, None
+    return netns, fd
+
+
 def kill_namespace(netns):
     """SIGKILL whatever still runs in a job's network namespace once its command ended (a testbed node
     whose command line was killed): every process of the job is in it. How many there were."""
@@ -334,7 +351,33 @@ class JobBox:
             if started:
                 started(process.pid)
             deadline = time.monotonic() + timeout
-            own_netns, netns = os.readlink("/proc/self/ns/net"), None
+            own_netns, netns, pin = os.readlink("/proc/self/ns/net"), None, None
+            try:
+                code, timed_out, over_quota, netns, pin = self._watch(process, deadline, timeout, given, notes,
+                                                                      own_netns)
+                killed = self._stop_script()
+                if killed:
+                    notes.append("%d processes the script left behind were stopped at the job's end" % killed)
+                left = kill_namespace(netns) if netns else 0
+                if left:
+                    notes.append("%d processes of the job still ran when its command had ended; they were stopped"
+                                 % left)
+            finally:
+                if pin is not None:
+                    os.close(pin)
+        log = Path(output_path).read_text(errors="replace")
+        notes += [n for n in explain(log, self.limits, network=True) if n not in notes]
+        with open(output_path, "a") as output:
+            output.writelines(NOTE + note + "\n" for note in notes)
+        return Outcome(None if timed_out else code, notes)
+
+    def _watch(self, process, deadline, timeout, given, notes, own_netns):
+        """Wait for the job's command, stopping it at its time limit and its script at the disk quota;
+        the job's namespace pinned (pin_namespace) once the door made it. Returns (exit code, timed out,
+        over quota, namespace, its pinned descriptor or None)."""
+        timed_out = over_quota = False
+        netns = pin = None
+        try:
             while True:
                 try:
                     code = process.wait(timeout=WATCH_PERIOD)
@@ -342,11 +385,7 @@ class JobBox:
                 except subprocess.TimeoutExpired:
                     pass
                 if netns is None:   # the door has made the job's namespace (then exec'd the command)
-                    try:
-                        netns = os.readlink("/proc/%d/ns/net" % process.pid)
-                    except OSError:
-                        pass
-                    netns = None if netns == own_netns else netns
+                    netns, pin = pin_namespace(process.pid, own_netns)
                 if time.monotonic() > deadline:
                     notes.append("the job did not end within its %d s; it was stopped" % timeout)
                     timed_out = True
@@ -375,18 +414,11 @@ class JobBox:
                 stopped = self._leftovers(process.pid)
                 if stopped:
                     notes.append(stopped)
-            killed = self._stop_script()
-            if killed:
-                notes.append("%d processes the script left behind were stopped at the job's end" % killed)
-            left = kill_namespace(netns) if netns else 0
-            if left:
-                notes.append("%d processes of the job still ran when its command had ended; they were stopped"
-                             % left)
-        log = Path(output_path).read_text(errors="replace")
-        notes += [n for n in explain(log, self.limits, network=True) if n not in notes]
-        with open(output_path, "a") as output:
-            output.writelines(NOTE + note + "\n" for note in notes)
-        return Outcome(None if timed_out else code, notes)
+        except BaseException:
+            if pin is not None:
+                os.close(pin)
+            raise
+        return code, timed_out, over_quota, netns, pin
 
     def _stop_script(self):
         return kill_account(self.uid) if isolated() else 0

@@ -134,6 +134,43 @@ def test_a_second_job_in_a_box_waits_for_the_first_and_stops_none_of_it(place):
     assert running.wait(timeout=10) != 0
 
 
+def _namespace_of(pid, own):
+    """pid's network namespace ("net:[inode]") once it is not `own`."""
+    for _ in range(200):
+        netns = os.readlink("/proc/%d/ns/net" % pid)
+        if netns != own:
+            return netns
+        threading.Event().wait(0.01)
+    raise AssertionError("no namespace of its own")
+
+
+def test_an_ended_jobs_namespace_keeps_its_number_until_its_cleanup_is_done():
+    """A job's cleanup kills what still runs in its network namespace, found by the namespace's number.
+    The kernel gives an ended namespace's number to the next one made: a cleanup that looked up the
+    number after its job had ended killed a verification just started on another worker (exit code -9,
+    no output; the service's twelve submissions, 2026-11-27). The job's namespace is pinned while its
+    cleanup may run: no namespace made meanwhile gets its number, and the cleanup stops nothing else."""
+    own = os.readlink("/proc/self/ns/net")
+    first = subprocess.Popen(["unshare", "--net", "sleep", "0.3"])
+    _namespace_of(first.pid, own)
+    netns, pin = jobbox.pin_namespace(first.pid, own)
+    assert netns and netns != own and pin is not None
+    first.wait()   # the job ended: only the pin holds its namespace now
+    others = []
+    try:
+        for _ in range(20):
+            other = subprocess.Popen(["unshare", "--net", "sleep", "30"])
+            others.append(other)
+            assert _namespace_of(other.pid, own) != netns   # its number stays taken
+        assert jobbox.kill_namespace(netns) == 0
+        assert all(other.poll() is None for other in others)   # none of them stopped
+    finally:
+        os.close(pin)
+        for other in others:
+            other.kill()
+            other.wait()
+
+
 def test_children_the_script_leaves_behind_are_stopped(place):
     script = "import os, time\nif os.fork() == 0:\n    time.sleep(600)\nprint('parent done')\n"
     outcome, run, output, _ = run_script(place, "orphan", script)
