@@ -353,8 +353,42 @@ class JobBox:
             deadline = time.monotonic() + timeout
             own_netns, netns, pin = os.readlink("/proc/self/ns/net"), None, None
             try:
-                code, timed_out, over_quota, netns, pin = self._watch(process, deadline, timeout, given, notes,
-                                                                      own_netns)
+                while True:
+                    try:
+                        code = process.wait(timeout=WATCH_PERIOD)
+                        break
+                    except subprocess.TimeoutExpired:
+                        pass
+                    if netns is None:   # the door has made the job's namespace (then exec'd the command)
+                        netns, pin = pin_namespace(process.pid, own_netns)
+                    if time.monotonic() > deadline:
+                        notes.append("the job did not end within its %d s; it was stopped" % timeout)
+                        timed_out = True
+                        stop_group(process.pid)
+                        code = process.wait()
+                        break
+                    if not over_quota and folder_bytes(self.folder) > self.limits.disk_bytes:
+                        over_quota = True
+                        # Frozen first, its files removed, then stopped: had it ended first, `run` (its parent)
+                        # could copy them into the results before they were gone.
+                        for pid in processes_of(self.uid):
+                            try:
+                                os.kill(pid, signal.SIGSTOP)
+                            except OSError:
+                                continue
+                        # What the script wrote goes (it would be copied to the results otherwise).
+                        for path in sorted(set(self.folder.rglob("*")) - given, reverse=True):
+                            try:
+                                if path.lstat().st_uid == self.uid and not path.is_dir():
+                                    path.unlink()
+                            except OSError:
+                                continue
+                        self._stop_script()
+                        notes.append("the script's folder grew past the job's disk quota (%s); the script was stopped "
+                                     "and the files it wrote were removed" % _mb(self.limits.disk_bytes))
+                    stopped = self._leftovers(process.pid)
+                    if stopped:
+                        notes.append(stopped)
                 killed = self._stop_script()
                 if killed:
                     notes.append("%d processes the script left behind were stopped at the job's end" % killed)
@@ -370,55 +404,6 @@ class JobBox:
         with open(output_path, "a") as output:
             output.writelines(NOTE + note + "\n" for note in notes)
         return Outcome(None if timed_out else code, notes)
-
-    def _watch(self, process, deadline, timeout, given, notes, own_netns):
-        """Wait for the job's command, stopping it at its time limit and its script at the disk quota;
-        the job's namespace pinned (pin_namespace) once the door made it. Returns (exit code, timed out,
-        over quota, namespace, its pinned descriptor or None)."""
-        timed_out = over_quota = False
-        netns = pin = None
-        try:
-            while True:
-                try:
-                    code = process.wait(timeout=WATCH_PERIOD)
-                    break
-                except subprocess.TimeoutExpired:
-                    pass
-                if netns is None:   # the door has made the job's namespace (then exec'd the command)
-                    netns, pin = pin_namespace(process.pid, own_netns)
-                if time.monotonic() > deadline:
-                    notes.append("the job did not end within its %d s; it was stopped" % timeout)
-                    timed_out = True
-                    stop_group(process.pid)
-                    code = process.wait()
-                    break
-                if not over_quota and folder_bytes(self.folder) > self.limits.disk_bytes:
-                    over_quota = True
-                    # Frozen first, its files removed, then stopped: had it ended first, `run` (its parent)
-                    # could copy them into the results before they were gone.
-                    for pid in processes_of(self.uid):
-                        try:
-                            os.kill(pid, signal.SIGSTOP)
-                        except OSError:
-                            continue
-                    # What the script wrote goes (it would be copied to the results otherwise).
-                    for path in sorted(set(self.folder.rglob("*")) - given, reverse=True):
-                        try:
-                            if path.lstat().st_uid == self.uid and not path.is_dir():
-                                path.unlink()
-                        except OSError:
-                            continue
-                    self._stop_script()
-                    notes.append("the script's folder grew past the job's disk quota (%s); the script was stopped "
-                                 "and the files it wrote were removed" % _mb(self.limits.disk_bytes))
-                stopped = self._leftovers(process.pid)
-                if stopped:
-                    notes.append(stopped)
-        except BaseException:
-            if pin is not None:
-                os.close(pin)
-            raise
-        return code, timed_out, over_quota, netns, pin
 
     def _stop_script(self):
         return kill_account(self.uid) if isolated() else 0

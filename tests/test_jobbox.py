@@ -13,6 +13,7 @@ import socket
 import subprocess
 import tempfile
 import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -140,7 +141,7 @@ def _namespace_of(pid, own):
         netns = os.readlink("/proc/%d/ns/net" % pid)
         if netns != own:
             return netns
-        threading.Event().wait(0.01)
+        time.sleep(0.01)
     raise AssertionError("no namespace of its own")
 
 
