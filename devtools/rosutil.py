@@ -8,6 +8,7 @@
   helpers (call a service, wait for messages).
 - `SafetyStandIn` plays the safety node's part on a probe, for tests of the simulator alone.
 """
+import ctypes
 import fcntl
 import os
 import signal
@@ -123,6 +124,54 @@ class NodeProcess:
         os.kill(self.proc.pid, signal.SIGUSR1)
         time.sleep(wait)
         return self.output()[before:]
+
+    def threads(self, prefix):
+        """{thread id: name} of the node's threads whose name starts with `prefix` ("dds.ev.": Fast DDS's
+        event threads)."""
+        found = {}
+        for tid in os.listdir("/proc/%d/task" % self.proc.pid):
+            try:
+                with open("/proc/%d/task/%s/comm" % (self.proc.pid, tid)) as f:
+                    name = f.read().strip()
+            except OSError:
+                continue
+            if name.startswith(prefix):
+                found[int(tid)] = name
+        return found
+
+
+class FrozenThread:
+    """One thread of another process stopped for real, as a deadlock stops it: ptrace's PTRACE_SEIZE,
+    then PTRACE_INTERRUPT stops that thread alone while the rest of its process runs on. A traced
+    thread that ends (its process execs or exits) waits for its tracer: gone() reaps it."""
+
+    _SEIZE, _INTERRUPT, _DETACH = 0x4206, 0x4207, 17
+    _WALL = 0x40000000   # waitpid's __WALL: threads too
+
+    def __init__(self, tid):
+        self.tid = tid
+        self._libc = ctypes.CDLL(None, use_errno=True)
+        self._libc.ptrace.argtypes = [ctypes.c_long, ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p]
+        for request in (self._SEIZE, self._INTERRUPT):
+            if self._libc.ptrace(request, tid, None, None) != 0:
+                raise OSError(ctypes.get_errno(), "ptrace(%#x) of thread %d failed" % (request, tid))
+
+    def gone(self):
+        """Whether the thread has ended (and is reaped)."""
+        try:
+            while True:
+                tid, status = os.waitpid(self.tid, os.WNOHANG | self._WALL)
+                if tid == 0:
+                    return False
+                if os.WIFEXITED(status) or os.WIFSIGNALED(status):
+                    return True
+        except ChildProcessError:
+            return True
+
+    def release(self):
+        """Let it run on, if it is still there."""
+        if not self.gone():
+            self._libc.ptrace(self._DETACH, self.tid, None, None)
 
 
 class RosProbe:

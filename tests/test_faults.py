@@ -27,7 +27,7 @@ import pytest
 import yaml
 
 from devtools import REPO
-from devtools.rosutil import NodeProcess, RosProbe, node_env, unique_domain_id
+from devtools.rosutil import FrozenThread, NodeProcess, RosProbe, node_env, unique_domain_id
 from robotarium_core import cdr, model, node_tools, presence
 from robotarium_core.config import DEFAULT
 from robotarium_core.topics import TESTBED_QOS, readers_matched
@@ -673,6 +673,32 @@ def test_a_node_whose_shared_memory_port_was_deleted_restarts_and_the_next_clien
         lab.nodes[name].close()   # the testbed's own settings again for the tests after this one
         lab.start(name)
         lab.heal()
+
+
+def test_a_node_whose_fast_dds_event_thread_stops_starts_afresh_and_the_next_client_reaches_it(healthy):
+    """Fast DDS 2.14 can deadlock a participant inside (docs/faults.md: a node alive but deaf): its event
+    thread waits for a mutex held by a receive thread that waits for it, the node's Python goes on and
+    nobody new ever finds the node. Here the safety node's event thread is stopped for real (ptrace,
+    that thread alone): within DDS_STALL_LIMIT the node says so in its log and starts afresh in the
+    same process (same pid, a new participant), and the next client runs a whole experiment on it."""
+    lab = healthy
+    node = lab.nodes["safety"]
+    pid = node.proc.pid
+    (tid,) = node.threads("dds.ev.")
+    frozen = FrozenThread(tid)
+    try:
+        assert lab.probe.spin_until(lambda: frozen.gone(), node_tools.DDS_STALL_LIMIT + 15), node.output()
+    finally:
+        frozen.release()
+    assert "Fast DDS stopped in this process: dds.ev.0 (thread %d) has not run for" % tid in node.output(), node.output()
+    assert lab.probe.spin_until(lambda: node.threads("dds.ev.") and tid not in node.threads("dds.ev.")
+                                and lab.watches["safety"].alive, 30), node.output()
+    assert node.alive() and node.proc.pid == pid
+    r = client(LINE3)
+    for _ in range(20):
+        drive(r, [0.05] * 3, [0.2] * 3)
+    r.call_at_scripts_end()
+    assert r.run_info["steps"] == 20 and r.run_info["outcome"] == "completed", r.run_info
 
 
 def test_a_node_asked_with_sigusr1_writes_where_each_thread_stands_and_goes_on(healthy):

@@ -318,6 +318,15 @@ def restart_in_place(claim_node=None):
     os.execv(sys.executable, sys.orig_argv)
 
 
+def restart_stuck(name, stuck, claim_node):
+    """A participant deadlocked inside Fast DDS (DdsStallWatch): say so on stderr (the node's log; the
+    logger would publish to /rosout, through the stuck participant) and start afresh in place, without
+    destroying anything of DDS (that would wait for the stuck threads). Never returns."""
+    print("[%s] Fast DDS stopped in this process: %s (a deadlock inside Fast DDS, docs/faults.md); "
+          "starting afresh in the same process; a run it held is lost" % (name, stuck), file=sys.stderr, flush=True)
+    restart_in_place(claim_node)
+
+
 def check_ports(node, stop, noticed):
     """Look at this process's shared-memory ports (PORT_CHECK_PERIOD): one that Fast DDS took away
     is said once, and the node asks to restart as soon as it is at rest (node.at_rest(): no run to
@@ -335,6 +344,79 @@ def check_ports(node, stop, noticed):
     if at_rest is not None and at_rest():
         stop.request("restarting: its shared-memory port %s was deleted" % ", ".join(map(str, lost)), restart=True)
     return True
+
+
+# -- a Fast DDS participant deadlocked inside --------------------------------------------------------
+# Fast DDS 2.14 can deadlock a participant for good (gdb on a stuck simulator, 2026-11-28, load 6 on
+# 2 cores; eProsima/Fast-DDS#6502 is the same cycle): a receive thread that removes a remote
+# endpoint (a client leaving) holds the discovery (PDP) mutex while it waits, in
+# ResourceEvent::unregister_timer, for the event thread to finish its timers, and the event thread's
+# timer (WLP::automatic_liveliness_assertion: our presence writers' liveliness) waits for that mutex.
+# The node's Python goes on, DDS does not: no announcements, no liveliness, no discovery; the other
+# receive threads queue on the same mutex. Processes that start later never find the node, and its
+# peers lose it once its lease ends ("no safety node answers", run after run). The event thread
+# wakes several times a second (announcements every 0.2 s, presence liveliness every 0.17-0.25 s),
+# so one that has not run for DDS_STALL_LIMIT while the node's own loop has is stuck: the node
+# says so and starts afresh (restart_in_place) without touching DDS, which would wait for ever.
+
+DDS_STALL_LIMIT = 5.0   # s an event thread may go without running before its participant counts as stuck
+DDS_STALL_CHECK = 0.5   # s between looks
+
+
+def _task_file(tid, name):
+    try:
+        with open("/proc/self/task/%d/%s" % (tid, name)) as f:
+            return f.read()
+    except OSError:
+        return None   # the thread ended
+
+
+def dds_event_threads():
+    """{thread id: name} of this process's Fast DDS event threads ("dds.ev.N", one per participant)."""
+    threads = {}
+    for entry in os.listdir("/proc/self/task"):
+        comm = _task_file(int(entry), "comm")
+        if comm is not None and comm.startswith("dds.ev."):
+            threads[int(entry)] = comm.strip()
+    return threads
+
+
+def context_switches(tid):
+    """How often thread `tid` of this process gave up or lost the processor (it changes each time the
+    thread runs), or None when it ended."""
+    status = _task_file(tid, "status")
+    if status is None:
+        return None
+    return sum(int(line.split()[1]) for line in status.splitlines() if "ctxt_switches:" in line)
+
+
+class DdsStallWatch:
+    """Tells when a Fast DDS event thread of this process has stopped running: check() (every
+    DDS_STALL_CHECK or so, from the node's loop) returns what is stuck, or None. A gap in the checks
+    themselves (the whole process stopped or starved) starts the count again."""
+
+    def __init__(self, limit=DDS_STALL_LIMIT, gap=4 * DDS_STALL_CHECK):
+        self.limit = limit
+        self.gap = gap    # s between two checks that makes a gap
+        self.seen = {}    # thread id -> (context switches, since when unchanged)
+        self.last = None  # time of the previous check
+
+    def check(self, now=None):
+        now = time.monotonic() if now is None else now
+        if self.last is not None and now - self.last > self.gap:
+            self.seen.clear()   # this loop did not run either: nothing can be said of the gap
+        self.last = now
+        stuck = []
+        for tid, name in dds_event_threads().items():
+            switches = context_switches(tid)
+            if switches is None:
+                continue
+            switched, since = self.seen.get(tid, (None, now))
+            if switches != switched:
+                self.seen[tid] = (switches, now)
+            elif now - since >= self.limit:
+                stuck.append("%s (thread %d) has not run for %.1f s" % (name, tid, now - since))
+        return "; ".join(stuck) or None
 
 
 def claim_place(who, name, stop):
@@ -403,11 +485,17 @@ def run_node(make_node, name, args=None, before_destroy=None, claim=None):
     # Only a user's own profile brings the shared-memory transport back: ours has no port to lose.
     watch_ports = not _ours(os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE", DDS_PROFILE))
     ports_lost, next_check = False, time.monotonic() + PORT_CHECK_PERIOD
+    stalls, next_stall_check = DdsStallWatch(), time.monotonic()
     try:
         while stop.reason is None and rclpy.ok():
             executor.spin_once(timeout_sec=0.2)   # a signal's Python handler runs between waits
             if watch_ports and time.monotonic() >= next_check:
                 ports_lost, next_check = check_ports(node, stop, ports_lost), time.monotonic() + PORT_CHECK_PERIOD
+            if time.monotonic() >= next_stall_check:
+                next_stall_check = time.monotonic() + DDS_STALL_CHECK
+                stuck = stalls.check()
+                if stuck is not None:
+                    restart_stuck(name, stuck, claim_node)
         if stop.reason is not None and rclpy.ok():
             node.get_logger().info("stopping: %s" % stop.reason)
             wind_down = getattr(node, "wind_down", None)

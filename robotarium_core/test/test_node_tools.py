@@ -1,0 +1,63 @@
+"""node_tools.DdsStallWatch with real threads of this process named as Fast DDS names its event
+threads: one blocked for good (as a deadlock blocks it) is told, one that runs is not, and a gap in
+the checks themselves (the process stopped) counts for nothing."""
+import ctypes
+import threading
+import time
+
+from robotarium_core import node_tools
+
+_PR_SET_NAME = 15
+
+
+def named_thread(name, target):
+    """A daemon thread that names itself `name` (what /proc/self/task/TID/comm shows) and runs target."""
+    started = threading.Event()
+
+    def run():
+        ctypes.CDLL(None).prctl(_PR_SET_NAME, name.encode(), 0, 0, 0)
+        started.set()
+        target()
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    started.wait(5)
+    return thread
+
+
+def test_an_event_thread_blocked_for_good_is_told_and_one_that_runs_is_not():
+    release = threading.Event()
+    named_thread("dds.ev.blocked", release.wait)     # a futex wait nothing ends: no context switch
+
+    def lively():
+        while not release.is_set():
+            time.sleep(0.02)
+    named_thread("dds.ev.lively", lively)
+    try:
+        watch = node_tools.DdsStallWatch(limit=0.6)
+        told = []
+        deadline = time.monotonic() + 5
+        while not told and time.monotonic() < deadline:
+            stuck = watch.check()
+            if stuck and "dds.ev.blocked" in stuck:
+                told.append(stuck)
+            time.sleep(0.1)
+        assert told, "a thread blocked for good was never told"
+        assert "dds.ev.lively" not in told[0] and "has not run for" in told[0], told
+    finally:
+        release.set()
+
+
+def test_a_gap_in_the_checks_counts_for_nothing():
+    release = threading.Event()
+    named_thread("dds.ev.gap", release.wait)
+    try:
+        watch = node_tools.DdsStallWatch(limit=0.6, gap=0.5)
+        watch.check()
+        time.sleep(1.0)   # the loop that checks did not run either (a stopped or starved process)
+        first = watch.check()
+        assert first is None or "dds.ev.gap" not in first, first
+        time.sleep(0.3)
+        second = watch.check()
+        assert second is None or "dds.ev.gap" not in second, second   # 0.3 s of checks: not yet
+    finally:
+        release.set()
