@@ -1,4 +1,5 @@
-"""cProfile of the safety node in a lockstep run (bench_scaling's scene): where its per-step time goes.
+"""cProfile of the safety node (or, with --node, the simulator or the recorder) in a lockstep run
+(bench_scaling's scene): where its per-step time goes.
 
 Starts the simulator (and the recorder) as `./robotarium run` does, and the safety node under
 cProfile; drives N robots for --steps lockstep steps with the real client, stops the node (SIGINT,
@@ -23,6 +24,8 @@ def main():
     parser.add_argument("--robots", type=int, default=5)
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--top", type=int, default=35)
+    parser.add_argument("--node", default="safety", choices=("safety", "simulator", "recorder"),
+                        help="the node run under cProfile (default: safety)")
     args = parser.parse_args()
     from devtools.rosutil import unique_domain_id
     os.environ["ROS_DOMAIN_ID"] = str(unique_domain_id())
@@ -37,17 +40,17 @@ def main():
     work = tempfile.mkdtemp(prefix="robotarium-profile-")
     config = bench_scaling.write_config(work, robots=args.robots)
     testbed = LocalTestbed(log_dir=work, bags_dir=os.path.join(work, "bags"), ns="/profile", config_file=config)
-    testbed.names = [name for name in testbed.names if name != "safety"]
-    stats = os.path.join(work, "safety.prof")
-    command = node_command("safety", "/profile", (), config)
+    testbed.names = [name for name in testbed.names if name != args.node]
+    stats = os.path.join(work, "%s.prof" % args.node)
+    command = node_command(args.node, "/profile", (), config)
     command[1:1] = ["-m", "cProfile", "-o", stats]
     env, pass_fds = lifeline.for_child(os.environ)
     safety = subprocess.Popen(command, env=env, pass_fds=pass_fds, start_new_session=True,
-                              stdout=open(os.path.join(work, "safety.log"), "wb"), stderr=subprocess.STDOUT)
+                              stdout=open(os.path.join(work, "%s.log" % args.node), "wb"), stderr=subprocess.STDOUT)
     try:
         testbed.start()
         processes = {name: process.pid for name, (process, _) in testbed.processes.items()}
-        processes["safety"] = safety.pid
+        processes[args.node] = safety.pid
         rate, cpu, _ = bench_scaling.run(args.robots, args.steps, config, processes)
         print("N = %d: %.0f steps/s; CPU ms/step %s" % (args.robots, rate, {k: round(v, 3) for k, v in cpu.items()}))
     finally:
