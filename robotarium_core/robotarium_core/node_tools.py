@@ -355,9 +355,10 @@ def check_ports(node, stop, noticed):
 # The node's Python goes on, DDS does not: no announcements, no liveliness, no discovery; the other
 # receive threads queue on the same mutex. Processes that start later never find the node, and its
 # peers lose it once its lease ends ("no safety node answers", run after run). The event thread
-# wakes several times a second (announcements every 0.2 s, presence liveliness every 0.17-0.25 s),
-# so one that has not run for DDS_STALL_LIMIT while the node's own loop has is stuck: the node
-# says so and starts afresh (restart_in_place) without touching DDS, which would wait for ever.
+# wakes several times a second (our profile's announcements every 0.2 s, presence liveliness every
+# 0.17-0.25 s), so one that has not run for DDS_STALL_LIMIT while the node's own loop has is stuck:
+# the node says so and starts afresh (restart_in_place) without touching DDS, which would wait for
+# ever. Under a user's own profile (announcements maybe rarer) run_node does not watch.
 
 DDS_STALL_LIMIT = 5.0   # s an event thread may go without running before its participant counts as stuck
 DDS_STALL_CHECK = 0.5   # s between looks
@@ -483,7 +484,9 @@ def run_node(make_node, name, args=None, before_destroy=None, claim=None):
         executor.add_node(claim_node)
     stop.attach(node)
     # Only a user's own profile brings the shared-memory transport back: ours has no port to lose.
+    # Ours has the event thread announce every 0.2 s: only then is 5 s without it running a stall.
     watch_ports = not _ours(os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE", DDS_PROFILE))
+    watch_stalls = not watch_ports
     ports_lost, next_check = False, time.monotonic() + PORT_CHECK_PERIOD
     stalls, next_stall_check = DdsStallWatch(), time.monotonic()
     try:
@@ -491,7 +494,7 @@ def run_node(make_node, name, args=None, before_destroy=None, claim=None):
             executor.spin_once(timeout_sec=0.2)   # a signal's Python handler runs between waits
             if watch_ports and time.monotonic() >= next_check:
                 ports_lost, next_check = check_ports(node, stop, ports_lost), time.monotonic() + PORT_CHECK_PERIOD
-            if time.monotonic() >= next_stall_check:
+            if watch_stalls and time.monotonic() >= next_stall_check:
                 next_stall_check = time.monotonic() + DDS_STALL_CHECK
                 stuck = stalls.check()
                 if stuck is not None:
