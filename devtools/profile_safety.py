@@ -1,9 +1,9 @@
 """cProfile of the safety node (or, with --node, the simulator or the recorder) in a lockstep run
 (bench_scaling's scene): where its per-step time goes.
 
-Starts the simulator (and the recorder) as `./robotarium run` does, and the safety node under
-cProfile; drives N robots for --steps lockstep steps with the real client, stops the node (SIGINT,
-so cProfile writes its numbers) and prints the top functions by cumulative and by own time.
+Starts the other nodes as `./robotarium run` does, and the profiled node under cProfile; drives N
+robots for --steps lockstep steps with the real client, stops the node (SIGINT, so cProfile writes its
+numbers) and prints the top functions by cumulative and by own time.
 Run: ./robotarium shell -c "python devtools/profile_safety.py --robots 5 --steps 2000"
 """
 import argparse
@@ -45,18 +45,18 @@ def main():
     command = node_command(args.node, "/profile", (), config)
     command[1:1] = ["-m", "cProfile", "-o", stats]
     env, pass_fds = lifeline.for_child(os.environ)
-    safety = subprocess.Popen(command, env=env, pass_fds=pass_fds, start_new_session=True,
+    profiled = subprocess.Popen(command, env=env, pass_fds=pass_fds, start_new_session=True,
                               stdout=open(os.path.join(work, "%s.log" % args.node), "wb"), stderr=subprocess.STDOUT)
     try:
         testbed.start()
         processes = {name: process.pid for name, (process, _) in testbed.processes.items()}
-        processes[args.node] = safety.pid
+        processes[args.node] = profiled.pid
         rate, cpu, _ = bench_scaling.run(args.robots, args.steps, config, processes)
         print("N = %d: %.0f steps/s; CPU ms/step %s" % (args.robots, rate, {k: round(v, 3) for k, v in cpu.items()}))
     finally:
         testbed.stop()
-        os.killpg(safety.pid, signal.SIGINT)
-        safety.wait(timeout=30)
+        os.killpg(profiled.pid, signal.SIGINT)
+        profiled.wait(timeout=30)
     time.sleep(0.2)
     for key in ("cumulative", "tottime"):
         pstats.Stats(stats).sort_stats(key).print_stats(args.top)

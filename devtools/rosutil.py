@@ -125,20 +125,6 @@ class NodeProcess:
         time.sleep(wait)
         return self.output()[before:]
 
-    def threads(self, prefix):
-        """{thread id: name} of the node's threads whose name starts with `prefix` ("dds.ev.": Fast DDS's
-        event threads)."""
-        found = {}
-        for tid in os.listdir("/proc/%d/task" % self.proc.pid):
-            try:
-                with open("/proc/%d/task/%s/comm" % (self.proc.pid, tid)) as f:
-                    name = f.read().strip()
-            except OSError:
-                continue
-            if name.startswith(prefix):
-                found[int(tid)] = name
-        return found
-
 
 class FrozenThread:
     """One thread of another process stopped for real, as a deadlock stops it: ptrace's PTRACE_SEIZE,

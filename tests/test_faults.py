@@ -684,14 +684,14 @@ def test_a_node_whose_fast_dds_event_thread_stops_starts_afresh_and_the_next_cli
     lab = healthy
     node = lab.nodes["safety"]
     pid = node.proc.pid
-    (tid,) = node.threads("dds.ev.")
+    (tid,) = node_tools.dds_event_threads(pid)
     frozen = FrozenThread(tid)
     try:
         assert lab.probe.spin_until(lambda: frozen.gone(), node_tools.DDS_STALL_LIMIT + 15), node.output()
     finally:
         frozen.release()
     assert "Fast DDS stopped in this process: dds.ev.0 (thread %d) has not run for" % tid in node.output(), node.output()
-    assert lab.probe.spin_until(lambda: node.threads("dds.ev.") and tid not in node.threads("dds.ev.")
+    assert lab.probe.spin_until(lambda: node_tools.dds_event_threads(pid) and tid not in node_tools.dds_event_threads(pid)
                                 and lab.watches["safety"].alive, 30), node.output()
     assert node.alive() and node.proc.pid == pid
     r = client(LINE3)

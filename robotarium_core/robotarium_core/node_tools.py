@@ -364,19 +364,19 @@ DDS_STALL_LIMIT = 5.0   # s an event thread may go without running before its pa
 DDS_STALL_CHECK = 0.5   # s between looks
 
 
-def _task_file(tid, name):
+def _task_file(tid, name, pid="self"):
     try:
-        with open("/proc/self/task/%d/%s" % (tid, name)) as f:
+        with open("/proc/%s/task/%d/%s" % (pid, tid, name)) as f:
             return f.read()
     except OSError:
         return None   # the thread ended
 
 
-def dds_event_threads():
-    """{thread id: name} of this process's Fast DDS event threads ("dds.ev.N", one per participant)."""
+def dds_event_threads(pid="self"):
+    """{thread id: name} of process `pid`'s Fast DDS event threads ("dds.ev.N", one per participant)."""
     threads = {}
-    for entry in os.listdir("/proc/self/task"):
-        comm = _task_file(int(entry), "comm")
+    for entry in os.listdir("/proc/%s/task" % pid):
+        comm = _task_file(int(entry), "comm", pid)
         if comm is not None and comm.startswith("dds.ev."):
             threads[int(entry)] = comm.strip()
     return threads
@@ -485,8 +485,8 @@ def run_node(make_node, name, args=None, before_destroy=None, claim=None):
     stop.attach(node)
     # Only a user's own profile brings the shared-memory transport back: ours has no port to lose.
     # Ours has the event thread announce every 0.2 s: only then is 5 s without it running a stall.
-    watch_ports = not _ours(os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE", DDS_PROFILE))
-    watch_stalls = not watch_ports
+    ours = _ours(os.environ.get("FASTRTPS_DEFAULT_PROFILES_FILE", DDS_PROFILE))
+    watch_ports, watch_stalls = not ours, ours
     ports_lost, next_check = False, time.monotonic() + PORT_CHECK_PERIOD
     stalls, next_stall_check = DdsStallWatch(), time.monotonic()
     try:
