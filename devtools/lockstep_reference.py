@@ -34,7 +34,7 @@ def run(robotarium):
     poses = []
     for _ in range(STEPS):
         x = robotarium.get_poses()
-        poses.append(x)
+        poses.append(x.copy())   # rps hands out its own array, which step() updates in place
         robotarium.set_velocities(np.arange(6), controller(x, GOALS))
         robotarium.step()
     poses.append(robotarium.get_poses())
@@ -47,22 +47,26 @@ def run(robotarium):
 def in_process(config):
     """The same scenario without ROS: what the safety node's filter and the simulator's model
     make of the controller's commands, step by step. Returns the poses of every step and the
-    Robotarium's part of the debug report."""
+    debug report (the safety layer steers: it says how much, and gives no count of the Robotarium's)."""
     from robotarium_core import model
-    from robotarium_safety.barrier_certificates import create_unicycle_barrier_certificate_with_centre_boundary
     from robotarium_safety.guard import filter_commands
+    from robotarium_safety.testbed_certificate import TestbedCertificate
     from rps.utilities.controllers import create_clf_unicycle_position_controller
     controller = create_clf_unicycle_position_controller()
-    certificate = create_unicycle_barrier_certificate_with_centre_boundary(**config.safety_certificate)
+    certificate = TestbedCertificate(config)
     testbed = model.Testbed(START.copy(), config)
+    tally = model.RunTally()
     poses = []
     for _ in range(STEPS):
         x = testbed.poses.copy()
         poses.append(x)
-        safe, _, over_limits, _ = filter_commands(certificate, controller(x, GOALS), x, config)
-        testbed.set_commands(np.arange(6), safe[0], safe[1], requested_exceeds_limits=over_limits)
+        filtered = filter_commands(certificate, controller(x, GOALS), x, config)
+        change = float(filtered.change.max())
+        tally.add_safety_report(model.is_intervention(change > 0, change, config.intervention_tolerance), change)
+        testbed.set_commands(np.arange(6), filtered.safe[0], filtered.safe[1],
+                             requested_exceeds_limits=filtered.over_limits)
         testbed.step()
     poses.append(testbed.poses.copy())
     report = model.debug_report(testbed.steps, testbed.boundary_violations, testbed.collisions,
-                                testbed.actuator_limit_iterations, config.time_step)
+                                testbed.actuator_limit_iterations, config.time_step, safety=tally.safety(STEPS))
     return np.array(poses), report

@@ -79,48 +79,6 @@ def uni_exact(dxu, x, gain=100, radius=0.12, l=0.05, limit=0.2, boundary=None, u
                               unsafe_gain=unsafe_gain), x, l)
 
 
-def uni_centre_exact(dxu, x, gain=100, radius=0.12, l=0.05, limit=0.2, boundary=ARENA, margin=0.055,
-                     collision=0.11 + 0.005, rate=0.2, step=0.033):
-    """The safety node's certificate (create_unicycle_barrier_certificate_with_centre_boundary),
-    posed in the unicycle commands themselves: w = (v_1, w_1, v_2, ...), the point ahead moves at
-    u_k = M_k w_k with M_k = [[c, -l s], [s, l c]]; min |u - dxi|^2 over the pair rows of
-    uni_exact with their bounds clipped at 0, and rows on the centres (velocity v_k (c, s)), every pair and every robot:
-    - held `margin` inside `boundary`: v c >= -q(x - x_min - margin) and the like, with
-      q(gap) = max(0, min(0.4 g gap^3, gap / step));
-    - pairs, e = centre_i - centre_j, h = |e|^2 - collision^2, r = max(0, rate h / step):
-      each robot's own share of the approach, 2 v_i e.n_i >= -r/2 and -2 v_j e.n_j >= -r/2."""
-    n = dxu.shape[1]
-    dxi, p = uni_to_si(dxu, x, l)
-    H_si, f_si, A_si, b_si, _ = si_qp(dxi, p, gain=gain, radius=radius + l, limit=limit)
-    M = np.zeros((2 * n, 2 * n))
-    for k in range(n):
-        c, s = np.cos(x[2, k]), np.sin(x[2, k])
-        M[2 * k:2 * k + 2, 2 * k:2 * k + 2] = [[c, -l * s], [s, l * c]]
-    rows, rhs = [r @ M for r in A_si], [max(b, 0.0) for b in b_si]   # overlapping points: held, not pushed
-    for k in range(n):
-        c, s = np.cos(x[2, k]), np.sin(x[2, k])
-        for axis, heading in ((0, c), (1, s)):
-            low, high = boundary[2 * axis] + margin, boundary[2 * axis + 1] - margin
-            for sign, gap in ((1, high - x[axis, k]), (-1, x[axis, k] - low)):
-                row = np.zeros(2 * n)
-                row[2 * k] = sign * heading            # sign * (centre velocity along axis) <= bound
-                rows.append(row)
-                rhs.append(max(min(0.4 * gain * gap ** 3, gap / step), 0.0))
-    for i in range(n - 1):
-        for j in range(i + 1, n):
-            e = x[:2, i] - x[:2, j]
-            h = e @ e - collision ** 2
-            share = max(rate * h / step, 0.0) / 2
-            for k, sign in ((i, 1), (j, -1)):      # -sign 2 (e.n_k) v_k <= share
-                row = np.zeros(2 * n)
-                row[2 * k] = -sign * 2 * (e @ [np.cos(x[2, k]), np.sin(x[2, k])])
-                rows.append(row)
-                rhs.append(share)
-    w = solve_le(M.T @ H_si @ M, M.T @ f_si, np.array(rows), np.array(rhs)).reshape(2, -1, order="F")
-    w[1] = np.clip(w[1], -np.pi, np.pi)
-    return w
-
-
 def dd_qp(dxu, x, obstacles=None, d=5, wheel_limit=12.5, base=0.105, wheel_r=0.016, l=0.05, gain=150, radius=0.17,
           boundary=None):
     """(H, f, A, b, D) with  min 1/2 w'Hw + f'w  s.t.  A w >= b  in the wheel speeds w."""

@@ -252,6 +252,7 @@ TWIST_ARRAY = Layout("robotarium_msgs/msg/TwistArray", HEADER + (
     ("ids", _Sequence(np.uint32)),
     ("twists", _Sequence(np.float64, 6)),     # linear x, y, z, angular x, y, z per robot
     ("requested_exceeds_limits", BOOL),
+    ("refreshed", BOOL),
 ))
 
 ROBOT_POSES = Layout("robotarium_msgs/msg/RobotPoses", HEADER + (
@@ -272,8 +273,7 @@ SAFETY_REPORT = Layout("robotarium_msgs/msg/SafetyReport", HEADER + (
     ("robots_changed", UINT32), ("solve_time", FLOAT64), ("solver_status", STRING),
     ("foreign", UINT64), ("oversized", UINT64), ("malformed", UINT64), ("nonfinite", UINT64),   # dropped (DropCounts)
     ("length_mismatch", UINT64), ("unknown_id", UINT64), ("stale", UINT64),
-    ("pose_age", FLOAT64), ("audit", BOOL), ("unfiltered_collisions", UINT32),
-    ("unfiltered_boundary_violations", UINT32),
+    ("pose_age", FLOAT64), ("audit", BOOL), ("refreshed", BOOL),
 ))
 
 POSE_ARRAY = Layout("geometry_msgs/msg/PoseArray", HEADER + (
@@ -305,14 +305,15 @@ MARKER = Layout("visualization_msgs/msg/Marker", HEADER + (
 _TWIST_ARRAY_HEAD = Layout("robotarium_msgs/msg/TwistArray", HEADER + (("token", STRING),))
 
 # A parsed command array: ids, v (linear.x) and omega (angular.z) as numpy arrays.
-Commands = namedtuple("Commands", "token step ids v omega requested_exceeds_limits sec nanosec")
+Commands = namedtuple("Commands", "token step ids v omega requested_exceeds_limits sec nanosec refreshed",
+                      defaults=(False,))
 
 
 def max_twist_array_bytes(max_robots: int) -> int:
     """The most bytes a serialized TwistArray of at most `max_robots` robots can take: the
     encapsulation, the header with a frame_id of MAX_STRING bytes, a token of as many, the step,
-    max_robots ids and twists, the flag, and every alignment pad (at most 7 bytes each)."""
-    return 4 + 8 + 2 * (4 + MAX_STRING) + 8 + (4 + 4 * max_robots) + (4 + 48 * max_robots) + 1 + 5 * 7
+    max_robots ids and twists, the two flags, and every alignment pad (at most 7 bytes each)."""
+    return 4 + 8 + 2 * (4 + MAX_STRING) + 8 + (4 + 4 * max_robots) + (4 + 48 * max_robots) + 2 + 5 * 7
 
 
 def parse_commands(data: bytes | bytearray | memoryview, max_robots: int, token: str | None = None) -> Commands:
@@ -330,7 +331,8 @@ def parse_commands(data: bytes | bytearray | memoryview, max_robots: int, token:
         raise CdrError("the array does not carry the running experiment's token", FOREIGN)
     msg = TWIST_ARRAY.parse(data, max_elements=max_robots)
     return Commands(msg.token, msg.step, msg.ids.astype(np.int64), msg.twists[:, 0].astype(float),
-                    msg.twists[:, 5].astype(float), bool(msg.requested_exceeds_limits), msg.sec, msg.nanosec)
+                    msg.twists[:, 5].astype(float), bool(msg.requested_exceeds_limits), msg.sec, msg.nanosec,
+                    bool(msg.refreshed))
 
 
 def twists(v: np.ndarray | Sequence[float], w: np.ndarray | Sequence[float]) -> np.ndarray:

@@ -53,19 +53,14 @@ FIELDS = {
     "time_step": Field("s of simulated time per step", 0.0, 1.0),
     "rate": Field("Hz of the real-time loop (one step per tick)", 0.0, 1000.0, used_by=(SIMULATOR,)),
     "command_timeout": Field("s; a robot whose last command is older stops until a new one arrives", 0.0,
-                             used_by=(SIMULATOR,)),
-    "barrier_gain": Field("how fast robots may approach each other and the boundary", 0.0, used_by=(SAFETY,)),
-    "safety_radius": Field("m kept between the points ahead of the robots", 0.0, used_by=(SAFETY,)),
-    "projection_distance": Field("m ahead of the axle where the single-integrator point sits", 0.0,
-                                 used_by=(SAFETY,)),
-    "magnitude_limit": Field("m/s, speed bound inside the barrier QP", 0.0, used_by=(SAFETY,)),
-    "boundary_margin": Field("m each robot's centre keeps from the arena edge", 0.0, 0.5, low_open=False,
-                             used_by=(SAFETY,)),
+                             used_by=(SIMULATOR, SAFETY)),
+    "boundary_margin": Field("m each robot's centre keeps from the arena edge (beyond what a latency adds)", 0.0, 0.5,
+                             low_open=False, used_by=(SAFETY,)),
     "collision_margin": Field("m beyond robot_diameter that the safety node keeps between robot centres", 0.0, 0.5,
                               used_by=(SAFETY,)),
-    "collision_barrier_rate": Field("fraction of the gap |e|^2 - (robot_diameter + collision_margin)^2 two robot "
-                                    "centres may close in one step (the safety node's discrete-time barrier)",
-                                    0.0, 1.0, used_by=(SAFETY,)),
+    "barrier_rate": Field("fraction of its remaining gap a pair of robot centres (in squared distance) or a centre "
+                          "and the arena's margin line may close in one step (the safety node's discrete-time "
+                          "barrier)", 0.0, 1.0, used_by=(SAFETY,)),
     "pose_timeout": Field("s; commands filtered with poses older than this become a stop", 0.0, used_by=(SAFETY,)),
     "lockstep_wait": Field("s a lockstep command waits for the poses it was computed from", 0.0, used_by=(SAFETY,)),
     "intervention_tolerance": Field("m/s or rad/s; a safe command further than this from the requested one is "
@@ -174,6 +169,9 @@ FIELDS = {
     "random_pose_min_spacing": Field("m; random 2.x initial conditions are never closer", 0.0, used_by=(CLIENT,)),
     "random_pose_area": Field("m, width and height of the box random 2.x initial conditions lie in", 0.0,
                               used_by=(CLIENT,), length=2),
+    "safety_radius": Field("m; 2.x drive-on: points projection_distance ahead kept at least this plus "
+                           "projection_distance apart", 0.0, used_by=(CLIENT,)),
+    "projection_distance": Field("m ahead of the axle where the drive-on's barrier point sits", 0.0, used_by=(CLIENT,)),
     "charger_spacing": Field("m between the charger slots robots drive on from", 0.0, used_by=(CLIENT,)),
     "drive_on_wave_margin": Field("m; a robot waits on its charger until those going deeper are this much past its goal",
                                   0.0, used_by=(CLIENT,)),
@@ -281,18 +279,6 @@ class _TestbedConfigBehaviour:
         return dict(max_linear=self.max_linear_velocity, max_angular=self.max_angular_velocity,
                     max_wheel=self.max_wheel_velocity, wheel_radius=self.wheel_radius,
                     base_length=self.base_length)
-
-    @property
-    def safety_certificate(self) -> dict[str, float | tuple[float, ...]]:
-        """Keyword arguments of the safety node's certificate
-        (robotarium_safety.barrier_certificates.create_unicycle_barrier_certificate_with_centre_boundary):
-        it keeps robot centres robot_diameter + collision_margin apart, the collision rule the
-        simulator and the report count with, per time_step."""
-        return dict(barrier_gain=self.barrier_gain, safety_radius=self.safety_radius,
-                    projection_distance=self.projection_distance, magnitude_limit=self.magnitude_limit,
-                    boundary_points=self.arena, boundary_margin=self.boundary_margin,
-                    collision_distance=self.robot_diameter, collision_margin=self.collision_margin,
-                    collision_barrier_rate=self.collision_barrier_rate, time_step=self.time_step)
 
     # -- reading and writing -------------------------------------------------------------------------
 

@@ -121,11 +121,10 @@ def test_safety_report_is_rclpys_message_byte_for_byte(solver_status):
     drops = {name: int(k) * 3 + 1 for k, name in enumerate(DropCounts.get_fields_and_field_types())}
     values = dict(sec=5, nanosec=7, frame_id="arena", step=2**33, status=SafetyReport.STATUS_SATURATED,
                   number_of_robots=20, max_change=0.125, robots_changed=3, solve_time=1.5e-4,
-                  solver_status=solver_status, pose_age=-1.0, audit=True, unfiltered_collisions=4,
-                  unfiltered_boundary_violations=9, **drops)
+                  solver_status=solver_status, pose_age=-1.0, audit=True, **drops)
     msg = SafetyReport(step=2**33, status=SafetyReport.STATUS_SATURATED, number_of_robots=20, max_change=0.125,
                        robots_changed=3, solve_time=1.5e-4, solver_status=solver_status, pose_age=-1.0, audit=True,
-                       unfiltered_collisions=4, unfiltered_boundary_violations=9, dropped=DropCounts(**drops))
+                       dropped=DropCounts(**drops))
     msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id = 5, 7, "arena"
     ours = cdr.SAFETY_REPORT.build(**values)
     assert same_bytes(ours, cdr.SAFETY_REPORT, values, serialize_message(msg))

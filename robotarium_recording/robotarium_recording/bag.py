@@ -261,7 +261,8 @@ class Bag:
                                message.log_time, np.asarray(msg.ids, dtype=np.int64),
                                np.array([t.linear.x for t in msg.twists], dtype=float),
                                np.array([t.angular.z for t in msg.twists], dtype=float),
-                               bool(getattr(msg, "requested_exceeds_limits", False))))
+                               bool(getattr(msg, "requested_exceeds_limits", False)),
+                               bool(getattr(msg, "refreshed", False))))
         return out
 
     @_once
@@ -310,7 +311,8 @@ class Bag:
 
 PoseTrack = namedtuple("PoseTrack", "steps sim_time stamp_ns log_ns ids x y theta")
 # requested_exceeds_limits: False in bags recorded before the field existed.
-Command = namedtuple("Command", "step stamp_ns log_ns ids v omega requested_exceeds_limits", defaults=(False,))
+Command = namedtuple("Command", "step stamp_ns log_ns ids v omega requested_exceeds_limits refreshed",
+                     defaults=(False, False))
 
 
 def recover_bag(path):

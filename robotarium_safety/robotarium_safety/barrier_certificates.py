@@ -4,18 +4,8 @@ Each creator has the name, parameters and defaults of the guide (../shared/seed/
 robotarium_python_guide.txt §4.5-4.6) and of the Robotarium Python simulator it documents (PyPI
 robotarium-python-simulator 0.0.0, "rps": rps/utilities/barrier_certificates.py and
 barrier_certificates2.py), and returns a function with the guide's call signature that poses the
-same minimally invasive QP as its rps namesake. The safety node's certificate,
-create_unicycle_barrier_certificate_with_centre_boundary (not in the guide; every number from the
-testbed configuration), adds rows on the robots' centres that carry the testbed's guarantee:
-
-    Whatever the requested commands, after every step every two robot centres are more than
-    robot_diameter apart (at least robot_diameter + collision_margin, or, for a pair that started
-    closer, no closer than at the start), and every centre stays boundary_margin inside the arena,
-    provided each step's command was filtered at the poses that step starts from and the robots
-    move as model.Testbed.step moves them after any scaling of (v, w) by a factor in [0, 1].
-
-The formulas of every certificate, the guarantee's assumptions and its proof are in
-docs/safety.md ("The certificates in formulas", "Why the guarantee holds").
+same minimally invasive QP as its rps namesake. (The safety node's own certificate is
+robotarium_safety.testbed_certificate: no QP.) The formulas: docs/safety.md.
 
 Where we differ from rps, on purpose: the caller's arrays are never modified (rps scales dxi in
 place); inputs are validated with a RobotariumError that names the parameter; the unicycle
@@ -40,7 +30,6 @@ import time
 
 import numpy as np
 
-from robotarium_core.config import DEFAULT
 from robotarium_core.model import (
     ARENA_X_MAX,
     ARENA_X_MIN,
@@ -226,13 +215,9 @@ def _single_integrator_pair_rate(speed_bound):
 
 
 class _SingleIntegratorQP:
-    def __init__(self, barrier_gain, unsafe_barrier_gain, safety_radius, magnitude_limit, boundary_points,
-                 hold_overlaps=False):
+    def __init__(self, barrier_gain, unsafe_barrier_gain, safety_radius, magnitude_limit, boundary_points):
         self.gain = barrier_gain
         self.unsafe_gain = unsafe_barrier_gain   # None: one gain everywhere
-        # True: a pair already closer than safety_radius may not come closer, but is not pushed
-        # apart (bound clipped at 0), so that standing still satisfies every row (the safety node's).
-        self.hold_overlaps = hold_overlaps
         self.radius = safety_radius
         self.limit = magnitude_limit
         self.boundary = boundary_points
@@ -269,12 +254,11 @@ class _SingleIntegratorQP:
         h = np.einsum("ij,ij->i", e, e) - self.radius ** 2
         gain = self.gain if self.unsafe_gain is None else np.where(h >= 0, self.gain, self.unsafe_gain)
         coef = np.hstack([-2 * e, 2 * e])
-        bound = np.maximum(gain * h ** 3, 0.0) if self.hold_overlaps else gain * h ** 3
+        bound = gain * h ** 3
         return Rows(len(p), pairs, coef, np.full(len(pairs), -np.inf), bound, *boundary)
 
-    def __call__(self, dxi, x, boundary=None):
-        """dxi, x: 2 x N float arrays this object may modify; boundary: robot rows that replace the
-        boundary_points rows (see _centre_boundary_rows). Returns (answer 2 x N, unchanged)."""
+    def __call__(self, dxi, x):
+        """dxi, x: 2 x N float arrays this object may modify. Returns (answer 2 x N, unchanged)."""
         n = dxi.shape[1]
         info = self.info
         reset_info(info, n)
@@ -284,8 +268,7 @@ class _SingleIntegratorQP:
         dxi[:, over] *= self.limit / norms[over]
         z0 = np.ascontiguousarray(dxi.T)
         p = np.ascontiguousarray(x.T)
-        if boundary is None:
-            boundary = self._boundary_rows(p)
+        boundary = self._boundary_rows(p)
 
         bound = self._first_bound
         for widenings in range(_MAX_PRUNED_ROUNDS + 1):
@@ -371,80 +354,8 @@ def _single_integrator_function(where, barrier_gain, unsafe_barrier_gain, safety
 # Unicycle (through the single integrator at a point ahead of the robot)
 
 
-class _CentreGuard:
-    """The centre rows of the safety node's certificate (the module docstring derives them): each
-    is `s v_k <= b` on one robot's forward speed v_k, with b >= 0.
-
-    In the QP they are robot rows on u_k (the velocity of the point ahead; v_k = n_k.u_k), so their
-    coefficient is s n_k. `clamp` then puts each v_k inside the interval its rows allow, so that
-    they hold exactly whatever OSQP's tolerance.
-
-    Pairs too far apart to need a row: with |v| <= S, the rows of pair (i, j) hold whenever
-    gamma h / T >= 4 S d (d = |e|; their left side is at most 2 d S, their bound gamma h / (2 T)),
-    that is for d >= d* = a + sqrt(a^2 + D^2) with a = 2 S T / gamma. The QP's rows assume
-    S = speed_bound; the clamp uses the answer's own S. Why leaving such a pair out is safe in one
-    step, directly: each centre moves at most S T, so h' >= (d - 2 S T)^2 - D^2 >= h - 4 S T d
-    >= (1 - gamma) h, the discrete barrier the rows keep (robotarium_safety/test/test_safety_guarantee.py checks it
-    on the simulator's motion, head-on at the cutoff).
-    """
-
-    def __init__(self, gain, boundary, boundary_margin, distance, rate, time_step, speed_bound):
-        self.gain, self.boundary, self.margin = gain, boundary, boundary_margin
-        self.distance, self.rate, self.time_step, self.speed_bound = distance, rate, time_step, speed_bound
-        self._neighbours = NeighbourCache()
-
-    def cutoff(self, speed):
-        a = 2 * speed * self.time_step / self.rate
-        return a + math.sqrt(a * a + self.distance ** 2)
-
-    def rows(self, x, c, s, speed):
-        """(robot, key, s, b) of every row that a forward speed up to `speed` could break."""
-        n = x.shape[1]
-        centre = np.ascontiguousarray(x[:2].T)
-        x_min, x_max, y_min, y_max = self.boundary
-        m = self.margin
-        gaps = np.stack([x_max - m - centre[:, 0], centre[:, 0] - x_min - m,
-                         y_max - m - centre[:, 1], centre[:, 1] - y_min - m], axis=1)
-        edge_coef = np.stack([c, -c, s, -s], axis=1)
-        edge_bound = np.maximum(np.minimum(0.4 * self.gain * gaps ** 3, gaps / self.time_step), 0.0)
-
-        pairs = self._neighbours.pairs(centre, self.cutoff(speed))
-        i, j = pairs[:, 0], pairs[:, 1]
-        e = centre[i] - centre[j]
-        h = np.einsum("ij,ij->i", e, e) - self.distance ** 2
-        half = np.maximum(self.rate * h / self.time_step, 0.0) / 2
-        coef_i = -2 * (e[:, 0] * c[i] + e[:, 1] * s[i])
-        coef_j = 2 * (e[:, 0] * c[j] + e[:, 1] * s[j])
-        key = 4 * n + 2 * (i * n + j)
-        return (np.concatenate([np.repeat(np.arange(n, dtype=np.intp), 4), i, j]),
-                np.concatenate([np.arange(4 * n), key, key + 1]),
-                np.concatenate([edge_coef.ravel(), coef_i, coef_j]),
-                np.concatenate([edge_bound.ravel(), half, half]))
-
-    @staticmethod
-    def qp_rows(rows, c, s):
-        """The rows in the QP's variables: robot rows (s n_k).u_k <= b for Rows."""
-        robot, key, coef, bound = rows
-        return robot, key, coef[:, None] * np.stack([c[robot], s[robot]], axis=1), np.full(len(robot), -np.inf), bound
-
-    def clamp(self, v, x, c, s, rows):
-        """v with each entry moved into the interval its rows allow (which holds 0)."""
-        if v.size and np.abs(v).max() > self.speed_bound:
-            rows = self.rows(x, c, s, float(np.abs(v).max()))  # faster than the QP's rows assumed
-        robot, _, coef, bound = rows
-        high = np.full(len(v), np.inf)
-        low = np.full(len(v), -np.inf)
-        up, down = coef > 0, coef < 0
-        with np.errstate(over="ignore"):   # a vanishing coefficient bounds nothing: +-inf is the right limit
-            np.minimum.at(high, robot[up], bound[up] / coef[up])
-            np.maximum.at(low, robot[down], bound[down] / coef[down])
-        return np.minimum(np.maximum(v, low), high)
-
-
 def _unicycle_function(where, barrier_gain, unsafe_barrier_gain, safety_radius, projection_distance,
-                       magnitude_limit, boundary_points, gain_what="the barrier gain", centre=None):
-    """centre: None, or (boundary_margin, centre distance D, rate, time_step) for the safety node's
-    centre rows (_CentreGuard), which then replace the boundary rows on the points ahead."""
+                       magnitude_limit, boundary_points, gain_what="the barrier gain"):
     gain = _positive(where, "barrier_gain", gain_what, barrier_gain)
     unsafe = None
     if unsafe_barrier_gain is not None:
@@ -456,10 +367,7 @@ def _unicycle_function(where, barrier_gain, unsafe_barrier_gain, safety_radius, 
     limit = _magnitude_limit(where, magnitude_limit)
     boundary = None if boundary_points is None else _boundary_points(where, boundary_points)
     # rps: the single-integrator certificate with radius safety_radius + projection_distance.
-    # With `centre` the boundary rows are on the centres, not on the points ahead.
-    core = _SingleIntegratorQP(gain, unsafe, radius + distance, limit, None if centre is not None else boundary,
-                               hold_overlaps=centre is not None)
-    guard = None if centre is None else _CentreGuard(gain, boundary, *centre, speed_bound=_SPEED_BOUND_FACTOR * limit)
+    core = _SingleIntegratorQP(gain, unsafe, radius + distance, limit, boundary)
 
     def f(dxu, x):
         start = time.perf_counter()
@@ -469,30 +377,16 @@ def _unicycle_function(where, barrier_gain, unsafe_barrier_gain, safety_radius, 
         c, s = np.cos(x[2]), np.sin(x[2])
         points = x[:2] + distance * np.stack([c, s])
         dxi = np.stack([c * dxu[0] - distance * s * dxu[1], s * dxu[0] + distance * c * dxu[1]])
-        rows = None if guard is None else guard.rows(x, c, s, guard.speed_bound)
-        qp_rows = None if guard is None else guard.qp_rows(rows, c, s)
-        if qp_rows is not None and len(f.obstacles):   # line-segment obstacles: see obstacle_rows below
-            n = x.shape[1]
-            qp_rows = _join_robot_rows(qp_rows, obstacle_rows(x, c, s, f.obstacles, distance, f.obstacle_offset,
-                                                              f.obstacle_radius, gain, 4 * n + 2 * n * n + 2))
-        safe, unchanged = core(dxi, points, qp_rows)
+        safe, unchanged = core(dxi, points)
         if unchanged and np.all(np.abs(dxu[1]) <= ANGULAR_VELOCITY_LIMIT):
             answer = dxu   # the request was safe and within the limits: return it exactly
         else:
             answer = np.stack([c * safe[0] + s * safe[1], (-s * safe[0] + c * safe[1]) / distance])
             np.clip(answer[1], -ANGULAR_VELOCITY_LIMIT, ANGULAR_VELOCITY_LIMIT, out=answer[1])
-        if guard is not None and not core.info["fallback"]:
-            v = guard.clamp(answer[0], x, c, s, rows)
-            clamped = v != answer[0]
-            if clamped.any():
-                core.info["clamped"] = float(np.abs(v - answer[0]).max())
-                answer = np.stack([v, answer[1]])
         end_call(core.info, start)
         return answer
 
     f.info = core.info
-    f.obstacles = np.zeros((0, 2, 2))   # the safety node's certificate only: see obstacle_rows
-    f.obstacle_offset, f.obstacle_radius = 0.0, 0.0
     return f
 
 
@@ -513,50 +407,6 @@ def create_unicycle_barrier_certificate_with_boundary(barrier_gain=100, safety_r
     where = "create_unicycle_barrier_certificate_with_boundary"
     return _unicycle_function(where, barrier_gain, None, safety_radius, projection_distance, magnitude_limit,
                               boundary_points)
-
-
-def create_unicycle_barrier_certificate_with_centre_boundary(
-        barrier_gain=DEFAULT.barrier_gain, safety_radius=DEFAULT.safety_radius,
-        projection_distance=DEFAULT.projection_distance, magnitude_limit=DEFAULT.magnitude_limit,
-        boundary_points=np.array(DEFAULT.arena), boundary_margin=DEFAULT.boundary_margin,
-        collision_distance=DEFAULT.robot_diameter, collision_margin=DEFAULT.collision_margin,
-        collision_barrier_rate=DEFAULT.collision_barrier_rate, time_step=DEFAULT.time_step):
-    """The testbed's safety certificate (not in the guide; the safety node's, built from the
-    testbed configuration: create_unicycle_barrier_certificate_with_centre_boundary(**config.safety_certificate);
-    the defaults are the packaged configuration's): f(dxu, x) -> safe dxu, x is 3 x N.
-
-    The guide's unicycle certificate (pair rows on the points projection_distance ahead, kept
-    safety_radius + projection_distance apart) plus rows on the robots' centres, which guarantee,
-    step by step at time_step (the module docstring states the assumptions and the proof):
-    - every two centres stay more than collision_distance apart (the simulator's collision rule),
-      at least collision_distance + collision_margin or, if they started closer, no closer;
-    - every centre stays boundary_margin (m, >= 0; default a robot's radius, so the whole robot)
-      inside boundary_points, or moves no further out.
-
-    Why the boundary is on the centre, not the point ahead as in the guide's rows: those hold the
-    point (safety_radius + projection_distance) / 2 = 8.5 cm inside, so a robot near the edge can
-    neither drive towards it nor turn there. generate_initial_conditions draws goals 10 cm from the
-    edge, and as the always-on layer those rows stalled the guide's own go-to-pose script (3.2.1) a
-    few centimetres from its goals. A turn never moves the centre: these rows leave it free.
-    """
-    where = "create_unicycle_barrier_certificate_with_centre_boundary"
-    margin = _at_least(where, "boundary_margin", "the distance kept from the boundary", boundary_margin, 0)
-    x_min, x_max, y_min, y_max = _boundary_points(where, boundary_points)
-    if 2 * margin >= min(x_max - x_min, y_max - y_min):
-        raise RobotariumError(
-            f"In the function {where}, the distance kept from the boundary (boundary_margin) must be less than "
-            f"half the arena's width and height. Received {margin!r} for boundary_points {boundary_points!r}.")
-    collision = _positive(where, "collision_distance", "the centre distance that counts as a collision",
-                          collision_distance)
-    extra = _positive(where, "collision_margin", "the distance kept beyond collision_distance", collision_margin)
-    rate = _positive(where, "collision_barrier_rate", "the fraction of the gap two robots may close in a step",
-                     collision_barrier_rate)
-    if rate > 1:
-        raise RobotariumError(f"In the function {where}, the fraction of the gap two robots may close in a step "
-                              f"(collision_barrier_rate) must be at most 1. Received {rate!r}.")
-    step = _positive(where, "time_step", "the time step of the simulation", time_step)
-    return _unicycle_function(where, barrier_gain, None, safety_radius, projection_distance, magnitude_limit,
-                              boundary_points, centre=(margin, collision + extra, rate, step))
 
 
 def create_unicycle_barrier_certificate2(barrier_gain=500, unsafe_barrier_gain=1e6, safety_radius=0.12,
@@ -759,47 +609,3 @@ create_uni_barrier_certificate = create_unicycle_barrier_certificate
 create_uni_barrier_certificate_with_boundary = create_unicycle_barrier_certificate_with_boundary
 
 
-# ---------------------------------------------------------------------------------------------
-# Line-segment obstacles (2.x experiments; the safety node's certificate only). Kept apart from the
-# pair and boundary rows above: the safety node sets f.obstacles (M x 2 x 2 segments),
-# f.obstacle_offset (m ahead of the axle where the robot's collider sits) and f.obstacle_radius
-# (m the collider's centre keeps from every segment) on the function that
-# create_unicycle_barrier_certificate_with_centre_boundary returns.
-#
-# The collider's centre c = (x, y) + a n (n = (cos t, sin t), a = offset) moves at
-# v n + a w n_perp; with the QP's variable u (the velocity of the point l = projection_distance
-# ahead: v = n.u, w = n_perp.u / l) that is M u with M = n n' + (a / l) n_perp n_perp'. With q the
-# segment's point nearest c, e = c - q and h = |e|^2 - R^2, the row
-#     2 e' M u >= -g h^3      (lower bound clipped at 0: a robot already too close may not get closer)
-# is the cubic barrier on the distance to the segment (as the pair rows), linear in u and satisfied
-# by u = 0, so the QP stays feasible. Rows of segments farther than R + OBSTACLE_REACH are left out.
-
-OBSTACLE_REACH = 0.3   # m beyond the kept distance where a segment's row is posed
-
-
-def _join_robot_rows(a, b):
-    return tuple(np.concatenate([x, y]) for x, y in zip(a, b))
-
-
-def obstacle_rows(x, c, s, segments, projection_distance, offset, radius, gain, key_base):
-    """Robot rows (robot, key, coefficients, lower, upper) keeping colliders off the segments."""
-    m = len(segments)
-    centres = np.stack([x[0] + offset * c, x[1] + offset * s], axis=1)                  # N x 2
-    a, b = segments[None, :, 0, :], segments[None, :, 1, :]
-    ab = b - a
-    length2 = np.einsum("ijk,ijk->ij", ab, ab)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.where(length2 > 0, np.einsum("ijk,ijk->ij", centres[:, None, :] - a, ab) / length2, 0.0)
-    e = centres[:, None, :] - (a + np.clip(t, 0.0, 1.0)[..., None] * ab)                # N x M x 2
-    d2 = np.einsum("ijk,ijk->ij", e, e)
-    robot, segment = np.nonzero(d2 < (radius + OBSTACLE_REACH) ** 2)
-    e = e[robot, segment]
-    h = d2[robot, segment] - radius ** 2
-    nc, ns = c[robot], s[robot]
-    ratio = offset / projection_distance
-    # M e with M = n n' + ratio n_perp n_perp', n_perp = (-sin, cos)
-    along = nc * e[:, 0] + ns * e[:, 1]
-    across = -ns * e[:, 0] + nc * e[:, 1]
-    coef = 2 * np.stack([nc * along - ratio * ns * across, ns * along + ratio * nc * across], axis=1)
-    lower = np.minimum(-gain * h ** 3, 0.0)
-    return (robot.astype(np.intp), key_base + robot * m + segment, coef, lower, np.full(len(robot), np.inf))

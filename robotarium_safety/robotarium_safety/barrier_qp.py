@@ -288,7 +288,7 @@ def new_info():
         "working_rows": 0,        # rows in the QP that OSQP finally solved (the rest provably hold)
         "max_violation": 0.0,     # worst row violation of the answer returned (unit-scaled rows)
         "polished": False,        # True when OSQP's polishing made the answer exact
-        "clamped": 0.0,           # m/s, the most the safety node's centre rows changed a speed after the QP
+        "clamped": 0.0,           # m/s, the most the testbed certificate changed a robot's speed
     }
 
 

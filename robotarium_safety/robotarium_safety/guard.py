@@ -17,10 +17,15 @@ filtered at, plus one), and:
              "stale"; one waiting for its poses longer than lockstep_wait too.
   real time: the newest array is filtered at the newest poses (the node takes every poses message
              waiting first) and marked with their step plus one; the simulator takes it only on
-             that tick or the next (StepGate).
+             that tick or the next (StepGate). The commands in force are filtered again at every
+             new poses (forwarded as None: "the commands in force") while the client's newest
+             array is younger than command_timeout: a client slower than the tick, or arrays that
+             miss their tick, never leave the robots driving a command filtered ticks ago.
 
 What is waiting is bounded: at most the two steps a client can be ahead (WAITING_STEPS).
 """
+from typing import NamedTuple
+
 import numpy as np
 
 from robotarium_core import model, rps2
@@ -32,20 +37,24 @@ class Guard:
     """The safety node's decisions for one experiment. Feed it the run's poses steps
     (`on_poses`) and the client's parsed arrays (`on_request`, `expire`); each returns
     (forward, drops): forward, a list of (request, step) to filter now at the newest poses and
-    send marked `step`; drops, a list of (reason, words) to count."""
+    send marked `step` (request None: the commands in force); drops, a list of (reason, words) to count."""
 
-    def __init__(self, real_time, lockstep_wait):
+    def __init__(self, real_time, lockstep_wait, command_timeout=0.5):
         self.real_time = real_time
         self.lockstep_wait = lockstep_wait
+        self.command_timeout = command_timeout
+        self.requested_at = None  # real time: when the client's newest array came (None: none yet)
         self.poses_step = -1      # the newest poses' step (-1: none yet)
         self.forwarded = 0        # lockstep: the last step forwarded
         self.waiting = {}         # lockstep: step -> (request, received) waiting for the poses of step - 1
 
-    def on_poses(self, step):
+    def on_poses(self, step, now=0.0):
         if step <= self.poses_step:
             return [], []         # older or the same (a reordering): the newest stay
         self.poses_step = step
         if self.real_time:
+            if self.requested_at is not None and now - self.requested_at <= self.command_timeout:
+                return [(None, step + 1)], []   # the commands in force, filtered again at these poses
             return [], []
         drops = [("stale", "step %d: the testbed is past it" % k) for k in sorted(self.waiting) if k <= step]
         for k in [k for k in self.waiting if k <= step]:
@@ -58,6 +67,7 @@ class Guard:
 
     def on_request(self, request, now):
         if self.real_time:
+            self.requested_at = now
             return [(request, self.poses_step + 1)], []
         step = request.step or self.poses_step + 1   # unnumbered: the next step
         if step == 0:
@@ -84,25 +94,34 @@ class Guard:
         return [("stale", "the poses of step %d did not come within lockstep_wait" % (k - 1)) for k in late]
 
 
+class Filtered(NamedTuple):
+    """What filter_commands made of one request."""
+    safe: np.ndarray          # 2 x N, what the safety node sends
+    requested: np.ndarray     # 2 x N, the request scaled to the wheel limits along its arc
+    change: np.ndarray        # N, the largest change the certificate made to each robot's (v, omega); 0: untouched
+    over_limits: bool         # the script's own commands exceed the actuator limits (2.x's rule for 2.x)
+    fell_back: bool           # the certificate failed: `safe` is a stop
+
+
 def filter_commands(certificate, commands, poses, config, api=""):
     """What the safety node sends for the requested `commands` (2 x N) at `poses`: the commands
-    scaled to the wheel limits along their arc, through the certificate; a stop if the solver
-    failed, else its answer with the columns it changed scaled to the wheel limits (keeping the
-    arc). Returns (safe, requested, over_limits, fell_back): `requested` is the scaled request,
-    over_limits whether the script's own commands exceed the actuator limits (2.x's rule for
-    2.x experiments)."""
+    scaled to the wheel limits along their arc go through the certificate; a robot whose command it
+    left alone gets the script's own command (the simulator scales it as the Robotarium would, once:
+    scaling it here as well moved robots by 1e-16 m from the Robotarium's path), one it changed
+    gets the change scaled to the wheel limits (keeping its arc); a stop if the certificate failed.
+    Scaling to the limits is no change: the Robotarium scales too."""
     if api == rps2.API:
         over_limits = rps2.exceeds_wheel_limit(commands, config)
     else:
         over_limits = model.exceeds_actuator_limits(commands, **config.limits)
-    # What the robots would drive: beyond the limits, scaled to them along the commanded arc.
     requested = model.threshold_keeping_arc(commands, **config.limits)
-    safe = certificate(requested, poses)
+    answer = certificate(requested, poses)
     if certificate.info["fallback"]:
-        return np.zeros_like(requested), requested, over_limits, True
-    # The certificate bounds speed, not wheel speeds: where it replaced a command, make the
-    # replacement drivable (keeping its arc).
-    changed = np.any(safe != requested, axis=0)
+        stop = np.zeros_like(requested)
+        return Filtered(stop, requested, np.abs(requested).max(axis=0, initial=0.0), over_limits, True)
+    changed = np.any(answer != requested, axis=0)
+    safe = np.array(commands, dtype=float)
     if np.any(changed):
-        safe[:, changed] = model.threshold_keeping_arc(safe[:, changed], **config.limits)
-    return safe, requested, over_limits, False
+        safe[:, changed] = model.threshold_keeping_arc(answer[:, changed], **config.limits)
+    change = np.where(changed, np.abs(safe - requested).max(axis=0, initial=0.0), 0.0)
+    return Filtered(safe, requested, change, over_limits, False)

@@ -18,25 +18,17 @@ robots will drive and a huge finite value becomes full speed along its arc, neve
 
 Each requested array is merged into the current command of all robots (robots not named keep
 their last command, as on the simulator) and filtered through the testbed's certificate
-(robotarium_safety.barrier_certificates.create_unicycle_barrier_certificate_with_centre_boundary,
-OSQP, every number from the testbed configuration) at the newest poses: it keeps every two robot
-centres more than robot_diameter (the simulator's collision rule) apart and every centre inside
-the arena, step by step (that module's docstring gives the guarantee, its assumptions and proof).
-If it has no recent poses, or the input is malformed, or the solver fails, it sends a stop for the
-robots concerned: never the raw command. Without this node nothing reaches the simulator.
-
-What the script alone would have done: it replays the script's own commands unfiltered from the
-run's initial poses (robotarium_core.model.UnfilteredReplay: each step the requested commands,
-scaled to the limits, move the replay as the simulator would) and reports the collisions and
-robots outside the arena the replay counts (SafetyReport.unfiltered_*; lockstep: those of the step
-the array makes). The simulator sums them into what the safety layer prevented, so a run kept safe
-only by this node is never told "Acceptance of your experiment is likely!". (A one-step look-ahead
-from the filtered poses, model.lookahead_violations, sees nothing: the certificate acts earlier.)
+(robotarium_safety.testbed_certificate, every number from the testbed configuration) at the
+newest poses: it changes a command only where, without the change, two robot centres could come
+within robot_diameter (the simulator's collision rule) or a centre could leave the arena, and
+passes every other command on exactly as the script sent it (docs/safety.md). If it has no recent
+poses, or the input is malformed, or the certificate fails, it sends a stop for the robots
+concerned: never the raw command. Without this node nothing reaches the simulator.
 
 Audit mode (ArmSafety.audit, set for ./robotarium verify only, never for a plain run): the
-certificate is computed and reported as always, but the script's own commands go out, scaled to
-the actuator limits along their arc, so collisions and boundary violations really happen and the
-simulator counts them as the Robotarium's verification does.
+certificate is computed and reported as always, but the script's own commands go out, so
+collisions and boundary violations really happen and the simulator counts them as the
+Robotarium's verification does.
 
 cmd_requested takes any reliable publisher (`ros2 topic pub` too: robotarium_core.topics). The
 simulator's cmd_safe reader is volatile, so a command is held here until our cmd_safe writer has
@@ -74,7 +66,7 @@ import yaml
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from robotarium_core import cdr, model, presence, rps2
+from robotarium_core import cdr, model, presence
 from robotarium_core.node_tools import declare_config, run_node, take_waiting
 from robotarium_core.topics import (
     CMD_REQUESTED,
@@ -95,8 +87,8 @@ from robotarium_core.topics import (
 )
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TwistArray
 from robotarium_msgs.srv import ArmSafety
-from robotarium_safety.barrier_certificates import create_unicycle_barrier_certificate_with_centre_boundary
 from robotarium_safety.guard import Guard, filter_commands
+from robotarium_safety.testbed_certificate import TestbedCertificate
 
 STALE_LOG_INTERVAL = 1.0   # s between log lines while poses stay too old
 
@@ -105,22 +97,20 @@ class SafetyNode(Node):
     def __init__(self):
         super().__init__("safety", namespace=DEFAULT_NAMESPACE)
         self.config = c = declare_config(self, "safety")
-        self.certificate = create_unicycle_barrier_certificate_with_centre_boundary(**c.safety_certificate)
+        self.certificate = TestbedCertificate(c)   # centres apart and inside: the least change
 
         self.armed = ArmSafety.Request()   # the experiment guarded (run_id empty: none)
         self.poses = None            # 3 x N, newest
         self.poses_step = -1
         self.poses_time = -np.inf    # monotonic receive time
         self.commands = None         # 2 x N, the current requested command of every robot
-        self.guard = Guard(True, c.lockstep_wait)   # what is forwarded, at which poses (issue 22)
+        self.guard = Guard(True, c.lockstep_wait, c.command_timeout)   # what is forwarded, at which poses (issue 22)
         self.last_step = 0           # the last step forwarded
         self.held = deque()          # (request, received) commands waiting for the simulator to match cmd_safe
         self._simulator_matched = (False, -1)   # (matched, our writer's match count when last checked)
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
         self._dropped_reported = dict(self.dropped)
         self._logged = set()
-        self.replay = None           # model.UnfilteredReplay: the run as the script's own commands would have made it
-        self.replay_counts = (0, 0)  # real time: its counts since the last report
         self.stale_stops = 0         # commands turned into a stop because the newest poses were too old
         self._stale_spell = None     # (first stop's time, stops so far, last log time) while poses stay old
 
@@ -133,17 +123,16 @@ class SafetyNode(Node):
                                                  event_callbacks=warn_on_incompatible_qos(self, CMD_REQUESTED))
         self.create_service(ArmSafety, SAFETY_ARM, self.on_arm)
         self.presence = presence.Presence(self, presence.alive_topic(presence.SAFETY), c.node_lease)
-        # 2.x experiments (the simulator's `experiment` settings): obstacles to keep robots off, and
-        # 2.x's rule for the actuator-limit flag.
-        self.api, self.obstacles, self.drive_on_goals = "", np.zeros((0, 2, 2)), None
+        # 2.x experiments (the simulator's `experiment` settings): 2.x's rule for the actuator-limit flag.
+        self.api = ""
         self.create_subscription(String, EXPERIMENT, self.on_experiment, LATCHED)
         self.create_timer(0.02, self.check_pending)
         self.create_timer(1.0, self.report_drops)
         self.get_logger().info(
             "safety node ready in namespace %s: robot centres kept %.3f m apart (collision at %.3f m), %.3f m "
-            "inside the arena %s; points ahead %.3f m apart" % (
+            "inside the arena %s, plus what an arena's latency adds" % (
                 self.get_namespace(), c.robot_diameter + c.collision_margin, c.robot_diameter, c.boundary_margin,
-                list(c.arena), c.safety_radius + c.projection_distance))
+                list(c.arena)))
 
     def at_rest(self):
         """No experiment is guarded: restarting the node loses nothing (node_tools.check_ports)."""
@@ -155,12 +144,13 @@ class SafetyNode(Node):
             response.message = "an experiment needs at least one robot."
             return response
         self.armed = request
+        self.certificate.latency = request.latency
+        self.certificate.real_time = bool(request.real_time)
         n = request.number_of_robots if request.run_id else 0
-        self.use_experiment_settings({})   # until this run's settings arrive (on_experiment)
+        self.api = ""   # until this run's settings arrive (on_experiment)
         self.poses, self.poses_step, self.poses_time = None, -1, -np.inf
         self.commands = np.zeros((2, n))   # nobody has a command yet
-        self.guard = Guard(bool(request.real_time), self.config.lockstep_wait)
-        self.replay, self.replay_counts = None, (0, 0)
+        self.guard = Guard(bool(request.real_time), self.config.lockstep_wait, self.config.command_timeout)
         self.held.clear()
         self.last_step = 0
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
@@ -205,42 +195,16 @@ class SafetyNode(Node):
         self.poses = np.array([msg.x, msg.y, msg.theta])
         self.poses_step = msg.step
         self.poses_time = time.monotonic()
-        self.check_drive_on()
-        self.follow_replay()
-        self.decide(*self.guard.on_poses(msg.step))
+        self.decide(*self.guard.on_poses(msg.step, time.monotonic()))
 
     def on_experiment(self, msg):
         try:
             settings = yaml.safe_load(msg.data) or {}
-            settings["obstacles"] = rps2.check_obstacles(settings.get("obstacles"))
-        except (yaml.YAMLError, ValueError, AttributeError) as error:
+        except yaml.YAMLError as error:
             self.get_logger().warning("ignored experiment settings I cannot read: %s" % error)
             return
-        if settings.get("run_id") and settings.get("run_id") == self.armed.run_id:
-            self.use_experiment_settings(settings)
-
-    def use_experiment_settings(self, settings):
-        c = self.config
-        self.api = settings.get("api") or ""
-        self.obstacles = settings.get("obstacles", np.zeros((0, 2, 2)))
-        goals = settings.get("drive_on_goals")
-        # Obstacles belong to the experiment proper: robots driving on from the chargers ignore
-        # them (as the testbed's counting does), else an enclosure could never be entered.
-        self.drive_on_goals = None if goals is None else np.array(goals, dtype=float)
-        self.certificate.obstacles = self.obstacles if self.drive_on_goals is None else np.zeros((0, 2, 2))
-        self.certificate.obstacle_offset = c.collision_offset
-        self.certificate.obstacle_radius = c.collision_diameter / 2 + c.obstacle_clearance
-        if len(self.obstacles):
-            self.get_logger().info("keeping robots off %d obstacle(s)%s" % (
-                len(self.obstacles), " once they have driven on" if self.drive_on_goals is not None else ""))
-
-    def check_drive_on(self):
-        """The drive-on phase ends when the poses reach its goals (the simulator's rule)."""
-        goals = self.drive_on_goals
-        if goals is not None and goals.shape == self.poses.shape and rps2.at_pose(
-                self.poses, goals, self.config.drive_on_position_error, self.config.drive_on_rotation_error)[0]:
-            self.drive_on_goals = None
-            self.certificate.obstacles = self.obstacles
+        if isinstance(settings, dict) and settings.get("run_id") and settings.get("run_id") == self.armed.run_id:
+            self.api = settings.get("api") or ""   # 2.x's rule for the actuator-limit flag
 
     def on_requests(self, data):
         """Everything waiting on cmd_requested at once (node_tools.take_waiting): foreign arrays are
@@ -318,11 +282,15 @@ class SafetyNode(Node):
         self.decide([], self.guard.expire(time.monotonic()))
 
     def filter(self, request, step):
-        """Filter `request` at the newest poses and send it marked `step` (the step it produces:
-        the guard forwards an array only when the newest poses are those of step - 1 in lockstep)."""
+        """Filter `request` (None: the commands in force, again) at the newest poses and send it
+        marked `step` (the step it produces: the guard forwards an array only when the newest poses
+        are those of step - 1 in lockstep)."""
         started = time.perf_counter()
+        refreshed = request is None
+        if refreshed:
+            request = cdr.Commands("", step, np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), False, 0, 0)
         ids, v, w = request.ids, request.v, request.omega
-        report = {"step": step}   # the SafetyReport's fields (published with cdr.SAFETY_REPORT)
+        report = {"step": step, "refreshed": refreshed}   # the SafetyReport's fields (cdr.SAFETY_REPORT)
         self.last_step = max(self.last_step, step)
 
         # In lockstep time stands still between steps: only real-time poses age.
@@ -330,7 +298,7 @@ class SafetyNode(Node):
         report["pose_age"] = pose_age = now - self.poses_time if self.poses is not None else -1.0
         if self.poses is None or (self.armed.real_time and pose_age > self.config.pose_timeout):
             self.note_stale_stop(now, pose_age)
-            return self.send_stop(request, report, SafetyReport.STATUS_STOP_NO_POSES, started)
+            return self.send_stop(request, report, SafetyReport.STATUS_STOP_NO_POSES, started, refreshed)
         if self._stale_spell is not None:
             first, stops, _ = self._stale_spell
             self._stale_spell = None
@@ -345,53 +313,26 @@ class SafetyNode(Node):
 
         self.commands[0, ids] = v
         self.commands[1, ids] = w
-        if not self.armed.real_time:   # lockstep: what this array's step counts in the replay (it stands at the step before)
-            counts = self.replay.violations() if self.replay is not None else (0, 0)
-        else:   # real time: the steps the replay passed since the last report
-            counts, self.replay_counts = self.replay_counts, (0, 0)
-        report["unfiltered_collisions"], report["unfiltered_boundary_violations"] = counts
         # The debug report's actuator count judges the script's own commands (over_limits), never
         # our interventions.
-        safe, requested, over_limits, fell_back = filter_commands(self.certificate, self.commands, self.poses,
-                                                                  self.config, self.api)
+        filtered = filter_commands(self.certificate, self.commands, self.poses, self.config, self.api)
         info = self.certificate.info
-        if fell_back:
+        if filtered.fell_back:
             self.warn_once("solver", "barrier certificate failed (%s): sending stop" % info["reason"])
             status = SafetyReport.STATUS_STOP_SOLVER_FAILED
         else:
-            status = (SafetyReport.STATUS_SOLVED if np.any(safe != requested) else
-                      SafetyReport.STATUS_SATURATED if np.any(requested != self.commands) else
+            status = (SafetyReport.STATUS_SOLVED if np.any(filtered.change > 0) else
+                      SafetyReport.STATUS_SATURATED if np.any(filtered.requested != self.commands) else
                       SafetyReport.STATUS_PASSTHROUGH)
-        change = np.abs(safe - requested)   # scaling to the limits alone is no change
         report["status"] = status
         report["solver_status"] = info["status"]
-        report["max_change"] = float(change.max()) if n else 0.0
-        report["robots_changed"] = int(np.count_nonzero(change.max(axis=0) > self.config.intervention_tolerance))
-        if self.armed.audit:   # verification: what the certificate would do is reported, the script's commands go
+        report["max_change"] = float(filtered.change.max()) if n else 0.0
+        report["robots_changed"] = int(np.count_nonzero(filtered.change > self.config.intervention_tolerance))
+        safe = filtered.safe
+        if self.armed.audit:   # verification: what the certificate would do is reported, the script's own commands go
             report["audit"] = True
-            safe = requested
-        self.publish(step, np.arange(n), safe[0], safe[1], report, started, over_limits)
-
-    def follow_replay(self):
-        """Carry the unfiltered replay on to the newest poses' step with the script's commands in
-        force; it starts at the run's first poses (2.x: where the drive-on phase ends, which the
-        Robotarium does not judge)."""
-        c = self.config
-        if self.replay is None or self.drive_on_goals is not None:
-            self.replay = model.UnfilteredReplay(self.poses, self.poses_step, c.time_step, c.limits,
-                                                 self.count_violations)
-            return
-        collisions, outside = self.replay.advance(self.commands, self.poses_step)
-        self.replay_counts = (self.replay_counts[0] + collisions, self.replay_counts[1] + outside)
-
-    def count_violations(self, poses):
-        """(collisions, robots outside) as the experiment's report counts them: the guide's rules, or
-        2.x's (colliders too close; an iteration with any robot outside)."""
-        c = self.config
-        if self.api != rps2.API:
-            return model.violations(poses, c.robot_diameter, c.arena)
-        return (rps2.count_too_close(poses, c.collision_diameter, c.collision_offset),
-                int(np.any(model.outside_arena(poses, c.arena))))
+            safe = self.commands.copy()
+        self.publish(step, np.arange(n), safe[0], safe[1], report, started, filtered.over_limits, refreshed)
 
     def note_stale_stop(self, now, age):
         """Count a stop for want of recent poses; log the first of a spell, then once a second."""
@@ -409,7 +350,7 @@ class SafetyNode(Node):
             logged = now
         self._stale_spell = (first, stops + 1, logged)
 
-    def send_stop(self, request, report, status, started):
+    def send_stop(self, request, report, status, started, refreshed=False):
         # How far the stop is from what was asked: the largest finite requested speed.
         requested = np.abs(np.concatenate((np.asarray(request.v, dtype=float), np.asarray(request.omega, dtype=float))))
         requested = requested[np.isfinite(requested)]
@@ -421,14 +362,14 @@ class SafetyNode(Node):
         else:
             ids = np.arange(self.armed.number_of_robots)
         report["status"] = status
-        self.publish(report["step"], ids, np.zeros(len(ids)), np.zeros(len(ids)), report, started)
+        self.publish(report["step"], ids, np.zeros(len(ids)), np.zeros(len(ids)), report, started, refreshed=refreshed)
 
-    def publish(self, step, ids, v, w, report, started, requested_exceeds_limits=False):
+    def publish(self, step, ids, v, w, report, started, requested_exceeds_limits=False, refreshed=False):
         now = self.get_clock().now()
         sec, nanosec = now.seconds_nanoseconds()
         self.safe_pub.publish(cdr.TWIST_ARRAY.build(
             sec=sec, nanosec=nanosec, frame_id="arena", token=self.armed.safety_key, step=step, ids=ids,
-            twists=cdr.twists(v, w), requested_exceeds_limits=bool(requested_exceeds_limits)))
+            twists=cdr.twists(v, w), requested_exceeds_limits=bool(requested_exceeds_limits), refreshed=refreshed))
         self._dropped_reported = dict(self.dropped)
         self.report_pub.publish(cdr.SAFETY_REPORT.build(
             sec=sec, nanosec=nanosec, frame_id="arena", number_of_robots=len(ids),

@@ -17,7 +17,6 @@ pursuing the nearest robot, reversing, bang-bang, going to packed goals); derand
 the same cases every time. Every counter-example a search ever found, minimised, is kept below as
 an explicit regression case (REGRESSIONS), with what it broke.
 """
-import inspect
 import os
 
 import numpy as np
@@ -28,27 +27,15 @@ from hypothesis import strategies as st
 from robotarium_core import model
 from robotarium_core.config import DEFAULT, TestbedConfig
 from robotarium_safety import barrier_certificates as bc
+from robotarium_safety.guard import Guard, filter_commands
+from robotarium_safety.testbed_certificate import TestbedCertificate
 
 ARENA = DEFAULT.arena
 
 
-def node_certificate(config=DEFAULT):
-    """The safety node's certificate, made as the node makes it (SafetyNode.__init__)."""
-    return bc.create_unicycle_barrier_certificate_with_centre_boundary(**config.safety_certificate)
-
-
-def node_filter(certificate, commands, poses, config):
-    """What SafetyNode.filter sends for `commands` at `poses`: the commands scaled to the wheel
-    limits along their arc, through the certificate; a stop if the solver failed, else its answer
-    with the columns it changed scaled to the wheel limits (keeping the arc)."""
-    requested = model.threshold_keeping_arc(commands, **config.limits)
-    safe = certificate(requested, poses)
-    if certificate.info["fallback"]:
-        return np.zeros_like(requested), True
-    changed = np.any(safe != requested, axis=0)
-    if np.any(changed):
-        safe[:, changed] = model.threshold_keeping_arc(safe[:, changed], **config.limits)
-    return safe, False
+def node_certificate(config=DEFAULT, latency=0.0, real_time=False):
+    """The safety node's certificate, made as the node makes it (SafetyNode.__init__, on_arm)."""
+    return TestbedCertificate(config, latency, real_time)
 
 
 def closest_pair(poses):
@@ -68,8 +55,10 @@ def run_guarded(poses, script, steps, adversary=None, config=DEFAULT, allow_fall
     closest = closest_pair(testbed.poses)
     for k in range(steps):
         requested = np.array(script(k, testbed.poses.copy()), dtype=float).reshape(2, n)
-        safe, fell_back = node_filter(certificate, requested, testbed.poses.copy(), config)
-        assert allow_fallback or not fell_back, "step %d: the solver failed (%s)" % (k, certificate.info["reason"])
+        filtered = filter_commands(certificate, requested, testbed.poses.copy(), config)
+        safe = filtered.safe
+        assert allow_fallback or not filtered.fell_back, "step %d: the solver failed (%s)" % (
+            k, certificate.info["reason"])
         if adversary is not None:
             safe = safe * adversary(k)[None, :]
         testbed.set_commands(np.arange(n), safe[0], safe[1])
@@ -266,45 +255,24 @@ def test_the_guard_follows_the_configured_collision_rule():
     assert 0.21 - 1e-12 <= closest < 0.22
 
 
-def test_the_certificate_defaults_are_the_testbed_configuration():
-    """Its defaults restate no number: they are the packaged configuration's, which the node passes."""
-    signature = inspect.signature(bc.create_unicycle_barrier_certificate_with_centre_boundary)
-    defaults = {name: p.default for name, p in signature.parameters.items()}
-    assert set(defaults) == set(DEFAULT.safety_certificate)
-    for name, value in DEFAULT.safety_certificate.items():
-        np.testing.assert_array_equal(defaults[name], value, err_msg=name)
-    assert DEFAULT.safety_certificate["collision_distance"] == DEFAULT.robot_diameter
-
-
-@pytest.mark.parametrize("name,value,detail", [("collision_margin", 0.0, "positive"),
-                                               ("collision_distance", -0.11, "positive"),
-                                               ("collision_barrier_rate", 1.5, "at most 1"),
-                                               ("time_step", float("nan"), "finite")])
-def test_the_guards_numbers_are_checked(name, value, detail):
-    with pytest.raises(bc.RobotariumError) as error:
-        bc.create_unicycle_barrier_certificate_with_centre_boundary(**{name: value})
-    assert name in str(error.value) and detail in str(error.value)
-
-
 def test_a_robot_already_closer_than_the_margin_never_gets_closer():
     # 0.112 m apart (inside robot_diameter + collision_margin, outside robot_diameter), facing each other
     closest, testbed = run_case(("pair", 0.112, 0.3, 0.0, np.pi), ("constant", 0.2, 0.0), 100)
     assert closest == pytest.approx(0.112, abs=1e-12)
 
 
-def test_a_pair_the_centre_rows_leave_out_cannot_break_its_barrier_in_one_step():
-    # _CentreGuard poses no rows for a pair farther apart than cutoff(S). The bound: a step at
+def test_a_pair_the_certificate_leaves_out_cannot_break_its_barrier_in_one_step():
+    # The certificate poses no rows for a pair farther apart than cutoff(S). The bound: a step at
     # forward speed <= S moves each centre at most S T, so |e| shrinks by at most 2 S T and
     # h' >= (d - 2 S T)^2 - D^2 >= h - 4 S T d >= (1 - rate) h, the discrete barrier the rows keep.
     # Checked here on the simulator's own motion, at the cutoff and just beyond it, full speed.
     c = DEFAULT
-    distance = c.robot_diameter + c.collision_margin
-    guard = bc._CentreGuard(c.barrier_gain, np.array(c.arena), c.boundary_margin, distance,
-                            c.collision_barrier_rate, c.time_step, 2 * c.magnitude_limit)
+    certificate = node_certificate()
+    distance = certificate.distance
     rng = np.random.default_rng(26)
     limits = dict(c.limits, max_linear=10.0, max_wheel=1e3)   # no thresholding: the speed is S itself
-    for speed in (c.max_linear_velocity, guard.speed_bound, 1.0):
-        cutoff = guard.cutoff(speed)
+    for speed in (c.max_linear_velocity, 0.4, 1.0):
+        cutoff = certificate.cutoff(speed)
         for trial in range(400):
             d = cutoff * (1 + rng.uniform(0, 1e-3) * (trial % 2))
             angle = rng.uniform(-np.pi, np.pi)
@@ -315,12 +283,32 @@ def test_a_pair_the_centre_rows_leave_out_cannot_break_its_barrier_in_one_step()
             after = model.lookahead_poses(poses, commands, c.time_step, **limits)
             h = d * d - distance ** 2
             h_after = np.sum((after[:2, 0] - after[:2, 1]) ** 2) - distance ** 2
-            assert h_after >= (1 - c.collision_barrier_rate) * h - 1e-12
-            # ... and the pair's rows (posed here: the neighbour set reaches NEIGHBOUR_MARGIN further)
-            # hold at that speed whatever the sign of v: leaving them out changes nothing.
-            robot, _, coef, bound = guard.rows(poses, np.cos(poses[2]), np.sin(poses[2]), speed)
-            assert len(coef) == 4 * 2 + 2
-            assert np.all(np.abs(coef[-2:]) * speed <= bound[-2:] * (1 + 1e-9))
+            assert h_after >= (1 - c.barrier_rate) * h - 1e-12
+            # ... and the certificate allows that speed either way: leaving the pair out changes nothing.
+            low, high = certificate.intervals(poses, speed)
+            assert np.all(low <= -speed * (1 - 1e-9)) and np.all(high >= speed * (1 - 1e-9))
+
+
+def test_the_certificate_changes_nothing_beyond_its_reach():
+    """The least change: a robot whose centre is at least cutoff(v_max) from every other and whose
+    every edge gap exceeds v_max T / rate is never changed, whatever it is asked (within the limits)."""
+    c = DEFAULT
+    certificate = node_certificate()
+    reach = certificate.cutoff(c.max_linear_velocity)
+    edge = c.boundary_margin + c.max_linear_velocity * c.time_step / c.barrier_rate
+    assert 0.19 < reach < 0.2 and edge < 0.05   # the numbers docs/safety.md gives
+    rng = np.random.default_rng(36)
+    x_min, x_max, y_min, y_max = c.arena
+    for _ in range(300):
+        n = int(rng.integers(2, 12))
+        poses = np.vstack([rng.uniform(x_min + edge, x_max - edge, n), rng.uniform(y_min + edge, y_max - edge, n),
+                           rng.uniform(-np.pi, np.pi, n)])
+        d = np.hypot(poses[0][:, None] - poses[0][None], poses[1][:, None] - poses[1][None]) + np.eye(n) * 9
+        free = d.min(axis=1) >= reach
+        request = np.vstack([rng.uniform(-0.2, 0.2, n), rng.uniform(-3.6, 3.6, n)])
+        safe = certificate(request, poses)
+        np.testing.assert_array_equal(safe[:, free], request[:, free])
+        np.testing.assert_array_equal(safe[1], request[1])   # a turn never moves a centre: never changed
 
 
 def test_the_guard_changes_nothing_where_nothing_is_at_risk():
@@ -395,26 +383,26 @@ def test_search_for_a_collision_finds_none(scene, script, adversary, steps):
 # time), and no step may ever end in a collision or outside the arena.
 
 from robotarium_core import cdr  # noqa: E402
-from robotarium_safety.guard import Guard, filter_commands  # noqa: E402
 
 
 class NodeModel:
     """The safety node's handling of one experiment, without ROS: the guard decides, the node
     merges the request into the commands of all robots and filters them at its newest poses
-    (SafetyNode.filter; a malformed request or no poses: a stop of every robot)."""
+    (SafetyNode.filter; a malformed request or no poses: a stop of every robot; None: the commands
+    in force, filtered again)."""
 
     def __init__(self, n, real_time, config=DEFAULT):
         self.config, self.n = config, n
-        self.guard = Guard(real_time, config.lockstep_wait)
-        self.certificate = node_certificate(config)
+        self.guard = Guard(real_time, config.lockstep_wait, config.command_timeout)
+        self.certificate = node_certificate(config, real_time=real_time)
         self.commands = np.zeros((2, n))
         self.poses, self.poses_step = None, -1
         self.sent = []   # (step, safe 2 x N, the poses step it was filtered at)
 
-    def on_poses(self, step, poses):
+    def on_poses(self, step, poses, now=0.0):
         if step > self.poses_step:
             self.poses, self.poses_step = poses.copy(), step
-        self.forward(self.guard.on_poses(step)[0])
+        self.forward(self.guard.on_poses(step, now)[0])
 
     def on_requests(self, requests, now):
         """A batch taken at once (take_waiting); in real time only the newest counts."""
@@ -428,13 +416,15 @@ class NodeModel:
             if self.guard.real_time is False and step > 0:
                 assert self.poses_step == step - 1, "the guard forwarded step %d at the poses of step %d" % (
                     step, self.poses_step)
-            if self.poses is None or model.check_commands(request.ids, request.v, request.omega, self.n) is not None:
+            if self.poses is None or (request is not None and model.check_commands(
+                    request.ids, request.v, request.omega, self.n) is not None):
                 self.commands[:] = 0.0
                 self.sent.append((step, np.zeros((2, self.n)), None))
                 continue
-            self.commands[0, request.ids] = request.v
-            self.commands[1, request.ids] = request.omega
-            safe, _, _, fell_back = filter_commands(self.certificate, self.commands, self.poses, self.config)
+            if request is not None:
+                self.commands[0, request.ids] = request.v
+                self.commands[1, request.ids] = request.omega
+            safe = filter_commands(self.certificate, self.commands, self.poses, self.config).safe
             self.sent.append((step, safe, self.poses_step))
 
 
@@ -551,7 +541,7 @@ def run_real_time_stream(poses, script, ticks, seed, kind, config=DEFAULT):
         late = []
         for event in events:
             if event == "poses":
-                node.on_poses(k, testbed.poses)
+                node.on_poses(k, testbed.poses, now)
             elif event == "client":
                 request = np.array(script(k, history[k].copy()), dtype=float).reshape(2, n)
                 node.on_requests([commands(np.arange(n), request[0], request[1], 0)], now)
@@ -605,7 +595,7 @@ def test_without_the_step_rule_the_same_flood_pushes_robots_out():
     known = testbed.poses.copy()   # the node's newest poses: a burst is filtered before the next come
     for _ in range(3):
         for _ in range(150):   # a burst of 150 forged step-0 arrays (1 kHz against ~300 steps/s), each a step
-            safe, _, _, _ = filter_commands(certificate, np.vstack([np.full(n, 0.2), np.zeros(n)]), known, DEFAULT)
+            safe = filter_commands(certificate, np.vstack([np.full(n, 0.2), np.zeros(n)]), known, DEFAULT).safe
             testbed.set_commands(np.arange(n), safe[0], safe[1])
             testbed.step()
         known = testbed.poses.copy()

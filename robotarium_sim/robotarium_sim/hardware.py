@@ -29,6 +29,7 @@ re-applies the last PWM for one period); the serial link Pi -> Teensy takes no t
 """
 import collections
 import dataclasses
+import math
 import secrets
 
 import numpy as np
@@ -68,6 +69,16 @@ class HardwareParameters:
     @classmethod
     def from_config(cls, config=DEFAULT):
         return cls(**{f.name: getattr(config, f.name) for f in dataclasses.fields(cls) if hasattr(config, f.name)})
+
+    @property
+    def latency(self):
+        """s from the poses a command is filtered at until the wheels obey it: the tracker's and
+        the network's latency and jitter, the robot's loop, the PWM slewing from full to zero, and
+        three motor time constants. The safety node widens its margins by the distance a robot
+        covers in it (ArmSafety.latency)."""
+        slewing = math.ceil(PWM_MAX / max(self.pwm_slew, 1)) * self.pid_period
+        return (self.tracking_latency + self.command_latency + self.command_jitter + self.robot_loop_period
+                + slewing + 3 * self.motor_time_constant)
 
     @classmethod
     def without_effects(cls, **effects):
@@ -322,13 +333,23 @@ class HardwareTestbed(model.Testbed):
         self.pipeline = Pipeline(self.poses, HardwareParameters.from_config(config), self.seed,
                                  config.wheel_radius, config.base_length)
         self._step_ticks = ticks(config.time_step)
+        self.latency = self.pipeline.params.latency
 
-    def set_commands(self, ids, v, w, now=0.0, requested_exceeds_limits=False, offset=0.0):
-        super().set_commands(ids, v, w, now, requested_exceeds_limits, offset)
+    def set_commands(self, ids, v, w, now=0.0, requested_exceeds_limits=False, offset=0.0, refreshed=False):
+        super().set_commands(ids, v, w, now, requested_exceeds_limits, offset, refreshed)
         # Thresholded to the wheel limits as the ideal testbed does before its step.
         dxu = model.threshold_keeping_arc(np.vstack((np.asarray(v, dtype=float), np.asarray(w, dtype=float))),
                                           **self.limits)
         self.pipeline.send(ids, dxu[0], dxu[1], offset)
+
+    def expire_commands(self, now, timeout=model.COMMAND_TIMEOUT):
+        """As the ideal testbed, and the expired robots are sent a stop (the safety node re-sends the
+        commands in force each tick, so the robots' own brake timer would run from the last of those)."""
+        stale = super().expire_commands(now, timeout)
+        if np.any(stale):
+            ids = np.flatnonzero(stale)
+            self.pipeline.send(ids, np.zeros(len(ids)), np.zeros(len(ids)))
+        return stale
 
     def _move(self):
         self.pipeline.advance(self._step_ticks)
