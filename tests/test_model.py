@@ -282,4 +282,4 @@ def test_the_intervention_count_and_its_largest_change_agree():
     tally.add_safety_report(model.is_intervention(True, 0.2, tolerance), 0.2)   # a stop of 0.2 m/s
     summary = tally.safety(5)
     assert summary["interventions"] == 1 and summary["largest_change"] == 0.2
-    assert "changed 1 of 5 command arrays (largest change 0.2," in "".join(model.safety_lines(**summary))
+    assert "changed 1 of 5 command arrays of this run (largest change 0.2," in "".join(model.safety_lines(**summary))

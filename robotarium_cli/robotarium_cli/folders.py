@@ -241,7 +241,9 @@ def write_unrecorded_results(run_dir, run, testbed_report=""):
     outcome = {name: value for value, name in outcomes.NAMES.items()}.get(run["outcome"], outcomes.UNFINISHED)
     lines = [outcomes.first_line(outcome, run.get("detail", "")), ""]
     if testbed_report:
-        lines += [testbed_report.rstrip("\n"), "", "(the run was recorded on the testbed's machine, not here)"]
+        verdict = (run.get("verdict") or {}).get("text", "")
+        lines += [testbed_report.rstrip("\n")] + ([verdict.strip("\n")] if verdict else []) + [
+            "", "(the run was recorded on the testbed's machine, not here)"]
     else:
         lines.append("No experiment ran on a testbed, so there is no debug report.")
     notes = outcomes.run_notes(run)
@@ -306,6 +308,8 @@ def print_summary(run_dir, run, cwd):
     say(first)
     if "no testbed was started" in run.get("detail", ""):
         say("hint: fix the line named above and run it again (nothing ran)")
+    elif run["outcome"] == "interrupted" and outcomes.ENDED_BY_ITS_USER in run.get("detail", ""):
+        pass   # its user ended it: nothing to explain
     elif run["outcome"] == "interrupted" and outcomes.ENDED_BY_TESTBED in run.get("detail", ""):
         say("hint: " + HINT_ENDED_BY_TESTBED)
     elif run["outcome"] != "completed" and run["outcome"] in HINTS:

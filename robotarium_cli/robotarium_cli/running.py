@@ -154,6 +154,11 @@ class RunRequest:
     local_testbed: bool = True   # start a testbed here when none answers (False: wait for one)
     own_testbed: bool = False    # start one here without looking (verify: a namespace of its own)
     results_dir: object = None   # None: <repository>/results
+    namespace: object = None     # the testbed's namespace; None: $ROBOTARIUM_NAMESPACE or /robotarium
+    echo: bool = True            # show what the script prints and where the results are (log.txt has the prints)
+    # Where the safety layer changed the script's commands, judge the script as the Robotarium's
+    # verification does (verification.verify_script) and keep the verdict with the run (run.json).
+    judge: bool = False
 
 
 def run_script(request):
@@ -249,16 +254,18 @@ def _run_script(request, interruption, started_at):
     script, record, bags_dir, results, video, results_dir = (
         request.script, request.record, request.bags_dir, request.results, request.video, request.results_dir)
     config_file = request.options.config_file
-    ns = namespace()
+    ns = request.namespace or namespace()
     testbed = None
     name = session.experiment_name_of(script)
     # Without local_testbed a testbed is known to be up (or coming up): wait for it, never start one.
     if request.own_testbed:
         if interruption.signum is None:
-            testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file, looked=True).start()
+            testbed = LocalTestbed(record=record, ns=ns, bags_dir=bags_dir, config_file=config_file,
+                                   looked=True).start()
     elif not request.local_testbed:
         if testbed_answers(ns, timeout=60.0):
-            say("using the testbed that answers in %s" % ns)
+            if request.options.wait:   # (--no-wait: its one line says what happened)
+                say("using the testbed that answers in %s" % ns)
         else:
             say("no testbed answers in %s on ROS_DOMAIN_ID %s (--no-local-testbed forbids starting one); "
                 "start it with ./robotarium up" % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
@@ -268,7 +275,7 @@ def _run_script(request, interruption, started_at):
             return outcomes.EXIT_CODES[outcomes.TESTBED_LOST], None, None
     elif interruption.signum is None:
         testbed = find_or_start_testbed(ns, record, bags_dir, config_file)
-        if testbed is None:
+        if testbed is None and request.options.wait:   # (--no-wait: its one line says what happened)
             say("using the testbed that answers in %s" % ns)
         else:
             say("no testbed answers in %s: started one on this machine for this run (logs in %s)"
@@ -309,7 +316,8 @@ def _run_script(request, interruption, started_at):
                                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, **box_options)
                 interruption.watch(process)
                 _write_pending(work, dict(pending, runner=local_testbeds_process(process.pid)))
-                tee(process.stdout, [log, sys.stdout.buffer])   # the log first: it never lags what was shown
+                # the log first: it never lags what was shown
+                tee(process.stdout, [log, sys.stdout.buffer] if request.echo else [log])
                 code = process.wait()
     finally:
         if testbed is not None:
@@ -317,11 +325,34 @@ def _run_script(request, interruption, started_at):
         interruption.restore()   # from here on (results, video) a signal acts as usual
     try:   # the results are made as soon as the bag is closed, while the nodes exit
         return _collect_run(script, code, testbed, interruption, work, info_path, log_path, started, started_at,
-                            before, cwd, bags_dir, results, results_dir, name, video,
-                            data_limit=_data_limit(config_file))
+                            before, cwd, bags_dir, results, results_dir, name, video, quiet=not request.echo,
+                            data_limit=_data_limit(config_file), ns=ns, judge=request if request.judge else None)
     finally:
         if testbed is not None:
             testbed.stop()
+
+
+def _judge(request, run):
+    """The Robotarium's verdict on a run whose commands the safety layer changed: the script judged
+    as ./robotarium verify judges it (lockstep, its own commands, a testbed of its own), printed
+    and returned as verification.verdict's document (None: no verdict, and why was said)."""
+    from robotarium_cli import verification
+    say("the safety layer changed %d of your script's command arrays, so this run's counts are not the "
+        "Robotarium's: judging the script as its verification does (lockstep, the script's own commands, a testbed "
+        "of its own; ./robotarium verify)" % run["safety_interventions"])
+    scratch = tempfile.mkdtemp(prefix="robotarium-judge-")
+    try:
+        judged = verification.verify_script(request.script, request.script_args, request.options.config_file,
+                                            rps_api=request.options.rps_api, record=False, results_dir=scratch,
+                                            echo=False)
+    except verification.NoVerdict as error:
+        say("no verdict: %s; for the Robotarium's verdict: ./robotarium verify %s" % (error, shown(request.script)))
+        return None
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+    text = judged.text()
+    print(text, end="", flush=True)
+    return dict(judged.document(), text=text)
 
 
 def _data_limit(config_file):
@@ -334,9 +365,10 @@ def _data_limit(config_file):
 
 
 def _collect_run(script, code, testbed, interruption, work, info_path, log_path, started, started_at, before, cwd,
-                 bags_dir, results, results_dir, name, video, quiet=False, data_limit=None):
+                 bags_dir, results, results_dir, name, video, quiet=False, data_limit=None, ns=None, judge=None):
     """What run_script does after the script's process ended: the run folder and the results.
-    interruption None: finishing the folder of a ./robotarium run that was killed (finish_unfinished)."""
+    interruption None: finishing the folder of a ./robotarium run that was killed (finish_unfinished).
+    judge: the RunRequest, where a run the safety layer changed gets the Robotarium's verdict."""
     if code is None:
         say("interrupted (%s) before the script started%s" % (
             interruption.name, "; the testbed this run started was stopped" if testbed is not None else ""))
@@ -372,6 +404,11 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
     run = dict({k: v for k, v in info.items() if k != "report"}, **run)
     run.update(run_id=info.get("run_id", ""), script=script, started=started_at, wall_time=wall_time)
     run.setdefault("steps", 0)
+    if run.get("outcome") == outcomes.NAMES[outcomes.TESTBED_BUSY]:
+        # Nothing ran (--no-wait on a busy testbed): the script's process said so in one line, and a run
+        # that never ran gets no folder.
+        shutil.rmtree(work, ignore_errors=True)
+        return run["exit_code"], run, None
     saved = [p for p, mtime in snapshot_files(cwd).items() if before.get(p) != mtime and mtime / 1e9 >= started - 1]
 
     run_dir = info.get("recording") or ""
@@ -385,7 +422,7 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
             if not quiet:
                 say("asking the testbed's recorder where run %s is recorded (up to %.0f s)"
                     % (info["run_id"], RECORDING_LOOKUP_WAIT))
-            run_dir = announced_recording(info["run_id"], namespace())
+            run_dir = announced_recording(info["run_id"], ns or namespace())
     recorded = bool(run_dir) and os.path.isdir(run_dir) and results
     bag_dir = run_dir if recorded else ""
     stopped = outcomes.recording_stopped(run)
@@ -419,6 +456,8 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
         run_dir = (os.path.join(results_dir, info["run_id"]) if info.get("run_id")
                    else new_run_folder(results_dir, name))
         os.makedirs(run_dir, exist_ok=True)
+    if judge is not None and run.get("safety_interventions") and run.get("outcome") == outcomes.NAMES[outcomes.COMPLETED]:
+        run["verdict"] = _judge(judge, run)
     finish_run_folder(run_dir, run, script, log_path, saved, cwd, data_limit)
 
     if recorded:

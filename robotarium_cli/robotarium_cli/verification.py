@@ -24,9 +24,12 @@ testbed failed (no verdict), 128 + N interrupted by signal N. `--json FILE` writ
    "iterations": int, "number_of_robots": int | null, "outcome": str, "report": "the debug report",
    "counts": {...}, "results": "the run's folder" | null}
 
-The rules themselves are plain functions (static_rules, judge) that tests drive without ROS.
+The rules themselves are plain functions (static_rules, judge) that tests drive without ROS;
+verify_script runs a script and judges it (./robotarium verify, and ./robotarium run where the
+safety layer changed the script's commands).
 """
 import ast
+import dataclasses
 import json
 import math
 import os
@@ -181,3 +184,76 @@ def write_json(path, document):
     with open(path, "w", encoding="utf-8") as f:
         json.dump(document, f, indent=2)
         f.write("\n")
+
+
+class NoVerdict(Exception):
+    """The verification could not judge the script (the testbed failed, or it was interrupted);
+    `code` is the exit code that says so."""
+
+    def __init__(self, message, code):
+        super().__init__(message)
+        self.code = code
+
+
+@dataclasses.dataclass
+class Verdict:
+    """A script judged by the Robotarium's rules: the rules it broke, the verification run's
+    run.json dict and debug report, where its results are, and what was declared."""
+    rules: list
+    run: dict
+    report: str
+    results: object
+    config: object
+    robots: object = None
+    duration: object = None
+
+    @property
+    def accepted(self):
+        return not self.rules
+
+    def document(self):
+        """The --json document (and run.json's `verdict`)."""
+        return verdict(self.rules, self.run, self.report, self.results)
+
+    def text(self):
+        """What the console shows: the verification's debug report and one line per broken rule,
+        or what passed."""
+        lines = ["", "##### VERIFICATION (the Robotarium's rules) #####"]
+        if self.report:
+            lines.append(self.report.rstrip("\n"))
+        lines += verdict_lines(self.rules, self.run, self.config, self.robots, self.duration)
+        return "\n".join(lines) + "\n"
+
+
+def verify_script(script, script_args=(), config_file=None, robots=None, duration=None, rps_api=None, record=True,
+                  bags_dir=None, results_dir=None, echo=True):
+    """Judge `script` as the Robotarium's verification does: the static rules, then a lockstep run on
+    a testbed of its own (a namespace no other testbed uses) with the safety node auditing. Returns
+    a Verdict; raises NoVerdict where the run could not judge it."""
+    from robotarium_cli.console import say, shown
+    from robotarium_cli.running import RunRequest, run_script
+    from robotarium_client import session
+    from robotarium_core import outcomes
+    from robotarium_core.config import DEFAULT, TestbedConfig
+    config = TestbedConfig.load(config_file) if config_file else DEFAULT
+    rules = static_rules(script, config)
+    if rules:
+        return Verdict(rules, {}, "", None, config, robots, duration)
+    if echo:
+        say("verifying %s as the Robotarium does: lockstep, safety node auditing (the script's own commands go "
+            "through and every collision counts)" % shown(script))
+    options = session.RunOptions(real_time=False, config_file=config_file, audit=True,
+                                 rps_api=rps_api or session.rps_api_from_environment())
+    code, run, run_dir = run_script(RunRequest(
+        script, tuple(script_args), options, record=record, bags_dir=bags_dir, video=False, own_testbed=True,
+        results_dir=results_dir, namespace="/robotarium_verify_%d" % os.getpid(), echo=echo))
+    if run is None:
+        raise NoVerdict("the run did not start (exit code %d)" % code,
+                        code if code != outcomes.USAGE_ERROR else outcomes.TESTBED_PROBLEM)
+    if run["outcome"] == "interrupted":
+        raise NoVerdict("the verification was interrupted", code or 130)
+    if run["outcome"] in ("testbed_lost", "client_lost", "unfinished", "testbed_incomplete"):
+        raise NoVerdict("the testbed failed (%s); see the testbed's logs in log/testbed/ and run verify again"
+                        % run.get("detail", run["outcome"]), outcomes.TESTBED_PROBLEM)
+    report = (run.get("runs") or [{}])[-1].get("report", "")
+    return Verdict(judge(run, config, robots, duration), run, report, run_dir, config, robots, duration)

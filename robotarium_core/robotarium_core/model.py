@@ -17,7 +17,7 @@ limits along its own arc (guide §2.5 "scaling both the linear and angular compo
 proportionally"). Commands within the limits move the robots bit for bit as rps does.
 """
 import functools
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -157,61 +157,6 @@ def violations(poses: np.ndarray, robot_diameter: float = ROBOT_DIAMETER,
     """(collisions, boundary violations) the debug report counts on these poses: robot pairs within
     a robot diameter, robots outside the arena."""
     return count_collisions(poses, robot_diameter), int(np.count_nonzero(outside_arena(poses, arena)))
-
-
-def lookahead_violations(poses: np.ndarray, commands: np.ndarray, time_step: float = TIME_STEP,
-                         robot_diameter: float = ROBOT_DIAMETER, arena: Sequence[float] = ARENA,
-                         **limits: float) -> tuple[int, int]:
-    """(collisions, boundary violations) the debug report would count on the poses one step on,
-    had `commands` been applied unfiltered from `poses` (lookahead_poses).
-
-    Measured on the crash cases of tests/test_verify.py it is no estimate of what a safety layer
-    prevented: the barrier certificate acts early (it keeps the points ahead of two robots 0.17 m
-    apart and centres 0.055 m inside the arena), so one step of the script's commands from the
-    filtered poses never reaches a collision or the edge (0 for 168 audited collision iterations).
-    UnfilteredReplay, which carries the script's commands on from where they would have led, is."""
-    return violations(lookahead_poses(poses, commands, time_step, **limits), robot_diameter, arena)
-
-
-class UnfilteredReplay:
-    """The run as the script's own commands alone would have made it: from the initial poses, each
-    step applies the commands the script asked for (thresholded as the simulator would), never
-    those the safety layer made of them, and counts the debug report's collisions and boundary
-    violations on the poses before the move, as Testbed.step does. The safety node keeps one per
-    run; its counts are the report's estimate of what the safety layer prevented.
-
-    Open loop: the script computed its commands from the filtered poses, so a feedback script's
-    replay is an estimate. It is exact where the commands do not depend on the poses, and on the
-    four-robot head-on script of tests/data it gives the audited run's 168 collision iterations.
-    `count`: poses -> (collisions, boundary violations), the experiment's rules (violations by default)."""
-
-    def __init__(self, poses: np.ndarray, step: int = 0, time_step: float = TIME_STEP,
-                 limits: Mapping[str, float] | None = None,
-                 count: Callable[[np.ndarray], tuple[int, int]] = violations) -> None:
-        self.poses = np.array(poses, dtype=float)
-        self.step = step
-        self.time_step = time_step
-        self.limits = limits or {}
-        self.count = count
-        self._counts = None   # count(self.poses), kept: lockstep asks violations() and then advance() on the same poses
-
-    def violations(self) -> tuple[int, int]:
-        """What the next step would count (on the poses before its move)."""
-        if self._counts is None:
-            self._counts = self.count(self.poses)
-        return self._counts
-
-    def advance(self, commands: np.ndarray, to_step: int) -> tuple[int, int]:
-        """Move on to `to_step` with `commands` (2 x N) in force; returns the counts of the steps
-        passed (each counted on its poses before the move)."""
-        collisions = outside = 0
-        while self.step < to_step:
-            c, b = self.violations()
-            collisions, outside = collisions + c, outside + b
-            self.poses = lookahead_poses(self.poses, commands, self.time_step, **self.limits)
-            self._counts = None
-            self.step += 1
-        return collisions, outside
 
 
 @functools.lru_cache(maxsize=64)
@@ -405,24 +350,18 @@ ACCEPTANCE_LIKELY = "No errors in your simulation! Acceptance of your experiment
 RECORDING_INCOMPLETE = "No errors in your simulation, but its recording is incomplete, so there is no acceptance estimate.\n"
 
 
-def safety_lines(interventions: int = 0, arrays: int = 0, largest_change: float = 0.0, mean_change: float = 0.0,
-                 prevented_collisions: int = 0, prevented_boundary: int = 0) -> list[str]:
-    """What the always-on safety layer did, for the end of a debug report: how often and how much
-    it changed the script's commands, and what the script's own commands would have made the
-    Robotarium count (collisions, robots outside: the safety node's UnfilteredReplay). Empty when
-    it never stepped in."""
-    lines = []
-    if interventions:
-        lines.append("The safety layer changed {0} of {1} command arrays (largest change {2:.3g}, mean {3:.3g} m/s or "
-                     "rad/s).\n".format(interventions, max(arrays, interventions), largest_change, mean_change))
-    if prevented_collisions or prevented_boundary:
-        what = [text.format(count) for count, text in (
-            (prevented_collisions, "{0} iteration(s) where robots would have collided"),
-            (prevented_boundary, "{0} iteration(s) where robots would have been outside the arena")) if count]
-        lines.append("Without it your script's own commands would have made about {0} (replayed without the safety "
-                     "layer): the Robotarium counts those and rejects an experiment with too many. For the "
-                     "Robotarium's verdict: ./robotarium verify SCRIPT\n".format(" and ".join(what)))
-    return ["\n"] + lines if lines else lines   # apart from the Robotarium's own text
+CHANGED_BY_SAFETY = ("The safety layer changed {0} of {1} command arrays of this run (largest change {2:.3g}, mean {3:.3g} "
+                     "m/s or rad/s): the robots did not drive your script's own commands, so this run gives no counts of "
+                     "the Robotarium's.\n")
+
+
+def safety_lines(interventions: int = 0, arrays: int = 0, largest_change: float = 0.0,
+                 mean_change: float = 0.0) -> list[str]:
+    """What the always-on safety layer did, when it changed the script's commands: how often and how
+    much. Empty when it never stepped in."""
+    if not interventions:
+        return []
+    return [CHANGED_BY_SAFETY.format(interventions, max(arrays, interventions), largest_change, mean_change)]
 
 
 def debug_report(iterations: int, boundary_violations: int, collisions: int, actuator_limit_iterations: int,
@@ -436,22 +375,25 @@ def debug_report(iterations: int, boundary_violations: int, collisions: int, act
     robots than the real Robotarium deploys, and that it ran hardware-like (hardware_seed: the seed
     of robotarium_sim.hardware's model; None for the ideal testbed).
 
-    safety: safety_lines' keyword arguments (what the safety layer did). When its replay says the
-    script's own commands would have collided or left the arena, the acceptance estimate is
-    never given: the verdict follows what the script alone would have done, not what the safety
-    layer made of it; the report says so and points to ./robotarium verify."""
-    extra = safety_lines(**(safety or {}))
-    prevented = bool(safety) and bool(safety.get("prevented_collisions") or safety.get("prevented_boundary"))
-    lines = ["##### DEBUG OUTPUT #####\n",
-             "Your simulation will take approximately {0} real seconds when deployed on the Robotarium. \n\n"
-             .format(int(np.ceil(iterations * time_step)))]
+    safety: safety_lines' keyword arguments (what the safety layer did). Where it changed the
+    script's commands, the robots drove something else than the Robotarium would have: the report
+    then says so instead of giving the duration, the counts and the acceptance estimate, which would
+    be this run's, not the script's (./robotarium run adds the Robotarium's verdict, judged on the
+    script's own commands)."""
+    lines = ["##### DEBUG OUTPUT #####\n"]
+    changed = safety_lines(**(safety or {}))
+    if not changed:
+        lines.append("Your simulation will take approximately {0} real seconds when deployed on the Robotarium. \n\n"
+                     .format(int(np.ceil(iterations * time_step))))
     if number_of_robots is not None and number_of_robots > real_testbed_max_robots:
         lines.append("Your simulation uses {0} robots, but the real Robotarium deploys at most {1}: use {1} or fewer "
                      "to run it there. \n\n".format(number_of_robots, real_testbed_max_robots))
     if hardware_seed is not None:
         lines.append("This run simulated the real testbed's hardware (tracking and command latency, pose noise, "
                      "wheel dynamics; seed {0}). \n\n".format(hardware_seed))
-    if boundary_violations or collisions or actuator_limit_iterations:
+    if changed:
+        lines += changed
+    elif boundary_violations or collisions or actuator_limit_iterations:
         if boundary_violations:
             lines.append("\t Simulation had {0} iteration(s) robots were outside the boundaries.\n\n"
                          .format(boundary_violations))
@@ -460,15 +402,11 @@ def debug_report(iterations: int, boundary_violations: int, collisions: int, act
         if actuator_limit_iterations:
             lines.append("\t Simulation had {0} iteration(s) where the actuator limits were exceeded.\n"
                          .format(actuator_limit_iterations))
-    elif completed and not prevented:
-        lines.append(ACCEPTANCE_LIKELY)
     elif completed:
-        lines.append("No errors in this simulation, but only because the safety layer stepped in.\n")
+        lines.append(ACCEPTANCE_LIKELY)
     if not completed:
         lines.append(("\n" if lines[-1].endswith(".\n") and not lines[-1].endswith("\n\n") else "") + NOT_COMPLETED)
-    if extra and lines[-1].endswith("\n\n"):
-        extra = extra[1:]
-    return "".join(lines + extra)
+    return "".join(lines)
 
 
 class Testbed:
@@ -500,19 +438,22 @@ class Testbed:
 
     def set_commands(self, ids: np.ndarray | Sequence[int], v: np.ndarray | Sequence[float] | float,
                      w: np.ndarray | Sequence[float] | float, now: float = 0.0, requested_exceeds_limits: bool = False,
-                     offset: float = 0.0) -> None:
+                     offset: float = 0.0, refreshed: bool = False) -> None:
         """Set (v, omega) for the robots `ids` (already checked with check_commands).
 
         requested_exceeds_limits: these commands were filtered from ones that exceed the actuator
         limits (the safety node says so); the iterations they are in force count as rps counts.
         offset: seconds into the current step when they arrived; the ideal testbed applies every
         command from the start of its next step (the hardware-like one sends it at that moment).
+        refreshed: the commands in force filtered again (TwistArray.refreshed): their command
+        timeout runs on from when the commands they came from arrived.
         """
         ids = np.asarray(ids, dtype=int)
         self.requested_exceeds_limits = bool(requested_exceeds_limits)
         self.velocities[0, ids] = v
         self.velocities[1, ids] = w
-        self.command_times[ids] = now
+        if not refreshed:
+            self.command_times[ids] = now
 
     def expire_commands(self, now: float, timeout: float = COMMAND_TIMEOUT) -> np.ndarray:
         """Stop robots whose command is older than `timeout` (guide §2.7.6); count each expiry once."""
@@ -547,6 +488,9 @@ class Testbed:
 
     # The seed of the hardware-like model; None: the ideal testbed (the report names the mode).
     seed = None
+    # s between the poses a command is filtered at and the robots obeying it, beyond the one step the
+    # safety node's certificate covers (ArmSafety.latency): none for the ideal testbed.
+    latency = 0.0
 
     def report(self, completed: bool = True, safety: Mapping[str, float] | None = None) -> str:
         return debug_report(self.steps, self.boundary_violations, self.collisions, self.actuator_limit_iterations,
@@ -566,8 +510,7 @@ def is_intervention(filtered: bool, max_change: float, tolerance: float) -> bool
 class RunTally:
     """What a run's report needs beside the testbed's counters: the step at which each error
     counter first became non-zero (a verification's verdict names it), and what the safety layer
-    did: its interventions (how often, how much) and what the script's own commands would have made
-    the Robotarium count (SafetyReport.unfiltered_*, summed)."""
+    did: its interventions (how often, how much)."""
 
     def __init__(self) -> None:
         self.first_collision_step = 0    # the step (1: the first step() call) whose count made collisions > 0
@@ -575,8 +518,6 @@ class RunTally:
         self.interventions = 0
         self.largest_change = 0.0
         self.change_sum = 0.0
-        self.prevented_collisions = 0
-        self.prevented_boundary = 0
 
     def after_step(self, testbed: Testbed) -> None:
         """Call after every testbed.step()."""
@@ -585,17 +526,13 @@ class RunTally:
         if testbed.boundary_violations and not self.first_boundary_step:
             self.first_boundary_step = testbed.steps
 
-    def add_safety_report(self, intervention: bool, max_change: float, unfiltered_collisions: int = 0,
-                          unfiltered_boundary: int = 0) -> None:
+    def add_safety_report(self, intervention: bool, max_change: float) -> None:
         if intervention:
             self.interventions += 1
             self.largest_change = max(self.largest_change, float(max_change))
             self.change_sum += float(max_change)
-        self.prevented_collisions += int(unfiltered_collisions)
-        self.prevented_boundary += int(unfiltered_boundary)
 
     def safety(self, arrays: int) -> dict[str, float]:
         """safety_lines' keyword arguments, `arrays` command arrays in all."""
         return dict(interventions=self.interventions, arrays=arrays, largest_change=self.largest_change,
-                    mean_change=self.change_sum / self.interventions if self.interventions else 0.0,
-                    prevented_collisions=self.prevented_collisions, prevented_boundary=self.prevented_boundary)
+                    mean_change=self.change_sum / self.interventions if self.interventions else 0.0)

@@ -107,22 +107,20 @@ def at_pose(poses, goals, position_error, rotation_error):
     return bool(np.all(mask)), mask
 
 
-def debug_report(iterations, too_close, outside, actuator, obstacle_hits=0, time_step=model.TIME_STEP,
-                 completed=True, safety=None):
-    """The text 2.x's Robotarium.debug() prints, character for character, and our obstacle line. A
-    run that did not complete gets no verdict that it will run: model.NOT_COMPLETED instead; nor
-    does one whose commands the safety layer kept from colliding or leaving the arena (safety:
-    model.safety_lines' keyword arguments, whose lines end the report)."""
+def debug_report(iterations, too_close, outside, actuator, time_step=model.TIME_STEP, completed=True, safety=None):
+    """The text 2.x's Robotarium.debug() prints, character for character. A robot touching one of
+    the script's obstacles is not judged: 2.x draws obstacles, for its distance sensors, and never
+    checks them (report.txt gives the count). A run that did not complete gets no verdict that it
+    will run: model.NOT_COMPLETED instead. Where the safety layer changed the script's commands
+    (safety: model.safety_lines' keyword arguments) the robots drove something else than the
+    Robotarium would have: the report says so instead of giving this run's duration, counts and
+    verdict as the script's."""
+    changed = model.safety_lines(**(safety or {}))
+    if changed:
+        return "".join(changed + ([] if completed else ["\n" + model.NOT_COMPLETED]))
     lines = ["Your simulation took approximately {0:.2f} real seconds to execute.\n\n".format(iterations * time_step)]
-    hard = too_close + outside + obstacle_hits
-    extra = model.safety_lines(**(safety or {}))
-    prevented = bool(safety) and bool(safety.get("prevented_collisions") or safety.get("prevented_boundary"))
-    if hard == 0 and completed and prevented:
-        lines.append("No hard errors in this simulation, but only because the safety layer stepped in.\n\n")
-        if actuator:
-            lines.append("WARNING: {0} out of {1} (~{2:.0f}%) timesteps had velocity command(s) exceed actuator "
-                         "limits.\n\n".format(actuator, iterations, 100 * actuator / max(iterations, 1)))
-    elif hard == 0 and not completed:
+    hard = too_close + outside
+    if hard == 0 and not completed:
         if actuator:
             lines.append("WARNING: {0} out of {1} (~{2:.0f}%) timesteps had velocity command(s) exceed actuator "
                          "limits.\n\n".format(actuator, iterations, 100 * actuator / max(iterations, 1)))
@@ -143,12 +141,8 @@ def debug_report(iterations, too_close, outside, actuator, obstacle_hits=0, time
                          .format(too_close))
         if outside:
             lines.append("\t Simulation had {0} time steps where robots were outside boundaries.\n".format(outside))
-        if obstacle_hits:
-            lines.append("\t Simulation had {0} time steps where robots touched obstacles.\n".format(obstacle_hits))
         lines.append("\nPlease fix the noted errors in your simulation; otherwise, your experiment will be rejected.\n")
-    if extra and lines[-1].endswith("\n\n"):
-        extra = extra[1:]
-    return "".join(lines + extra)
+    return "".join(lines)
 
 
 class Testbed2(model.Testbed):
@@ -200,7 +194,7 @@ class Testbed2(model.Testbed):
 
     def report(self, completed=True, safety=None):
         return debug_report(self.steps, self.collisions, self.boundary_violations, self.actuator_limit_iterations,
-                            self.obstacle_hits, self.time_step, completed, safety)
+                            self.time_step, completed, safety)
 
 
 # -- where robots start ----------------------------------------------------------------------------------
@@ -328,7 +322,8 @@ DRIVE_ON_SI_RADIUS = 0.25   # m between points 5 cm ahead: 2.x's create_uni_barr
 def drive_on_si_radius(goals, config=model.DEFAULT):
     """The drive-on barrier's distance between points 5 cm ahead: 2.x's 0.25 m, less where the
     initial conditions themselves are closer (they must stay reachable); never less than the
-    testbed's safety node keeps, or the goals could never be reached (an error that says so)."""
+    the guide's unicycle certificate keeps (safety_radius + projection_distance), or the goals could
+    never be reached (an error that says so)."""
     n = goals.shape[1]
     if n < 2:
         return DRIVE_ON_SI_RADIUS
@@ -339,8 +334,8 @@ def drive_on_si_radius(goals, config=model.DEFAULT):
     kept = config.safety_radius + config.projection_distance
     if gaps[k] - 0.01 < kept:
         raise RobotariumError(
-            "initial_conditions put the points %.0f cm ahead of robots %d and %d %.3f m apart; the testbed's safety "
-            "layer keeps them at least %.2f m apart, so the drive-on phase could never bring them there. Space "
+            "initial_conditions put the points %.0f cm ahead of robots %d and %d %.3f m apart; the drive-on phase's "
+            "barrier keeps them at least %.2f m apart, so it could never bring them there. Space "
             "the initial conditions further apart, or pass skip_initialization=True."
             % (100 * config.projection_distance, i[k], j[k], gaps[k], kept))
     return min(DRIVE_ON_SI_RADIUS, gaps[k] - 0.01)

@@ -66,12 +66,11 @@ def _run_settings(bag):
 
 def safety_summary(bag, tolerance):
     """What the safety node did, from its reports: model.safety_lines' keyword arguments
-    (interventions, arrays, largest_change, mean_change, prevented_collisions, prevented_boundary)
-    and audit (a verification run: it let the script's commands through). An intervention is an
-    array whose safe command differs from the requested one by more than `tolerance` for some
-    robot, or a stop of a request not at rest (model.is_intervention, SafetyReport.msg); the changes
-    are those of the interventions (stops as the largest finite speed they cancelled); prevented_*: its unfiltered replay of
-    the script's own commands, summed (0 in bags recorded before it existed)."""
+    (interventions, arrays, largest_change, mean_change) and audit (a verification run: it let the
+    script's commands through). An intervention is an array whose safe command differs from the
+    requested one by more than `tolerance` for some robot, or a stop of a request not at rest
+    (model.is_intervention, SafetyReport.msg); the changes are those of the interventions (stops as
+    the largest finite speed they cancelled)."""
     tally, arrays, audit = model.RunTally(), 0, False
     name = bag.topic("safety_report", required=False)
     for _, report in (bag.decoded([name]) if name in bag.topics else ()):
@@ -83,9 +82,7 @@ def safety_summary(bag, tolerance):
         # every status but these two is a stop or a solved QP (bags before the constants: strings)
         filtered = (status not in (PASSTHROUGH, SATURATED) if isinstance(status, int)
                     else str(status).startswith(("stop", "solved")))
-        tally.add_safety_report(model.is_intervention(filtered, report.max_change, tolerance), report.max_change,
-                                getattr(report, "unfiltered_collisions", 0),
-                                getattr(report, "unfiltered_boundary_violations", 0))
+        tally.add_safety_report(model.is_intervention(filtered, report.max_change, tolerance), report.max_change)
     return dict(tally.safety(arrays), audit=audit)
 
 
@@ -96,7 +93,7 @@ def safety_interventions(bag, tolerance):
 
 
 def _report_safety(summary):
-    """The debug report's safety lines: none for a verification run (nothing was prevented there)."""
+    """The debug report's safety lines: none for a verification run (the script's own commands drove it)."""
     return None if summary["audit"] else {k: v for k, v in summary.items() if k != "audit"}
 
 
@@ -130,8 +127,13 @@ def _commands_in_force_realtime(commands, n, tick_ns, timeout, arrival):
     for t in tick_ns:
         while k < len(valid) and arrival(valid[k]) < t:
             c = valid[k]
-            velocities[0, c.ids], velocities[1, c.ids] = c.v, c.omega
-            since[c.ids] = arrival(c) * 1e-9
+            ids, v, w = c.ids, c.v, c.omega
+            if c.refreshed:   # the commands in force, again: their timeout runs on (TwistArray.refreshed)
+                live = arrival(c) * 1e-9 - since[ids] <= timeout
+                ids, v, w = ids[live], v[live], w[live]
+            else:
+                since[ids] = arrival(c) * 1e-9
+            velocities[0, ids], velocities[1, ids] = v, w
             flag = c.requested_exceeds_limits
             k += 1
         stale = (t * 1e-9 - since > timeout) & np.any(velocities != 0, axis=0)
@@ -295,7 +297,7 @@ def _recompute_2x(bag, settings, config, track, n, steps, by_step, notes, experi
               "actuator_limit_iterations": actuator, "obstacle_collisions": hits, "number_of_robots": n,
               "settings": settings, "notes": notes, "config": config, "mismatches": [], "testbed": None,
               "safety": safety,
-              "report": rps2.debug_report(steps, too_close, outside, actuator, hits, config.time_step,
+              "report": rps2.debug_report(steps, too_close, outside, actuator, config.time_step,
                                           _add_outcome(settings, run), _report_safety(safety))}
     if goals is not None:
         notes.append("2.x experiment: the drive-on phase took steps 1-%d (counted in the duration, not judged)"
@@ -342,11 +344,26 @@ def _dropped(status):
     return {"cmd_safe": {reason: int(getattr(status, "dropped_" + reason, 0)) for reason in model.DROP_REASONS}}
 
 
+def verdict_text(numbers, run):
+    """Where the safety layer changed the script's commands, the Robotarium's verdict on the script's
+    own (./robotarium run judges the script then and keeps the verdict in run.json), or how to get
+    it. Empty for a run it did not change, and for a verification run."""
+    if not numbers["safety"]["interventions"] or numbers["safety"]["audit"]:
+        return ""
+    verdict = (run or {}).get("verdict")
+    if not verdict:
+        return ("The Robotarium's verdict on your script's own commands is not known from this recording: "
+                "./robotarium verify SCRIPT judges the script as the Robotarium does.\n")
+    return verdict.get("text") or "The Robotarium's verification: %s.\n" % verdict.get("verdict")
+
+
 def report_text(bag, numbers):
     """report.txt: how the run ended (first line), the debug report as rps prints it (never the
-    acceptance estimate for a run that did not complete), then settings and the cross-check."""
+    acceptance estimate for a run that did not complete), the Robotarium's verdict where the safety
+    layer changed the script's commands (verdict_text), then settings and the cross-check."""
     s = numbers["settings"]
-    lines = [numbers["first_line"], "", numbers["report"].rstrip("\n"), "",
+    verdict = numbers.get("verdict_text", "")
+    lines = [numbers["first_line"], "", numbers["report"].rstrip("\n")] + ([verdict.strip("\n")] if verdict else []) + ["",
              "##### RUN (recomputed from the recording) #####",
              "bag:          %s%s" % (bag.path, "" if bag.complete else "  (not closed: recorder stopped early; "
                                      "every complete chunk was read)"),
@@ -378,13 +395,14 @@ def report_text(bag, numbers):
                      count, arrays, numbers["config"].intervention_tolerance,
                      "; change largest %.3g, mean %.3g" % (largest, mean) if count else "",
                      "; the testbed counted %d" % t["safety_interventions"] if t is not None else ""))
+    if numbers.get("obstacle_collisions"):
+        lines.append("obstacles:    %d robot-steps with a collider touching one of the script's obstacles (2.x "
+                     "draws them for its distance sensors and never checks them: not judged)"
+                     % numbers["obstacle_collisions"])
     safety = numbers["safety"]
     if safety["audit"]:
         lines.append("verification: the safety node audited this run (./robotarium verify): it let the script's own "
                      "commands through, so the counts above are the Robotarium's")
-    lines.append("unfiltered:   the script's own commands, replayed without the safety layer, would have made %d "
-                 "collision iteration(s) and %d of robots outside the arena" % (
-                     safety["prevented_collisions"], safety["prevented_boundary"]))
     lines += ["note:         " + note for note in numbers["notes"]]
     lines.append("messages:     " + ", ".join("%s %d" % (topic, info.count) for topic, info in sorted(bag.topics.items())))
     return "\n".join(lines) + "\n"
@@ -449,6 +467,7 @@ def write_results(bag_dir, progress=True, *, out_dir=None, video=True, run=None)
             if os.path.isfile(run_json):
                 with open(run_json, "w", encoding="utf-8") as f:
                     json.dump(run, f, indent=2)
+    numbers["verdict_text"] = verdict_text(numbers, run)
     paths = {"report": os.path.join(out_dir, "report.txt")}
     with open(paths["report"], "w", encoding="utf-8") as f:
         f.write(report_text(bag, numbers))

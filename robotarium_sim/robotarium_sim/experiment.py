@@ -130,16 +130,15 @@ class Experiment:
         self.logged_drops.add(reason)
         return first
 
-    def count_safety_report(self, intervention, max_change, unfiltered_collisions, unfiltered_boundary,
-                            of_an_array=True, stale_stop=False, dropped=None):
+    def count_safety_report(self, intervention, max_change, of_an_array=True, stale_stop=False, dropped=None):
         """Count one of the safety node's reports (SafetyReport): of an array it sent unless it only
-        carries drop counts; an intervention, what the script alone would have done, a stop for
-        want of fresh poses, and its drop counts."""
+        carries drop counts; an intervention and how much it changed, a stop for want of fresh
+        poses, and its drop counts."""
         if of_an_array:
             self.reports_heard += 1
         if intervention:
             self.safety_interventions += 1
-        self.tally.add_safety_report(intervention, max_change, unfiltered_collisions, unfiltered_boundary)
+        self.tally.add_safety_report(intervention, max_change)
         if stale_stop:
             self.stale_pose_stops += 1
         self.dropped_requested = dropped

@@ -138,8 +138,6 @@ def copy_counters(testbed, target, tally=None):
         target.first_boundary_step = tally.first_boundary_step
         target.intervention_max_change = tally.largest_change
         target.intervention_change_sum = tally.change_sum
-        target.prevented_collisions = tally.prevented_collisions
-        target.prevented_boundary_violations = tally.prevented_boundary
     target.actuator_limit_iterations = testbed.actuator_limit_iterations
     target.command_timeouts = testbed.command_timeouts
     target.hardware = testbed.seed is not None
@@ -259,7 +257,7 @@ class SimulatorNode(Node):
         try:
             armed = await self.arm_safety(ArmSafety.Request(
                 run_id=run.run_id, number_of_robots=n, real_time=run.real_time, token=run.token,
-                safety_key=run.safety_key, poses_key=run.poses_key, audit=run.audit))
+                safety_key=run.safety_key, poses_key=run.poses_key, audit=run.audit, latency=testbed.latency))
             if armed is True:
                 if isinstance(testbed, rps2.Testbed2):
                     self.standard_sensors.start(testbed)
@@ -412,10 +410,12 @@ class SimulatorNode(Node):
                 "./robotarium end --force." % (self.run.run_id, self.config.client_lease))
             self.get_logger().warning("refused to end %s: the request does not carry its token" % self.run.run_id)
             return response
-        reason = (outcomes.ENDED_BY_ITS_CLIENT + " at step %d" if request.token == self.run.token
-                  else "ended by an operator (end --force) at step %d") % self.testbed.steps
-        outcome, detail = outcomes.of_request(request.outcome), request.detail
-        if request.token != self.run.token and request.outcome == outcomes.NONE:
+        if request.token == self.run.token:
+            reason = outcomes.ENDED_BY_ITS_CLIENT + " at step %d" % self.testbed.steps
+            outcome, detail = outcomes.of_request(request.outcome), request.detail
+        else:   # an operator's end --force, or ./robotarium end by the experiment's own user (it says so in detail)
+            reason = "%s at step %d" % (request.detail if request.detail.startswith("ended by ")
+                                        else "ended by an operator (end --force)", self.testbed.steps)
             outcome, detail = outcomes.INTERRUPTED, "interrupted: %s" % reason
         run_id = self.run.run_id
         await self.wait_for_reports()
@@ -467,7 +467,7 @@ class SimulatorNode(Node):
         response.obstacle_collisions = getattr(tb, "obstacle_hits", 0)
         response.audit = self.run.audit
         response.safety_interventions = self.run.safety_interventions
-        # A verification run's report is the Robotarium's counts alone: nothing was prevented there.
+        # A verification run's report is the Robotarium's counts alone: the script's own commands drove it.
         response.report = tb.report(completed=outcome == outcomes.COMPLETED,
                                      safety=None if self.run.audit else self.run.tally.safety(self.run.commands_accepted))
         response.recording = self.recording
@@ -528,11 +528,18 @@ class SimulatorNode(Node):
         self.run.commands_accepted += 1
         self.run.last_command_step = tb.steps + (0 if self.run.real_time else 1)
         now = time.monotonic()
-        self.run.last_command_at = now
+        ids, v, w = msg.ids, msg.v, msg.omega
+        if msg.refreshed:
+            # The commands in force, filtered again: not the client's sign of life, and no robot whose
+            # command timed out is revived (its timeout runs from the command it came from).
+            live = now - tb.command_times[ids] <= self.config.command_timeout
+            ids, v, w = ids[live], v[live], w[live]
+        else:
+            self.run.last_command_at = now
         # Real time: how far into the current tick it came (the hardware-like model sends it then).
         offset = min(max(now - self.run.last_tick, 0.0), tb.time_step) if self.run.real_time else 0.0
-        tb.set_commands(msg.ids, msg.v, msg.omega, now=now, requested_exceeds_limits=msg.requested_exceeds_limits,
-                        offset=offset)
+        tb.set_commands(ids, v, w, now=now, requested_exceeds_limits=msg.requested_exceeds_limits,
+                        offset=offset, refreshed=msg.refreshed)
         if not self.run.real_time:
             tb.step()
             self.run.tally.after_step(tb)
@@ -549,8 +556,8 @@ class SimulatorNode(Node):
         if self.testbed is None:
             return
         self.run.count_safety_report(
-            is_intervention(msg, self.config.intervention_tolerance), msg.max_change, msg.unfiltered_collisions,
-            msg.unfiltered_boundary_violations, of_an_array=msg.status != SafetyReport.STATUS_COUNTS_ONLY,
+            is_intervention(msg, self.config.intervention_tolerance), msg.max_change,
+            of_an_array=msg.status != SafetyReport.STATUS_COUNTS_ONLY,
             stale_stop=msg.status == SafetyReport.STATUS_STOP_NO_POSES, dropped=msg.dropped)
 
     def on_recording(self, msg):

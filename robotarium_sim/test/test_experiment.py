@@ -64,13 +64,13 @@ def test_each_experiment_starts_afresh_with_its_own_secrets_and_counts():
     assert first.gate.admit(1, 0, stop=False) is None   # lockstep: the array for the next step
     assert first.count_drop("stale") and not first.count_drop("stale") and first.dropped["stale"] == 2
     first.safe_arrays_heard = 3
-    first.count_safety_report(True, 0.2, 1, 0)
-    first.count_safety_report(False, 0.0, 0, 0, stale_stop=True)
-    first.count_safety_report(False, 0.0, 0, 0, of_an_array=False, dropped="counts")   # drop counts only
+    first.count_safety_report(True, 0.2)
+    first.count_safety_report(False, 0.0, stale_stop=True)
+    first.count_safety_report(False, 0.0, of_an_array=False, dropped="counts")   # drop counts only
     assert (first.reports_heard, first.reports_missing, first.safety_interventions, first.stale_pose_stops) == (2, 1, 1, 1)
-    assert first.tally.prevented_collisions == 1 and first.dropped_requested == "counts"
+    assert first.tally.largest_change == 0.2 and first.dropped_requested == "counts"
     second = Experiment.started("a_2", "a", real_time=True)
     assert (second.token, second.safety_key, second.poses_key) != secrets
-    assert second.dropped["stale"] == 0 and second.safety_interventions == 0 and second.tally.prevented_collisions == 0
+    assert second.dropped["stale"] == 0 and second.safety_interventions == 0 and second.tally.largest_change == 0
     idle = Experiment()   # before the first run: nothing to say
     assert idle.run_id == "" and idle.real_time and idle.outcome == 0 and idle.dropped_requested is None

@@ -20,7 +20,7 @@ def main(args):
     script = os.path.join(repository_root(), DEMO_SCRIPT)
     say("demo: %s, headless, lockstep" % DEMO_SCRIPT)
     code, info, run_dir = run_script(RunRequest(script, options=session.RunOptions(real_time=False),
-                                                video=not args.no_video))
+                                                video=not args.no_video, judge=True))
     if code == 0 and run_dir:
         say("demo done: the results page, the report, trajectories.png and the video of the run are in %s"
             % run_dir)

@@ -37,6 +37,9 @@ def add_arguments(parser):
                         help="seed of the hardware-like model (default: the testbed draws one; the report names it)")
     parser.add_argument("--no-record", action="store_true", help="(local testbed only) do not record the run")
     parser.add_argument("--no-video", action="store_true", help="skip rendering the video of the run")
+    parser.add_argument("--no-verdict", action="store_true",
+                        help="where the safety layer changed the script's commands, do not judge the script as "
+                             "./robotarium verify does (by default run does, and prints the Robotarium's verdict)")
     parser.add_argument("--bags-dir", help="(local testbed only) where runs are recorded (default: bags/)")
     parser.add_argument("--config", help="(local testbed only) the testbed configuration file "
                                          "(default: robotarium_core's testbed.yaml)")
@@ -57,7 +60,7 @@ def add_arguments(parser):
 OWN_FLAGS = {"--lockstep": ("mode", "lockstep"), "--real-time": ("mode", "real-time"),
              "--no-record": ("no_record", True), "--no-video": ("no_video", True),
              "--no-local-testbed": ("no_local_testbed", True), "--hardware": ("hardware", True),
-             "--no-wait": ("no_wait", True)}
+             "--no-wait": ("no_wait", True), "--no-verdict": ("no_verdict", True)}
 
 
 def take_own_arguments(args, error):
@@ -85,5 +88,6 @@ def main(args):
                                  wait=not args.no_wait)
     code, _, _ = run_script(RunRequest(args.script, args.script_args, options, record=not args.no_record,
                                        bags_dir=args.bags_dir, video=not args.no_video,
-                                       local_testbed=not args.no_local_testbed, results_dir=args.results_dir))
+                                       local_testbed=not args.no_local_testbed, results_dir=args.results_dir,
+                                       judge=not args.no_verdict))
     return code

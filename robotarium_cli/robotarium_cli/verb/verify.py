@@ -3,8 +3,7 @@ import argparse
 import os
 
 from robotarium_cli import verification
-from robotarium_cli.console import positive_int, say, seconds, shown
-from robotarium_cli.running import RunRequest, run_script
+from robotarium_cli.console import positive_int, say, seconds
 from robotarium_client import session
 
 HELP = "judge a script as the Robotarium's verification does: accept or reject"
@@ -68,9 +67,10 @@ def take_own_arguments(args, error):
 def main(args):
     """./robotarium verify: see robotarium_cli.verification."""
     from robotarium_core import outcomes
-    from robotarium_core.config import DEFAULT, ConfigError, TestbedConfig
+    from robotarium_core.config import ConfigError, TestbedConfig
     try:
-        config = TestbedConfig.load(args.config) if args.config else DEFAULT
+        if args.config:
+            TestbedConfig.load(args.config)
     except (OSError, ConfigError) as error:
         say("cannot read the testbed configuration: %s" % error)
         return outcomes.USAGE_ERROR
@@ -78,36 +78,15 @@ def main(args):
     if not os.path.isfile(script):
         say("no such script: %s" % script)
         return outcomes.USAGE_ERROR
-    rules = verification.static_rules(script, config)
-    run, report, run_dir = {}, "", None
-    if not rules:
-        # A testbed of its own, in a namespace no other testbed or verification uses.
-        os.environ["ROBOTARIUM_NAMESPACE"] = "/robotarium_verify_%d" % os.getpid()
-        say("verifying %s as the Robotarium does: lockstep, safety node auditing (the script's own commands go "
-            "through and every collision counts)" % shown(script))
-        options = session.RunOptions(real_time=False, config_file=args.config, audit=True,
-                                     rps_api={"1": "guide"}.get(args.rps, args.rps) or session.rps_api_from_environment())
-        code, run, run_dir = run_script(RunRequest(script, args.script_args, options, record=not args.no_record,
-                                                   bags_dir=args.bags_dir, video=False, own_testbed=True,
-                                                   results_dir=args.results_dir))
-        if run is None:
-            say("no verdict: the run did not start (exit code %d)" % code)
-            return code if code != outcomes.USAGE_ERROR else outcomes.TESTBED_PROBLEM
-        if run["outcome"] in ("interrupted",):
-            say("no verdict: the verification was interrupted")
-            return code or 130
-        if run["outcome"] in ("testbed_lost", "client_lost", "unfinished", "testbed_incomplete"):
-            say("no verdict: the testbed failed (%s); see the testbed's logs in log/testbed/ and run verify again"
-                % run.get("detail", run["outcome"]))
-            return outcomes.TESTBED_PROBLEM
-        report = (run.get("runs") or [{}])[-1].get("report", "")
-        rules = verification.judge(run, config, args.robots, args.duration)
-    document = verification.verdict(rules, run, report, run_dir)
+    try:
+        judged = verification.verify_script(
+            script, args.script_args, args.config, args.robots, args.duration,
+            rps_api={"1": "guide"}.get(args.rps, args.rps), record=not args.no_record, bags_dir=args.bags_dir,
+            results_dir=args.results_dir)
+    except verification.NoVerdict as error:
+        say("no verdict: %s" % error)
+        return error.code
     if args.json:
-        verification.write_json(args.json, document)
-    print("\n##### VERIFICATION (the Robotarium's rules) #####")
-    if report:
-        print(report, end="" if report.endswith("\n") else "\n")
-    for line in verification.verdict_lines(rules, run, config, args.robots, args.duration):
-        print(line)
-    return outcomes.VERIFY_REJECTED if rules else outcomes.VERIFY_ACCEPTED
+        verification.write_json(args.json, judged.document())
+    print(judged.text(), end="")
+    return outcomes.VERIFY_ACCEPTED if judged.accepted else outcomes.VERIFY_REJECTED
