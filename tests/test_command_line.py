@@ -43,6 +43,19 @@ def test_every_command_has_help(capsys):
         assert "usage" in capsys.readouterr().out, command
 
 
+@pytest.mark.parametrize("module, executable", [("robotarium_sim.simulator_node", "simulator"),
+                                                ("robotarium_safety.safety_node", "safety"),
+                                                ("robotarium_recording.recorder_node", "recorder")])
+def test_a_node_started_with_help_prints_its_usage_and_starts_nothing(module, executable):
+    """`python -m robotarium_sim.simulator_node --help` once started a simulator on domain 0 (issue 36)."""
+    import sys
+    completed = subprocess.run([sys.executable, "-m", module, "--help"], capture_output=True, text=True,
+                               timeout=60, env=dict(os.environ, ROS_DOMAIN_ID="231"))
+    assert completed.returncode == 0, completed.stderr
+    assert completed.stdout.startswith("usage: ros2 run %s %s" % (module.split(".")[0], executable)), completed.stdout
+    assert "testbed.yaml" in completed.stdout and "ready" not in completed.stdout + completed.stderr
+
+
 def test_shell_runs_a_command_in_the_projects_environment():
     completed = robotarium("shell", "-c", "echo venv=$VIRTUAL_ENV; python -c 'import robotarium_msgs'")
     assert completed.returncode == 0, completed.stdout

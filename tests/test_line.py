@@ -99,8 +99,11 @@ def test_a_second_student_waits_in_line_and_a_third_is_refused_with_no_wait(test
         out = refused.stdout + refused.stderr
         assert refused.returncode == 4, out
         assert "Traceback" not in out and "fix it" not in out, out
+        # one line, and no results folder for a run that never ran (issue 36)
+        assert out.count("\n") == 1 and out.count("busy") == 1, out
         assert "is busy: " in out and "steps_forever.py: run steps_forever_" in out
         assert "Run again without --no-wait to wait in line for it (./robotarium status shows who holds it)." in out
+        assert not (tmp_path / "results").exists() or not os.listdir(tmp_path / "results"), os.listdir(tmp_path)
         # two waiting students: first come, first served, each told its place and the holder
         erin = start_run(env, tmp_path, os.path.join(DATA, "two_robots_to_goals.py"))
         wait_for_line(erin, "waiting for the testbed: number 1 in line; it is held by ")
@@ -117,6 +120,8 @@ def test_a_second_student_waits_in_line_and_a_third_is_refused_with_no_wait(test
         assert dave.wait(timeout=60) == 130
         erin_out, frank_out = output_when_done(erin, 180), output_when_done(frank, 180)
         assert erin.returncode == 0 and frank.returncode == 0, erin_out + frank_out
+        for out in (erin_out, frank_out):   # each is told when its turn comes
+            assert "your turn: the testbed is free, starting the experiment" in out, out
         started = [int(out.split("results/two_robots_to_goals_")[1][9:15]) for out in (erin_out, frank_out)]
         assert started[0] <= started[1], (erin_out, frank_out)   # erin came first
     finally:
@@ -124,3 +129,33 @@ def test_a_second_student_waits_in_line_and_a_third_is_refused_with_no_wait(test
             if process is not None and process.poll() is None:
                 os.killpg(process.pid, signal.SIGKILL)
                 process.wait()
+
+
+@pytest.mark.e2e   # whole runs through ./robotarium on one testbed
+def test_a_student_who_ends_their_run_from_another_shell_reads_who_ended_it_once(testbed, tmp_path):
+    """./robotarium end from another shell of the same user on the same host (issue 36): the run's
+    console and its report say it was ended by its user with ./robotarium end, once, and nothing of
+    an operator or --force."""
+    from robotarium_client.robotarium import holder_of_this_process
+    env = testbed
+    me = holder_of_this_process().split()[0]
+    run = start_run(env, tmp_path, "--lockstep", os.path.join(DATA, "steps_forever.py"), "lockstep")
+    try:
+        wait_for_line(run, "step 5")
+        ended = subprocess.run([sys.executable, "-m", "robotarium_cli", "end"], env=env, capture_output=True,
+                               text=True, timeout=60)
+        assert ended.returncode == 0, ended.stdout + ended.stderr
+        assert "ended by its user (%s) with ./robotarium end at step" % me in ended.stdout, ended.stdout
+        out = output_when_done(run, 60)
+    finally:
+        if run.poll() is None:
+            os.killpg(run.pid, signal.SIGKILL)
+            run.wait()
+    assert run.returncode == 4, out
+    said = [line for line in out.splitlines() if "ended by" in line]
+    assert len(said) == 1 and "ended by its user (%s) with ./robotarium end" % me in said[0], out
+    assert "operator" not in out and "--force" not in out and "hint:" not in out, out
+    folder = [line.split("results in ")[1].split(" (open")[0] for line in out.splitlines() if "results in " in line][0]
+    with open(os.path.join(tmp_path, folder, "report.txt")) as f:
+        first = f.readline()
+    assert "ended by its user (%s) with ./robotarium end" % me in first and "operator" not in first, first

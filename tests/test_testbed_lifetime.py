@@ -218,11 +218,12 @@ def test_status_lists_local_testbeds_and_stop_and_end_get_rid_of_them(lab):
             in ended["first_line"], ended["first_line"]
         assert cli(lab, "end").returncode == 1   # nothing running now
 
+        # no experiment runs on either: stop says so, not "experiment ended" (issue 36)
         stopped = cli(lab, "stop", "--namespace", "/stray")
-        assert stopped.returncode == 0 and "stopped: " in stopped.stderr, stopped.stderr
+        assert stopped.returncode == 0 and "stopped (no experiment was running)" in stopped.stderr, stopped.stderr
         assert stray.proc.wait(timeout=5) == 0
         stopped = cli(lab, "stop")   # this shell's namespace: asks `up` to stop
-        assert stopped.returncode == 0 and "stopped: " in stopped.stderr, stopped.stderr
+        assert stopped.returncode == 0 and "stopped (no experiment was running)" in stopped.stderr, stopped.stderr
         assert up.wait(timeout=5) == 0
         assert not wait_until_gone(lab["domain"])
         assert cli(lab, "stop").returncode == 1   # nothing left to stop
@@ -292,7 +293,7 @@ def test_stop_mid_run_names_the_stopped_testbed_first(lab):
         out = run.output()
         assert "could not end the experiment" not in out and "Traceback" not in out, out
         causes = [line for line in out.splitlines() if "gone" in line or "stopped at step" in line]
-        assert causes and "the testbed stopped at step" in causes[0], out
+        assert len(causes) == 1 and "the testbed was stopped at step" in causes[0], out   # said once, truly
         assert "hint: the testbed ended the experiment (it was stopped" in out and "fix it" not in out, out
     finally:
         if run is not None:

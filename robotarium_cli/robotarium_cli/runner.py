@@ -115,8 +115,9 @@ def run(script, script_args):
             code = 1
         return None, "", code or 0
     except BaseException as exc:   # noqa: BLE001 - every way a script can end is reported
-        if (isinstance(exc, (TestbedBusy, TestbedIncomplete, EndedByTestbed))
-                and not isinstance(exc, EndedByUnsentRequest)):   # the testbed's doing, not the script's: one line
+        if isinstance(exc, EndedByTestbed) and not isinstance(exc, EndedByUnsentRequest):
+            pass   # the testbed's doing, not the script's: ./robotarium run's closing line says it, once
+        elif isinstance(exc, (TestbedBusy, TestbedIncomplete)):   # the testbed's doing: one line
             print("[robotarium] %s" % exc, file=sys.stderr, flush=True)
         else:
             print_traceback(exc, script)

@@ -195,9 +195,7 @@ class Robotarium(RobotariumABC):
                          "hardware_seed": response.hardware_seed, "audit": response.audit,
                          "first_collision_step": response.first_collision_step or None,
                          "first_boundary_step": response.first_boundary_step or None,
-                         "safety_interventions": response.safety_interventions,
-                         "prevented_collisions": response.prevented_collisions,
-                         "prevented_boundary_violations": response.prevented_boundary_violations}
+                         "safety_interventions": response.safety_interventions}
         self._errors = {k: v for k, v in (("boundary", response.boundary_violations), ("collision", response.collisions),
                                           ("actuator", response.actuator_limit_iterations)) if v}
         return report
@@ -433,6 +431,9 @@ class Robotarium(RobotariumABC):
         while True:
             response = self._call(self._start_client, request)
             if not response.busy:
+                if said is not None:   # it waited: say that its turn came, not only what it waited for
+                    print("[robotarium] your turn: the testbed is free%s" % (
+                        ", starting the experiment" if response.success else ""), file=sys.stderr, flush=True)
                 return response
             if not request.wait:
                 self._shutdown()
@@ -511,8 +512,10 @@ class Robotarium(RobotariumABC):
             return
         if not self._ended:
             self._failure_kind = self._failure_kind if self._failure is not None else EndedByTestbed
-            self._failure = self._failure if self._failure is not None else ("%s%s." % (
-                outcomes.ENDED_BY_TESTBED, msg.end_reason or "no reason given"))
+            reason = msg.end_reason or "no reason given"
+            self._failure = self._failure if self._failure is not None else (
+                "The experiment was %s." % reason if reason.startswith(outcomes.ENDED_BY_ITS_USER)
+                else "%s%s." % (outcomes.ENDED_BY_TESTBED, reason))
 
     def _check_testbed(self) -> None:
         """Raise RuntimeError when the experiment cannot go on (a node lost, ended by someone else)."""

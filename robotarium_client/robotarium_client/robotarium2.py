@@ -189,6 +189,12 @@ class Robotarium(backend.Robotarium):
         while len(self._readings_by_step) > SENSOR_HISTORY:
             self._readings_by_step.pop(next(iter(self._readings_by_step)))
 
+    _extra_velocity_rows_ignored = False   # 2.1.0 refuses a (3, N) velocity array (numpy's broadcast error)
+
+    def get_poses(self):
+        """2.x returns a copy of the poses (2.1.0 robotarium.py), not the live array 1.x hands out."""
+        return super().get_poses().copy()
+
     def _advance(self, velocities):
         poses = super()._advance(velocities)
         self._readings = None

@@ -28,6 +28,8 @@ if TYPE_CHECKING:
 class RobotariumABC(abc.ABC):
     """Same constructor, defaults, attributes and call-order rules as rps.robotarium.Robotarium."""
 
+    _extra_velocity_rows_ignored = True   # rps 0.0.0 drives a (3, N) velocity array by its first two rows
+
     def __init__(self, number_of_robots: int = -1, show_figure: bool = True, sim_in_real_time: bool = True,
                  initial_conditions: np.ndarray = np.array([]), config: TestbedConfig = DEFAULT) -> None:
         # Argument checks of rps (RobotariumABC), with messages that say what to do.
@@ -69,6 +71,7 @@ class RobotariumABC(abc.ABC):
         self._checked_poses_already = False
         self._iterations = 0
         self._ended = False
+        self._warned_extra_rows = False
         self._report = None   # the debug report, once the testbed ended the experiment
         self._errors = {}   # as rps: {"boundary": n, "collision": n, "actuator": n}, filled at the end
         self.figure, self.axes = [], []
@@ -126,12 +129,16 @@ class RobotariumABC(abc.ABC):
     # -- the rps API ---------------------------------------------------------------------------
 
     def get_poses(self) -> np.ndarray:
-        """Returns the states of the agents: a 3xN numpy array (x, y, theta of each robot)."""
+        """Returns the states of the agents: a 3xN numpy array (x, y, theta of each robot).
+
+        As in rps 0.0.0 it is the Robotarium's own array, which every step() updates in place: a
+        script that tests `x` after step() sees the new poses (the guide's 3.1.2 loop ends on them).
+        Writing into it moves no robot."""
         if self._checked_poses_already:
             raise RobotariumError("Can only call get_poses() once per call of step().")
         self._called_step_already = False
         self._checked_poses_already = True
-        return self.poses.copy()
+        return self.poses
 
     def set_velocities(self, ids: np.ndarray | Sequence[int] | int, velocities: np.ndarray) -> None:
         """Set unicycle commands: velocities is 2 x len(ids) (v in m/s, omega in rad/s).
@@ -144,6 +151,14 @@ class RobotariumABC(abc.ABC):
             raise RobotariumError("set_velocities: velocities must be a 2 x N numpy array; received %s."
                                   % type(velocities).__name__)
         velocities = np.asarray(velocities, dtype=float)
+        if (self._extra_velocity_rows_ignored and velocities.ndim == 2 and velocities.shape[0] > 2
+                and velocities.shape[1] == ids.size):
+            # rps 0.0.0 reads only the first two rows (v, omega): such a script runs there, so it runs here.
+            if not self._warned_extra_rows:
+                self._warned_extra_rows = True
+                print("[robotarium] set_velocities: velocities has %d rows; the Robotarium uses the first two "
+                      "(v, omega) and ignores the rest" % velocities.shape[0], file=sys.stderr)
+            velocities = velocities[:2]
         if velocities.ndim != 2 or velocities.shape[0] != 2 or velocities.shape[1] != ids.size:
             raise RobotariumError(
                 "set_velocities: velocities must be 2 x %d (one column per id in ids); received shape %s."
@@ -172,7 +187,7 @@ class RobotariumABC(abc.ABC):
         self._checked_poses_already = False
         self._record_drawing(self._iterations)   # drawn by the script for the poses it last got
         self._iterations += 1
-        self.poses = self._advance(self.velocities)
+        self.poses[...] = self._advance(self.velocities)   # in place: see get_poses
         if self._arena_figure is not None:
             self._arena_figure.update(self.poses)
             if self._arena_figure.interactive:

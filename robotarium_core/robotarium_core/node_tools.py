@@ -440,6 +440,34 @@ def claim_place(who, name, stop):
     return node, place.older
 
 
+def help_requested(args=None):
+    """Whether the command line (args, or sys.argv; its first entry the program) asks for -h/--help
+    before any --ros-args: then a node prints its usage and starts nothing."""
+    given = list(sys.argv if args is None else args)[1:]
+    if "--ros-args" in given:
+        given = given[:given.index("--ros-args")]
+    return "-h" in given or "--help" in given
+
+
+def node_usage(make_node, name):
+    """A node's --help: how to start it, what it is (its module's first paragraph), what it reads."""
+    from robotarium_core.config import FIELDS
+    module = sys.modules.get(getattr(make_node, "__module__", ""), None)
+    about = ((module.__doc__ or "").strip().split("\n\n")[0] if module is not None else "").replace("\n", " ")
+    spec = getattr(module, "__spec__", None)   # python -m runs the module as __main__; its spec keeps its name
+    module_name = spec.name if spec is not None else getattr(module, "__name__", "<module>")
+    package = module_name.split(".")[0]
+    read = [field for field, spec in FIELDS.items() if name in spec.used_by]
+    lines = ["usage: ros2 run %s %s [--ros-args [-r __ns:=/NAMESPACE] [--params-file FILE] [-p NAME:=VALUE ...]]"
+             % (package, name), "       python -m %s [the same]" % module_name, "", about]
+    if read:
+        lines += ["", "Parameters: the testbed configuration's (robotarium_core/testbed.yaml, every value explained "
+                      "there; ./robotarium up --config FILE): " + ", ".join(read) + "."]
+    lines += ["", "./robotarium up starts it with the rest of the testbed (ros2 launch robotarium_bringup "
+                  "testbed.launch.py too)."]
+    return "\n".join(lines)
+
+
 def run_node(make_node, name, args=None, before_destroy=None, claim=None):
     """rclpy.init, make the node (a bad parameter exits with code 2 and its message), spin until a
     stop is requested (StopRequest), wind down, then clean up. Returns the process exit code.
@@ -456,6 +484,9 @@ def run_node(make_node, name, args=None, before_destroy=None, claim=None):
     claim: the node's kind (robotarium_core.presence.SIMULATOR, ...): one of each per domain and
     namespace (claim_place); a node that finds an older one prints one line naming it and exits
     with claim.REFUSED (4), before it offers anything, or as soon as it hears of it later."""
+    if help_requested(args):
+        print(node_usage(make_node, name))
+        return 0
     if not lifeline.pass_start_gate():
         return 0
     return_freed_memory()

@@ -61,7 +61,7 @@ def main(args):
             return 1
         # Yours (this user on this host): ended as an operator would, saying by whom.
         force, outcome = True, outcomes.INTERRUPTED
-        detail = "interrupted at step %d: ended by its user (%s) with ./robotarium end" % (msg.step, me)
+        detail = "ended by its user (%s) with ./robotarium end" % me
     try:
         response = end_experiment(ns, timeout=args.timeout, force=force, outcome=outcome, detail=detail)
     except TimeoutError as error:

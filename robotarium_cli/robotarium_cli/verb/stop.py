@@ -14,6 +14,15 @@ def add_arguments(parser):
     parser.add_argument("--all", action="store_true", help="every testbed on this machine")
 
 
+def running_experiments(targets):
+    """{(domain, namespace): the run id of the experiment running there} for the testbeds `targets`
+    (local_testbeds entries), from their status topics: what stopping them will end."""
+    from robotarium_bringup.testbed import testbed_status
+    from robotarium_msgs.msg import TestbedStatus
+    status = testbed_status([(str(t["domain"]), t["namespace"], None) for t in targets], timeout=2.0)
+    return {key: msg.run_id for key, msg in status.items() if msg is not None and msg.state == TestbedStatus.STATE_RUNNING}
+
+
 def main(args):
     from robotarium_bringup import local_testbeds
     found = local_testbeds.find()
@@ -28,12 +37,17 @@ def main(args):
     if not targets:
         say("no testbed runs %s; nothing to stop%s" % (where, " (./robotarium status lists them)" if found else ""))
         return 1
+    running = running_experiments(targets)
     for t in targets:
         owner = t.get("owner")
+        run_id = running.get((str(t["domain"]), t["namespace"]))
         say("stopping the testbed in %s on ROS_DOMAIN_ID %s (%s)" % (
             t["namespace"], t["domain"], "via its owner, pid %d: %s" % (owner["pid"], owner["command"])
             if owner and owner["running"] else "nodes %s" % ", ".join(str(p) for p in t["nodes"].values())))
         how = local_testbeds.stop(t)
-        say("stopped: experiment ended, recording closed" if how == "stopped" else
-            "killed: it did not stop within the grace period (its recording may need ./robotarium report)")
+        if how != "stopped":
+            say("killed: it did not stop within the grace period (its recording may need ./robotarium report)")
+        else:
+            say("stopped: experiment %s ended, its recording closed" % run_id if run_id else
+                "stopped (no experiment was running)")
     return 0
