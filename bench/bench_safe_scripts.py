@@ -10,10 +10,11 @@ own simulator (issue 36):
               step ("0.0.0+g": a script beyond the wheel limits drives its commanded arc, as here).
 
 Columns: arrays the safety layer changed and the largest change (m/s or rad/s); iterations of the
-stack and of 0.0.0; the largest distance between a robot on the stack and on 0.0.0+g at the same step
-(m); collision / outside iterations of 0.0.0 (a script that is not safe there may be changed here);
-actuator-limit iterations of the stack, 0.0.0 and 0.0.0+g (0.0.0 clips v and omega apart, so its
-paths and counts differ where a script exceeds the wheel limits: the thresholding, not the counting).
+stack, of 0.0.0+g and of 0.0.0; the largest distance between a robot on the stack and on 0.0.0+g at
+the same step (m); collision / outside iterations of 0.0.0 (a script that is not safe there may be
+changed here); actuator-limit iterations of the stack, 0.0.0+g and 0.0.0 (0.0.0 clips v and omega
+apart, so its paths and counts differ where a script exceeds the wheel limits: the thresholding, not
+the counting).
 Listings with fixed loops of thousands of steps run shortened loops (--full: as printed).
 Run: ./robotarium bench safe_scripts [--full] [PATTERN ...]
 """
@@ -77,10 +78,10 @@ def main():
         os.environ.update(saved)
         print("safe scripts, %s, %s, %d cores, seed %d, lockstep, load average %.1f" % (
             time.strftime("%Y-%m-%d %H:%M"), platform.machine(), os.cpu_count(), args.seed, os.getloadavg()[0]))
-        print("%-46s %7s %8s %13s %10s %9s %13s" % ("script", "changed", "largest", "iterations", "position",
+        print("%-46s %7s %8s %17s %10s %9s %13s" % ("script", "changed", "largest", "iterations", "position",
                                                    "0.0.0", "actuator"))
-        print("%-46s %7s %8s %13s %10s %9s %13s" % ("", "arrays", "change", "stack/0.0.0", "diff (m)",
-                                                   "col/out", "st/0.0.0/+g"))
+        print("%-46s %7s %8s %17s %10s %9s %13s" % ("", "arrays", "change", "stack/+g/0.0.0", "diff (m)",
+                                                   "col/out", "st/+g/0.0.0"))
         unchanged = 0
         for script in scripts:
             settings = [] if args.full else SHORTER.get(os.path.basename(script), [])
@@ -93,10 +94,11 @@ def main():
                 print("%-46s no run: %s" % (name, problem.strip().splitlines()[-1:]), flush=True)
                 continue
             unchanged += stack.changed == 0
-            print("%-46s %7d %8.3g %6d/%-6d %10.2g %4d/%-4d %4d/%d/%d" % (
-                name, stack.changed, stack.largest_change, stack.iterations, raw.iterations,
-                stack.difference(guide), raw.collisions, raw.boundary, stack.actuator, raw.actuator, guide.actuator),
-                flush=True)
+            print("%-46s %7d %8.3g %17s %10.2g %4d/%-4d %13s" % (
+                name, stack.changed, stack.largest_change, "%d/%d/%d" % (stack.iterations, guide.iterations,
+                                                                         raw.iterations),
+                stack.difference(guide), raw.collisions, raw.boundary,
+                "%d/%d/%d" % (stack.actuator, guide.actuator, raw.actuator)), flush=True)
         print("scripts with no array changed: %d of %d. Load average now %.1f." % (unchanged, len(scripts),
                                                                                   os.getloadavg()[0]))
     finally:

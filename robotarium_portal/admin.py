@@ -33,7 +33,8 @@ class ReturnMessageInline(admin.StackedInline):
 class ExperimentAdmin(admin.ModelAdmin):
     """Every experiment; "state: queued" (or submitted, verifying, running) is the queue, and the selected ones
     may be cancelled (a running one is stopped by its worker within a heartbeat)."""
-    list_display = ("pk", "title", "owner", "state", "worker", "submitted_at", "queued_at", "finished_at")
+    list_display = ("pk", "title", "owner", "state", "worker", "submitted_at", "queued_at", "finished_at",
+                    "differs_from_verification")
     list_filter = ("state",)
     inlines = [FileInline, ReturnMessageInline]
     actions = ["cancel"]

@@ -61,6 +61,22 @@ def send_completed(experiment):
               settings.DEFAULT_FROM_EMAIL, [experiment.owner.email])
 
 
+def tell_administrators_of_a_difference(experiment, in_run, verified):
+    """A run whose safety layer changed commands its verification never needed changed: the
+    administrators hear of it, with both figures."""
+    from django.contrib.auth import get_user_model
+    staff = list(get_user_model().objects.filter(is_staff=True, is_active=True).exclude(email="")
+                 .values_list("email", flat=True))
+    if staff:
+        send_mail("Robotarium: experiment #%d behaved differently on the robots than in verification" % experiment.pk,
+                  "Experiment #%d \"%s\" of %s: the safety layer changed %d command arrays in its run that the "
+                  "verification's certificate would have changed too, and %d in its verification. The script may "
+                  "behave differently when it is verified.\n\n%s\n"
+                  % (experiment.pk, experiment.title, experiment.owner.email, in_run, verified,
+                     _experiment_link(experiment)),
+                  settings.DEFAULT_FROM_EMAIL, staff)
+
+
 def send_approved(user):
     send_mail("Robotarium: your account is approved",
               "Hello %s,\n\nan administrator approved your Robotarium account: you can submit experiments now.\n\n%s\n"

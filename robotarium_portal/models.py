@@ -1,4 +1,6 @@
 """What the service keeps: who may use it (Profile beside Django's User) and the experiments."""
+import json
+
 from django.conf import settings
 from django.db import models
 from django.utils import timezone
@@ -93,6 +95,22 @@ class Experiment(models.Model):
 
     def file_names(self):
         return sorted(f.name for f in self.files.all())
+
+    def differs_from_verification(self):
+        """(arrays the run's safety layer changed that a verification's certificate would have changed
+        too, arrays the verification's certificate would have changed) when the first is more than 0
+        and the second 0: a script that behaves differently on the robots than in verification (one
+        that stays still while verified and drives robots head-on in the run). Else None."""
+        counts = (self.verification or {}).get("counts") or {}
+        run_json = self.results_dir / "run.json" if self.results_dir else None
+        try:
+            run = json.loads(run_json.read_text()) if run_json else {}
+        except (OSError, ValueError):
+            return None
+        in_run, verified = int(run.get("ideal_interventions") or 0), counts.get("safety_interventions")
+        if in_run and verified == 0:
+            return in_run, verified
+        return None
 
     def settings_dict(self):
         """The settings .json the guide's Create Experiment page offers."""

@@ -327,6 +327,9 @@ def run_experiment(experiment):
     experiment.run_outcome = outcome
     if outcome in ("completed", "time_limit"):
         detail = run.get("detail") or "Run completed."
+        differs = experiment.differs_from_verification()
+        if differs is not None:
+            mail.try_sending(mail.tell_administrators_of_a_difference, experiment, *differs)
         return _finish(experiment, Experiment.COMPLETED, detail + earlier, results=experiment.results,
                        run_outcome=outcome, timings=experiment.timings)
     if code is None:

@@ -131,6 +131,7 @@ def experiment_page(request, pk):
     context = {
         "experiment": experiment, "form": form, "scripts": experiment.files.all(),
         "step": tasks.current_step(experiment) if experiment.state == Experiment.RUNNING else None,
+        "differs": experiment.differs_from_verification(),
         "place": experiment.place_in_queue(), "slot_minutes": round(tasks.time_limit() / 60),
         "return_messages": experiment.return_messages.all(),
         "results": results_dir is not None,

@@ -128,6 +128,34 @@ def test_another_users_experiment_results_files_and_settings_answer_404():
     assert Client().get(urls[0]).status_code == 302   # nobody logged in: to the log-in page
 
 
+# --- a run that behaved otherwise than its verification is flagged (issue 36) --------------------------------
+
+def test_a_run_the_safety_layer_changed_where_verification_needed_nothing_is_flagged_with_both_figures():
+    """A script that stays still while verified and drives robots head-on in its run: its run's safety
+    layer changed arrays a verification's certificate would have changed too (run.json
+    ideal_interventions, measured by the safety node); its verification's certificate none. The page
+    says so at the top with both figures; a clean run is not flagged."""
+    import json
+    owner = make_user()
+    flagged = experiment_of(owner, results={"run.json": json.dumps({"outcome": "completed", "safety_interventions": 90,
+                                                                    "ideal_interventions": 61})})
+    flagged.verification = {"verdict": "accepted", "counts": {"safety_interventions": 0}}
+    flagged.save()
+    assert flagged.differs_from_verification() == (61, 0)
+    page = client_for(owner).get("/experiments/%d/" % flagged.pk).content.decode()
+    assert 'id="differs"' in page and "changed 61 command arrays" in page and "would have changed 0" in page
+    # wider margins alone (real time, hardware-like) are no difference; nor a verification that changed too
+    clean = experiment_of(owner, results={"run.json": json.dumps({"outcome": "completed", "safety_interventions": 40,
+                                                                  "ideal_interventions": 0})})
+    clean.verification = {"verdict": "accepted", "counts": {"safety_interventions": 0}}
+    clean.save()
+    assert clean.differs_from_verification() is None
+    assert 'id="differs"' not in client_for(owner).get("/experiments/%d/" % clean.pk).content.decode()
+    flagged.verification = {"verdict": "accepted", "counts": {"safety_interventions": 12}}
+    flagged.save()
+    assert flagged.differs_from_verification() is None
+
+
 # --- only administrators approve accounts and write return messages ------------------------------------------
 
 def test_only_administrators_approve_accounts_and_write_return_messages():

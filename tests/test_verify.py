@@ -270,6 +270,24 @@ def test_run_and_verify_give_one_verdict(env, tmp_path):
 
 
 @pytest.mark.e2e   # ./robotarium verify or run, whole
+def test_the_safety_node_measures_what_a_verification_would_have_changed_in_a_real_time_run(env, tmp_path):
+    """The portal's flag (issue 36) stands on two measured figures: verify's safety_interventions (the
+    audited run: what the certificate would change) and the run's ideal_interventions (what, of the
+    run's changes, a verification's certificate would have made: the run's own margins are wider in
+    real time). A script still when verified and head-on when run: 0 and more than 0."""
+    script = os.path.join(DATA, "still_when_verified.py")
+    code, verified, out = verify_script(env, tmp_path, script)
+    assert code == 0 and verified["counts"]["safety_interventions"] == 0, out
+    completed = run_cli(env, "run", "--no-video", "--no-verdict", "--real-time", "--results-dir",
+                        str(tmp_path / "results"), "--bags-dir", str(tmp_path / "run"), script)
+    assert completed.returncode == 0, completed.stdout + completed.stderr
+    (folder,) = glob.glob(str(tmp_path / "run" / "*"))
+    with open(os.path.join(folder, "run.json")) as f:
+        info = json.load(f)
+    assert info["collisions"] == 0 and info["safety_interventions"] >= info["ideal_interventions"] > 0, info
+
+
+@pytest.mark.e2e   # ./robotarium verify or run, whole
 def test_usage_errors_and_help(env, tmp_path):
     completed = run_cli(env, "verify", str(tmp_path / "missing.py"))
     assert completed.returncode == outcomes.USAGE_ERROR and "no such script" in completed.stderr

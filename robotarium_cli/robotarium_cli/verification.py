@@ -153,7 +153,8 @@ def verdict(rules, run=None, report="", results=None):
             "number_of_robots": run.get("number_of_robots"), "outcome": run.get("outcome", "not_run"),
             "report": report,
             "counts": {key: run.get(key) for key in ("collisions", "boundary_violations", "actuator_limit_iterations",
-                                                     "first_collision_step", "first_boundary_step")},
+                                                     "first_collision_step", "first_boundary_step",
+                                                     "safety_interventions")},
             "results": results}
 
 

@@ -195,7 +195,8 @@ class Robotarium(RobotariumABC):
                          "hardware_seed": response.hardware_seed, "audit": response.audit,
                          "first_collision_step": response.first_collision_step or None,
                          "first_boundary_step": response.first_boundary_step or None,
-                         "safety_interventions": response.safety_interventions}
+                         "safety_interventions": response.safety_interventions,
+                         "ideal_interventions": response.ideal_interventions}
         self._errors = {k: v for k, v in (("boundary", response.boundary_violations), ("collision", response.collisions),
                                           ("actuator", response.actuator_limit_iterations)) if v}
         return report

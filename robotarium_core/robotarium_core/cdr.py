@@ -273,7 +273,7 @@ SAFETY_REPORT = Layout("robotarium_msgs/msg/SafetyReport", HEADER + (
     ("robots_changed", UINT32), ("solve_time", FLOAT64), ("solver_status", STRING),
     ("foreign", UINT64), ("oversized", UINT64), ("malformed", UINT64), ("nonfinite", UINT64),   # dropped (DropCounts)
     ("length_mismatch", UINT64), ("unknown_id", UINT64), ("stale", UINT64),
-    ("pose_age", FLOAT64), ("audit", BOOL), ("refreshed", BOOL),
+    ("pose_age", FLOAT64), ("audit", BOOL), ("refreshed", BOOL), ("ideal_change", FLOAT64),
 ))
 
 POSE_ARRAY = Layout("geometry_msgs/msg/PoseArray", HEADER + (

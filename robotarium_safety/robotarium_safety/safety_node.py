@@ -98,6 +98,9 @@ class SafetyNode(Node):
         super().__init__("safety", namespace=DEFAULT_NAMESPACE)
         self.config = c = declare_config(self, "safety")
         self.certificate = TestbedCertificate(c)   # centres apart and inside: the least change
+        # What a verification's certificate (no latency, lockstep) would change: the run's own may keep
+        # wider margins (real time, hardware-like), and the portal compares like with like.
+        self.ideal_certificate = TestbedCertificate(c)
 
         self.armed = ArmSafety.Request()   # the experiment guarded (run_id empty: none)
         self.poses = None            # 3 x N, newest
@@ -328,6 +331,10 @@ class SafetyNode(Node):
         report["solver_status"] = info["status"]
         report["max_change"] = float(filtered.change.max()) if n else 0.0
         report["robots_changed"] = int(np.count_nonzero(filtered.change > self.config.intervention_tolerance))
+        report["ideal_change"] = report["max_change"]
+        if self.certificate.latency or self.certificate.real_time:
+            report["ideal_change"] = float(filter_commands(self.ideal_certificate, self.commands, self.poses,
+                                                           self.config, self.api).change.max(initial=0.0))
         safe = filtered.safe
         if self.armed.audit:   # verification: what the certificate would do is reported, the script's own commands go
             report["audit"] = True
@@ -362,6 +369,8 @@ class SafetyNode(Node):
         else:
             ids = np.arange(self.armed.number_of_robots)
         report["status"] = status
+        # the script's doing (a malformed array) or the testbed's (stale poses): only the first is the script's
+        report["ideal_change"] = report["max_change"] if status == SafetyReport.STATUS_STOP_BAD_INPUT else 0.0
         self.publish(report["step"], ids, np.zeros(len(ids)), np.zeros(len(ids)), report, started, refreshed=refreshed)
 
     def publish(self, step, ids, v, w, report, started, requested_exceeds_limits=False, refreshed=False):

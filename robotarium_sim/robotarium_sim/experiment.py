@@ -92,6 +92,7 @@ class Experiment:
     poses_key: str = ""
     tally: model.RunTally = dataclasses.field(default_factory=model.RunTally)   # first error steps, safety figures
     safety_interventions: int = 0
+    ideal_interventions: int = 0   # of those, the ones a verification's certificate would have made too
     stale_pose_stops: int = 0
     commands_accepted: int = 0
     safe_arrays_heard: int = 0     # arrays with the safety key (each comes with a SafetyReport)
@@ -130,7 +131,8 @@ class Experiment:
         self.logged_drops.add(reason)
         return first
 
-    def count_safety_report(self, intervention, max_change, of_an_array=True, stale_stop=False, dropped=None):
+    def count_safety_report(self, intervention, max_change, of_an_array=True, stale_stop=False, dropped=None,
+                            ideal=False):
         """Count one of the safety node's reports (SafetyReport): of an array it sent unless it only
         carries drop counts; an intervention and how much it changed, a stop for want of fresh
         poses, and its drop counts."""
@@ -138,6 +140,7 @@ class Experiment:
             self.reports_heard += 1
         if intervention:
             self.safety_interventions += 1
+            self.ideal_interventions += bool(ideal)
         self.tally.add_safety_report(intervention, max_change)
         if stale_stop:
             self.stale_pose_stops += 1

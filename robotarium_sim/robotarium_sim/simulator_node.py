@@ -467,6 +467,7 @@ class SimulatorNode(Node):
         response.obstacle_collisions = getattr(tb, "obstacle_hits", 0)
         response.audit = self.run.audit
         response.safety_interventions = self.run.safety_interventions
+        response.ideal_interventions = self.run.ideal_interventions
         # A verification run's report is the Robotarium's counts alone: the script's own commands drove it.
         response.report = tb.report(completed=outcome == outcomes.COMPLETED,
                                      safety=None if self.run.audit else self.run.tally.safety(self.run.commands_accepted))
@@ -558,7 +559,8 @@ class SimulatorNode(Node):
         self.run.count_safety_report(
             is_intervention(msg, self.config.intervention_tolerance), msg.max_change,
             of_an_array=msg.status != SafetyReport.STATUS_COUNTS_ONLY,
-            stale_stop=msg.status == SafetyReport.STATUS_STOP_NO_POSES, dropped=msg.dropped)
+            stale_stop=msg.status == SafetyReport.STATUS_STOP_NO_POSES, dropped=msg.dropped,
+            ideal=msg.ideal_change > self.config.intervention_tolerance)
 
     def on_recording(self, msg):
         self.recording = msg.data
@@ -622,6 +624,7 @@ class SimulatorNode(Node):
         msg.dropped_cmd_safe = drop_counts(self.run.dropped)
         msg.dropped_cmd_requested = self.run.dropped_requested or DropCounts()
         msg.safety_interventions = self.run.safety_interventions
+        msg.ideal_interventions = self.run.ideal_interventions
         msg.end_reason = self.run.end_reason
         if tb is not None:
             msg.poses_key_sha256, msg.safety_key_sha256 = self.run.key_hashes
