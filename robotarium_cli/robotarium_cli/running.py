@@ -20,6 +20,7 @@ from robotarium_bringup.testbed import (
     repository_root,
     testbed_answers,
 )
+from robotarium_cli import verification
 from robotarium_cli.console import Interruption, say, shown
 from robotarium_cli.folders import (
     check_run_folders,
@@ -157,7 +158,7 @@ class RunRequest:
     namespace: object = None     # the testbed's namespace; None: $ROBOTARIUM_NAMESPACE or /robotarium
     echo: bool = True            # show what the script prints and where the results are (log.txt has the prints)
     # Where the safety layer changed the script's commands, judge the script as the Robotarium's
-    # verification does (verification.verify_script) and keep the verdict with the run (run.json).
+    # verification does (verify_script) and keep the verdict with the run (run.json).
     judge: bool = False
 
 
@@ -336,13 +337,12 @@ def _judge(request, run):
     """The Robotarium's verdict on a run whose commands the safety layer changed: the script judged
     as ./robotarium verify judges it (lockstep, its own commands, a testbed of its own), printed
     and returned as verification.verdict's document (None: no verdict, and why was said)."""
-    from robotarium_cli import verification
     say("the safety layer changed %d of your script's command arrays, so this run's counts are not the "
         "Robotarium's: judging the script as its verification does (lockstep, the script's own commands, a testbed "
         "of its own; ./robotarium verify)" % run["safety_interventions"])
     scratch = tempfile.mkdtemp(prefix="robotarium-judge-")
     try:
-        judged = verification.verify_script(request.script, request.script_args, request.options.config_file,
+        judged = verify_script(request.script, request.script_args, request.options.config_file,
                                             rps_api=request.options.rps_api, record=False, results_dir=scratch,
                                             echo=False)
     except verification.NoVerdict as error:
@@ -488,3 +488,34 @@ def _collect_run(script, code, testbed, interruption, work, info_path, log_path,
     if not quiet:
         print_summary(run_dir, run, cwd)
     return run["exit_code"], run, run_dir
+
+
+def verify_script(script, script_args=(), config_file=None, robots=None, duration=None, rps_api=None, record=True,
+                  bags_dir=None, results_dir=None, echo=True):
+    """Judge `script` as the Robotarium's verification does: the static rules, then a lockstep run on
+    a testbed of its own (a namespace no other testbed uses) with the safety node auditing. Returns
+    a verification.Verdict; raises verification.NoVerdict where the run could not judge it."""
+    from robotarium_core.config import DEFAULT, TestbedConfig
+    config = TestbedConfig.load(config_file) if config_file else DEFAULT
+    rules = verification.static_rules(script, config)
+    if rules:
+        return verification.Verdict(rules, {}, "", None, config, robots, duration)
+    if echo:
+        say("verifying %s as the Robotarium does: lockstep, safety node auditing (the script's own commands go "
+            "through and every collision counts)" % shown(script))
+    options = session.RunOptions(real_time=False, config_file=config_file, audit=True,
+                                 rps_api=rps_api or session.rps_api_from_environment())
+    code, run, run_dir = run_script(RunRequest(
+        script, tuple(script_args), options, record=record, bags_dir=bags_dir, video=False, own_testbed=True,
+        results_dir=results_dir, namespace="/robotarium_verify_%d" % os.getpid(), echo=echo))
+    if run is None:
+        raise verification.NoVerdict("the run did not start (exit code %d)" % code,
+                                     code if code != outcomes.USAGE_ERROR else outcomes.TESTBED_PROBLEM)
+    if run["outcome"] == "interrupted":
+        raise verification.NoVerdict("the verification was interrupted", code or 130)
+    if run["outcome"] in ("testbed_lost", "client_lost", "unfinished", "testbed_incomplete"):
+        raise verification.NoVerdict("the testbed failed (%s); see the testbed's logs in log/testbed/ and run verify "
+                                     "again" % run.get("detail", run["outcome"]), outcomes.TESTBED_PROBLEM)
+    report = (run.get("runs") or [{}])[-1].get("report", "")
+    return verification.Verdict(verification.judge(run, config, robots, duration), run, report, run_dir, config,
+                                robots, duration)

@@ -25,8 +25,8 @@ testbed failed (no verdict), 128 + N interrupted by signal N. `--json FILE` writ
    "counts": {...}, "results": "the run's folder" | null}
 
 The rules themselves are plain functions (static_rules, judge) that tests drive without ROS;
-verify_script runs a script and judges it (./robotarium verify, and ./robotarium run where the
-safety layer changed the script's commands).
+robotarium_cli.running.verify_script runs a script and judges it (./robotarium verify, and
+./robotarium run where the safety layer changed the script's commands).
 """
 import ast
 import dataclasses
@@ -224,37 +224,3 @@ class Verdict:
             lines.append(self.report.rstrip("\n"))
         lines += verdict_lines(self.rules, self.run, self.config, self.robots, self.duration)
         return "\n".join(lines) + "\n"
-
-
-def verify_script(script, script_args=(), config_file=None, robots=None, duration=None, rps_api=None, record=True,
-                  bags_dir=None, results_dir=None, echo=True):
-    """Judge `script` as the Robotarium's verification does: the static rules, then a lockstep run on
-    a testbed of its own (a namespace no other testbed uses) with the safety node auditing. Returns
-    a Verdict; raises NoVerdict where the run could not judge it."""
-    from robotarium_cli.console import say, shown
-    from robotarium_cli.running import RunRequest, run_script
-    from robotarium_client import session
-    from robotarium_core import outcomes
-    from robotarium_core.config import DEFAULT, TestbedConfig
-    config = TestbedConfig.load(config_file) if config_file else DEFAULT
-    rules = static_rules(script, config)
-    if rules:
-        return Verdict(rules, {}, "", None, config, robots, duration)
-    if echo:
-        say("verifying %s as the Robotarium does: lockstep, safety node auditing (the script's own commands go "
-            "through and every collision counts)" % shown(script))
-    options = session.RunOptions(real_time=False, config_file=config_file, audit=True,
-                                 rps_api=rps_api or session.rps_api_from_environment())
-    code, run, run_dir = run_script(RunRequest(
-        script, tuple(script_args), options, record=record, bags_dir=bags_dir, video=False, own_testbed=True,
-        results_dir=results_dir, namespace="/robotarium_verify_%d" % os.getpid(), echo=echo))
-    if run is None:
-        raise NoVerdict("the run did not start (exit code %d)" % code,
-                        code if code != outcomes.USAGE_ERROR else outcomes.TESTBED_PROBLEM)
-    if run["outcome"] == "interrupted":
-        raise NoVerdict("the verification was interrupted", code or 130)
-    if run["outcome"] in ("testbed_lost", "client_lost", "unfinished", "testbed_incomplete"):
-        raise NoVerdict("the testbed failed (%s); see the testbed's logs in log/testbed/ and run verify again"
-                        % run.get("detail", run["outcome"]), outcomes.TESTBED_PROBLEM)
-    report = (run.get("runs") or [{}])[-1].get("report", "")
-    return Verdict(judge(run, config, robots, duration), run, report, run_dir, config, robots, duration)
