@@ -28,6 +28,8 @@ NODES = {
     "simulator": ("robotarium_sim.simulator_node", True),
     "safety": ("robotarium_safety.safety_node", True),
     "recorder": ("robotarium_recording.recorder_node", False),
+    # a lab's own robots (./robotarium up --fleet FILE): the hardware arena in the simulator's place
+    "arena": ("robotarium_hardware.arena_node", True),
 }
 
 
@@ -96,7 +98,7 @@ class LocalTestbed:
     process by its lifeline."""
 
     def __init__(self, log_dir=None, record=True, ns=None, bags_dir=None, quiet=True, config_file=None,
-                 hardware=False, looked=False):
+                 hardware=False, looked=False, fleet_file=None):
         self.gate = None
         # The starter looked for a testbed in this namespace already (./robotarium up, run, verify's own
         # namespace): the nodes claim their place without waiting for an older one (robotarium_core.claim).
@@ -106,7 +108,9 @@ class LocalTestbed:
         self.config_file = config_file
         self.log_dir = log_dir   # None: log/testbed/<namespace>_<domain>_<pid>/, chosen at start
         self.hardware = hardware   # every experiment hardware-like (the simulator's `hardware` parameter)
-        self.names = ["simulator", "safety"] + (["recorder"] if record else [])
+        self.fleet_file = os.path.abspath(fleet_file) if fleet_file else None
+        arena = ["arena"] if self.fleet_file else ["simulator"]   # the fleet's arena in the simulator's place
+        self.names = arena + ["safety"] + (["recorder"] if record else [])
         self.bags_dir = bags_dir
         self.quiet = quiet
         self.processes = {}
@@ -129,9 +133,11 @@ class LocalTestbed:
             env, pass_fds = self.gate.for_child(env, pass_fds)
         for name in self.names:
             extra = ["-p", "bags_dir:=%s" % self.bags_dir] if name == "recorder" and self.bags_dir else []
-            if name == "simulator":   # a run's first steps wait for the recorder's readers where it records
+            if name in ("simulator", "arena"):   # a run's first steps wait for the recorder's readers where it records
                 extra = (["-p", "hardware:=true"] if self.hardware else []) + (
                     ["-p", "wait_for_recorder:=true"] if "recorder" in self.names else [])
+            if name == "arena":
+                extra += ["-p", "fleet_file:=%s" % self.fleet_file]
             log = open(os.path.join(self.log_dir, name + ".log"), "wb") if self.quiet else None
             self.processes[name] = (subprocess.Popen(
                 node_command(name, self.ns, extra, self.config_file), stdout=log, stderr=subprocess.STDOUT if log else None,

@@ -235,7 +235,7 @@ def find_or_start_testbed(ns, record, bags_dir, config_file):
     and join DDS only once no testbed answered: never two testbeds in one namespace."""
     from robotarium_bringup import local_testbeds
     here = local_testbeds.matching(local_testbeds.find(), ns, local_testbeds.domain_id())
-    running_here = any(any(name.startswith("simulator") for name in t["nodes"]) for t in here)
+    running_here = any(any(name.startswith(("simulator", "arena")) for name in t["nodes"]) for t in here)
     if running_here:   # ./robotarium up (or ros2 run) on this machine: it answers
         if testbed_answers(ns, timeout=LOCAL_PROBE_WAIT):
             return None

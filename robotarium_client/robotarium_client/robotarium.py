@@ -396,6 +396,13 @@ class Robotarium(RobotariumABC):
                 raise TestbedIncomplete(incomplete_testbed_message(self._ns))
             raise RobotariumError("The testbed refused to start the experiment: %s" % response.message)
         self._run_id = response.run_id
+        if response.real_time and not self.sim_in_real_time:
+            # An arena of real robots (robotarium_hardware) runs every experiment in real time, as the
+            # Robotarium does: sim_in_real_time=False is the simulator's speed-up only.
+            print("[robotarium] the testbed moves real robots: the experiment runs in real time (30 Hz), not in "
+                  "lockstep", file=sys.stderr)
+            self.sim_in_real_time = True
+            self._progress = StepProgress(self._options.progress_interval, self.time_step, "real time")
         self._token = response.token
         session.note_started(self.partial_run_info())
         self._poses_key = response.poses_key
