@@ -68,9 +68,11 @@ class SimulatedFleet:
         self.world_file = os.path.join("/dev/shm" if os.path.isdir("/dev/shm") else tempfile.gettempdir(),
                                        "robotarium-world-%d-%d" % (os.getpid(), int(time.time() * 1000) % 10**9))
         self.processes = {}   # name -> Popen
+        self.commands = {}    # name -> (module, ROS arguments)
         self.world = None
 
     def _start(self, name, module, ros_args):
+        self.commands[name] = (module, ros_args)
         env, pass_fds = lifeline.for_child(self.env)
         log = open(os.path.join(self.log_dir, name + ".log"), "wb")
         self.processes[name] = subprocess.Popen(
@@ -126,7 +128,10 @@ class SimulatedFleet:
         os.killpg(self.processes[name].pid, sig)
 
     def restart(self, name):
-        """Start robot `name` again where its body stands (after a kill)."""
+        """Start robot `name` again where its body stands, or the stand-in (after a kill)."""
+        if name not in self.fleet.names:
+            self.processes[name].wait()
+            return self._start(name, *self.commands[name])
         k = self.fleet.names.index(name)
         x, y, theta = self.world.poses_at()[:, k]
         robot = self.fleet.robots[k]

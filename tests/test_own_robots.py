@@ -1,0 +1,157 @@
+"""Your own robots (issue 38), end to end: a simulated fleet (a process per robot, the motion-capture
+stand-in) and ./robotarium up's testbed with the hardware arena in the simulator's place.
+
+Real processes throughout: robot nodes with the GTernal's wheel model, the stand-in, the arena, the
+safety node, the recorder, `./robotarium run`; faults are real kills. Stop times are measured from the
+fleet's own truth (robotarium_hardware.world: each robot writes where its body is and how fast it goes,
+stamped with the wall clock) and asserted only as the issue's behavioural bounds:
+- a robot process killed or the motion capture stopped: every robot of the run stops within 0.2 s. The
+  budget: the fleet's lost_after / answer_timeout (0.06 s) and the arena's 10 ms check, the robots' 10+5 ms
+  command latency, their 16 ms loop and 10 ms wheel PI, then about 60 ms of coasting to below 1 cm/s.
+- the arena killed -9: each robot stops on its own (its own 0.3 s command timeout) within 0.5 s.
+"""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from devtools.e2e import check_bag, logs_of_the_testbed, own_domain_testbed, run, run_folder
+from devtools.rosutil import REPO, RosProbe, node_env, unique_domain_id
+from robotarium_hardware.sim_fleet import SimulatedFleet
+from robotarium_hardware.world import OMEGA, STAMP, V
+
+pytestmark = pytest.mark.e2e
+ROBOTS = 6
+CIRCLES = os.path.join(REPO, "tests", "data", "fleet_circles.py")
+SEEDED = os.path.join(REPO, "devtools", "run_seeded.py")
+STOPPED = (0.01, 0.1)   # m/s, rad/s: below both, a robot stands
+
+
+@pytest.fixture
+def fleet_testbed(tmp_path_factory):
+    """A simulated fleet of ROBOTS robots and a testbed moving them, on a domain of their own."""
+    domain = unique_domain_id()
+    folder = tmp_path_factory.mktemp("fleet")
+    fleet = SimulatedFleet(ROBOTS, "mocap", str(folder / "fleet.yaml"), env=node_env(domain), log_dir=str(folder))
+    fleet.start(say=lambda line: None)
+    try:
+        assert fleet.wait_ready(), "the fleet did not come up: %s" % fleet.failed()
+        with own_domain_testbed(tmp_path_factory, domain=domain, fleet_file=fleet.fleet_file) as (env, bags, tb):
+            yield fleet, env, bags, tb
+    finally:
+        fleet.stop()
+
+
+def start_run(env, script, *args):
+    return subprocess.Popen([sys.executable, "-m", "robotarium_cli", "run", "--no-local-testbed", "--no-video", *args,
+                             script], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            cwd=os.path.dirname(script), start_new_session=True)
+
+
+def wait_moving(fleet, robots, timeout=60.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if np.all(np.abs(fleet.world.read()[robots, V]) > 0.05):
+            return True
+        time.sleep(0.01)
+    return False
+
+
+def stop_time(fleet, robots, since, timeout=3.0):
+    """Seconds from `since` (time.time()) until every robot of `robots` stands, by the fleet's truth: the
+    newest stamp of the first look at which all of them go below STOPPED."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        rows = fleet.world.read()[robots]
+        if np.all(np.abs(rows[:, V]) < STOPPED[0]) and np.all(np.abs(rows[:, OMEGA]) < STOPPED[1]) \
+                and np.all(rows[:, STAMP] > since):
+            return float(np.max(rows[:, STAMP]) - since)
+        time.sleep(0.002)
+    return float("inf")
+
+
+def finish(process, timeout=60):
+    try:
+        out, _ = process.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+        out, _ = process.communicate()
+    return process.returncode, out
+
+
+def test_guide_listings_complete_on_a_simulated_fleet(fleet_testbed):
+    """Guide listings through `up --fleet` on a fleet tracked by motion capture, loops shortened
+    (run_seeded --set): each completes with no collision and no robot outside, with its report, bag,
+    results page and (the first) video, as on the simulator."""
+    fleet, env, bags, _ = fleet_testbed
+    listings = [("3_1_2_go_to_point_unicycle.py", ()),
+                ("3_3_1_leader_follower_formation_control.py", ("--set", "iterations=150")),
+                ("3_5_2_unreachable_goals_single_integrator.py", ("--set", "iterations=150"))]
+    for k, (name, settings) in enumerate(listings):
+        script = os.path.join(REPO, "examples", "guide", name)
+        completed = run(env, SEEDED, *(() if k == 0 else ("--no-video",)), "--", *settings, "1", script, timeout=240)
+        out = completed.stdout + completed.stderr
+        assert completed.returncode == 0, out
+        assert "##### DEBUG OUTPUT #####" in out, out
+        assert "robots collided" not in out and "outside the boundaries" not in out, out
+        folder = run_folder(bags, out)
+        files = set(os.listdir(folder))
+        assert {"report.txt", "index.html", "log.txt", "run.json", "trajectories.png"} <= files, files
+        assert k > 0 or "run.mp4" in files, files
+        counts = check_bag(folder)
+        assert counts["/robotarium/poses"] > 100 and counts["/robotarium/cmd_safe"] > 100, counts
+
+
+def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
+    fleet, env, bags, tb = fleet_testbed
+    robots = [0, 1, 2]   # the run's robots: the fleet's first three present and tracked
+
+    # An experiment for more robots than are present: refused, naming them.
+    probe = RosProbe(int(env["ROS_DOMAIN_ID"]), "refusal_probe")
+    try:
+        from robotarium_msgs.srv import StartExperiment
+        response = probe.call(StartExperiment, "/robotarium/start_experiment",
+                              StartExperiment.Request(name="too_many", number_of_robots=ROBOTS + 1, real_time=True))
+    finally:
+        probe.node.destroy_node()
+    assert not response.success
+    assert "asks for %d robots, but only %d" % (ROBOTS + 1, ROBOTS) in response.message, response.message
+    assert all("r%d" % k in response.message for k in range(ROBOTS)), response.message
+
+    # A robot process killed mid-run: every other robot stops within 0.2 s; the run ends naming it.
+    process = start_run(env, CIRCLES)
+    assert wait_moving(fleet, robots), finish(process, 5)[1] + logs_of_the_testbed()
+    killed = time.time()
+    fleet.kill("r1")
+    stopped = stop_time(fleet, [0, 2], killed)
+    code, out = finish(process)
+    assert stopped <= 0.2, "robots stood %.3f s after r1 was killed:\n%s" % (stopped, out)
+    assert code != 0 and "robot r1 stopped answering at step" in out, out
+    assert "results in" in out and ".mcap" in out and "report.txt" in out, out   # nothing else of the run is lost
+
+    # The robot back: the next run works (the drive-on brings the robots back to the initial conditions).
+    fleet.restart("r1")
+    process = start_run(env, CIRCLES)
+    assert wait_moving(fleet, robots), finish(process, 5)[1] + logs_of_the_testbed()
+
+    # The motion capture stopped mid-run: every robot stops within 0.2 s.
+    stopped_at = time.time()
+    fleet.kill("mocap")
+    stopped = stop_time(fleet, robots, stopped_at)
+    code, out = finish(process)
+    assert stopped <= 0.2, "robots stood %.3f s after the motion capture stopped:\n%s" % (stopped, out)
+    assert code != 0 and "lost tracking at step" in out, out
+
+    # The arena killed -9 mid-run: each robot stops on its own command timeout, within 0.5 s.
+    fleet.restart("mocap")
+    process = start_run(env, CIRCLES)
+    assert wait_moving(fleet, robots), finish(process, 5)[1] + logs_of_the_testbed()
+    killed = time.time()
+    os.killpg(tb.processes["arena"][0].pid, signal.SIGKILL)
+    stopped = stop_time(fleet, robots, killed)
+    finish(process)
+    assert stopped <= 0.5, "robots stood %.3f s after the arena was killed" % stopped
