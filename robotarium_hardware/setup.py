@@ -20,8 +20,10 @@ setup(
     entry_points={
         "console_scripts": [
             "arena = robotarium_hardware.arena_node:main",
+            "tag_tracker = robotarium_hardware.tag_tracker_node:main",
             "robot = robotarium_hardware.robot_node:main",
             "mocap = robotarium_hardware.mocap_node:main",
+            "camera = robotarium_hardware.camera_node:main",
             "fleet = robotarium_hardware.sim_fleet:main",
         ],
     },

@@ -24,10 +24,11 @@ REGISTRY = os.path.join(tempfile.gettempdir(), "robotarium-testbeds-%d" % os.get
 
 # How a node shows in a process's command line: `-m MODULE`, or the installed console script.
 NODE_MODULES = {"robotarium_sim.simulator_node": "simulator", "robotarium_safety.safety_node": "safety",
-                "robotarium_recording.recorder_node": "recorder", "robotarium_hardware.arena_node": "arena"}
+                "robotarium_recording.recorder_node": "recorder", "robotarium_hardware.arena_node": "arena",
+                "robotarium_hardware.tag_tracker_node": "tag_tracker"}
 NODE_EXECUTABLES = {("robotarium_sim", "simulator"): "simulator", ("robotarium_safety", "safety"): "safety",
                     ("robotarium_sim", "recorder"): "recorder", ("robotarium_recording", "recorder"): "recorder",
-                    ("robotarium_hardware", "arena"): "arena"}
+                    ("robotarium_hardware", "arena"): "arena", ("robotarium_hardware", "tag_tracker"): "tag_tracker"}
 
 
 def domain_id(env=None):

@@ -28,8 +28,10 @@ NODES = {
     "simulator": ("robotarium_sim.simulator_node", True),
     "safety": ("robotarium_safety.safety_node", True),
     "recorder": ("robotarium_recording.recorder_node", False),
-    # a lab's own robots (./robotarium up --fleet FILE): the hardware arena in the simulator's place
+    # a lab's own robots (./robotarium up --fleet FILE): the hardware arena in the simulator's place, and the
+    # tag tracker where the fleet is tracked by a camera
     "arena": ("robotarium_hardware.arena_node", True),
+    "tag_tracker": ("robotarium_hardware.tag_tracker_node", False),
 }
 
 
@@ -109,7 +111,10 @@ class LocalTestbed:
         self.log_dir = log_dir   # None: log/testbed/<namespace>_<domain>_<pid>/, chosen at start
         self.hardware = hardware   # every experiment hardware-like (the simulator's `hardware` parameter)
         self.fleet_file = os.path.abspath(fleet_file) if fleet_file else None
-        arena = ["arena"] if self.fleet_file else ["simulator"]   # the fleet's arena in the simulator's place
+        arena = ["simulator"]
+        if self.fleet_file:   # the fleet's arena (and its tag tracker) in the simulator's place
+            from robotarium_hardware import fleet as fleets
+            arena = ["arena"] + (["tag_tracker"] if fleets.load(self.fleet_file).tracking == "camera" else [])
         self.names = arena + ["safety"] + (["recorder"] if record else [])
         self.bags_dir = bags_dir
         self.quiet = quiet
@@ -136,7 +141,7 @@ class LocalTestbed:
             if name in ("simulator", "arena"):   # a run's first steps wait for the recorder's readers where it records
                 extra = (["-p", "hardware:=true"] if self.hardware else []) + (
                     ["-p", "wait_for_recorder:=true"] if "recorder" in self.names else [])
-            if name == "arena":
+            if name in ("arena", "tag_tracker"):
                 extra += ["-p", "fleet_file:=%s" % self.fleet_file]
             log = open(os.path.join(self.log_dir, name + ".log"), "wb") if self.quiet else None
             self.processes[name] = (subprocess.Popen(

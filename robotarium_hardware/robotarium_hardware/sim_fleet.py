@@ -3,7 +3,8 @@
 
 N robot processes (robot_node: each its own ROS node and process, its own cmd_vel, the GTernal's wheel
 model and its own command timeout), and a motion-capture stand-in (mocap_node: PoseStamped per robot at
-120 Hz, noise, dropouts). They share only the world (robotarium_hardware.world: where the bodies really are, the
+120 Hz, noise, dropouts) or a camera stand-in (camera_node: 30 Hz images of the arena with each robot's
+ArUco tag). They share only the world (robotarium_hardware.world: where the bodies really are, the
 truth) and talk DDS. The fleet file it serves is written first; then one line per robot
 ("robot r2 pid 12345"), the stand-in's line, and "fleet ready". It runs until Ctrl-C (or SIGTERM, SIGHUP,
 or its starter's death): then every process of it stops.
@@ -101,7 +102,9 @@ class SimulatedFleet:
                 "-p", "world:=%s" % self.world_file, "-p", "robots:=%s" % names,
                 "-p", "calibration:=[%r,%r,%r]" % (c.x, c.y, c.yaw)])
         else:
-            raise ValueError("a simulated fleet is tracked by motion capture only (the camera stand-in is not built yet)")
+            process = self._start("camera", "robotarium_hardware.camera_node", [
+                "-p", "world:=%s" % self.world_file, "-p", "robots:=%s" % names,
+                "-p", "tags:=[%s]" % ",".join(str(r.tag) for r in self.fleet.robots)])
         say("%s pid %d" % (self.fleet.tracking, process.pid))
         return self
 
@@ -173,9 +176,10 @@ def _says(path, text):
 
 def add_arguments(parser):
     parser.add_argument("--robots", type=int, required=True, metavar="N", help="how many robots (1 to 50)")
-    parser.add_argument("--tracking", choices=("mocap",), default="mocap",
-                        help="mocap: a motion-capture stand-in (PoseStamped per robot at 120 Hz, noise, dropouts). "
-                             "(A camera stand-in and the ArUco tag tracker are not built yet: docs/own-robots.md)")
+    parser.add_argument("--tracking", choices=fleets.TRACKING, default="mocap",
+                        help="mocap: a motion-capture stand-in (PoseStamped per robot at 120 Hz, noise, dropouts); "
+                             "camera: a camera stand-in (30 Hz images with each robot's ArUco tag; ./robotarium up "
+                             "--fleet starts the tag tracker)")
     parser.add_argument("--fleet", metavar="FILE", default="fleet.yaml",
                         help="where to write the fleet file it serves (default: fleet.yaml here); give it to "
                              "./robotarium up --fleet FILE")
