@@ -2,11 +2,11 @@
 
 Each frame it looks at every robot's body in the fleet's world (robotarium_hardware.world) and renders
 what the camera sees (robotarium_hardware.tags.Renderer: perspective, the robots' ArUco tags, the four
-corner tags, blur, sensor noise), published as sensor_msgs/CompressedImage (JPEG, as image_transport's compressed plugin sends a camera's
-images) on /camera/image_raw/compressed, stamped
-with the moment it shows. A test can hide a robot's tag (a hand over it): std_msgs/String "r1 0.5" on
-/camera/hide hides r1's tag from the next frame for 0.5 s; /camera/hidden (std_msgs/String, JSON) then
-says when the first frame without it was taken ({"robot": "r1", "since": time.time()}).
+corner tags, blur, sensor noise), published as sensor_msgs/CompressedImage (JPEG, as image_transport's
+compressed plugin sends a camera's images) on /camera/image_raw/compressed, stamped with the moment it
+shows. A test can hide a robot's tag (a hand over it): std_msgs/String "r1 0.5" on /camera/hide hides
+r1's tag from the next frame for 0.5 s; /camera/hidden (std_msgs/String, JSON) then says when the first
+frame without it was taken ({"robot": "r1", "since": time.time()}).
 
     python -m robotarium_hardware.camera_node --ros-args -p world:=FILE -p robots:=[r0,r1] -p tags:=[10,11]
 """
