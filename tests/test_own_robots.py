@@ -25,18 +25,21 @@ from robotarium_hardware.sim_fleet import SimulatedFleet
 from robotarium_hardware.world import OMEGA, STAMP, V
 
 pytestmark = pytest.mark.e2e
-ROBOTS = 6
+ROBOTS = 4   # the fleet: as many robots as the scripts use (a robot of the fleet left in the arena is in the way)
 CIRCLES = os.path.join(REPO, "tests", "data", "fleet_circles.py")
 SEEDED = os.path.join(REPO, "devtools", "run_seeded.py")
 STOPPED = (0.01, 0.1)   # m/s, rad/s: below both, a robot stands
 
 
 @pytest.fixture
-def fleet_testbed(tmp_path_factory):
-    """A simulated fleet of ROBOTS robots and a testbed moving them, on a domain of their own."""
+def fleet_testbed(tmp_path_factory, request):
+    """A simulated fleet of ROBOTS robots (tracked as the test's `tracking` mark says: mocap by default)
+    and a testbed moving them, on a domain of their own."""
+    mark = request.node.get_closest_marker("tracking")
     domain = unique_domain_id()
     folder = tmp_path_factory.mktemp("fleet")
-    fleet = SimulatedFleet(ROBOTS, "mocap", str(folder / "fleet.yaml"), env=node_env(domain), log_dir=str(folder))
+    fleet = SimulatedFleet(ROBOTS, mark.args[0] if mark else "mocap", str(folder / "fleet.yaml"), env=node_env(domain),
+                           log_dir=str(folder))
     fleet.start(say=lambda line: None)
     try:
         assert fleet.wait_ready(), "the fleet did not come up: %s" % fleet.failed()
@@ -88,7 +91,7 @@ def test_guide_listings_complete_on_a_simulated_fleet(fleet_testbed):
     (run_seeded --set): each completes with no collision and no robot outside, with its report, bag,
     results page and (the first) video, as on the simulator."""
     fleet, env, bags, _ = fleet_testbed
-    listings = [("3_1_2_go_to_point_unicycle.py", ()),
+    listings = [("3_8_3_go_to_point_with_background_image.py", ()),   # sim_in_real_time=False: runs in real time
                 ("3_3_1_leader_follower_formation_control.py", ("--set", "iterations=150"))]
     for k, (name, settings) in enumerate(listings):
         script = os.path.join(REPO, "examples", "guide", name)
@@ -107,7 +110,7 @@ def test_guide_listings_complete_on_a_simulated_fleet(fleet_testbed):
 
 def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
     fleet, env, bags, tb = fleet_testbed
-    robots = [0, 1, 2]   # the run's robots: the fleet's first three present and tracked
+    robots = [0, 1, 2, 3]   # the run's robots: the whole fleet
 
     # An experiment for more robots than are present: refused, naming them.
     probe = RosProbe(int(env["ROS_DOMAIN_ID"]), "refusal_probe")
@@ -120,13 +123,22 @@ def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
     assert not response.success
     assert "asks for %d robots, but only %d" % (ROBOTS + 1, ROBOTS) in response.message, response.message
     assert all("r%d" % k in response.message for k in range(ROBOTS)), response.message
+    # ... and one for fewer robots than stand in the arena: the others would be in the way
+    probe = RosProbe(int(env["ROS_DOMAIN_ID"]), "in_the_way_probe")
+    try:
+        response = probe.call(StartExperiment, "/robotarium/start_experiment",
+                              StartExperiment.Request(name="fewer", number_of_robots=ROBOTS - 1, real_time=True))
+    finally:
+        probe.node.destroy_node()
+    assert not response.success and "r%d of fleet simulated stand in the arena" % (ROBOTS - 1) in response.message, \
+        response.message
 
     # A robot process killed mid-run: every other robot stops within 0.2 s; the run ends naming it.
     process = start_run(env, CIRCLES)
     assert wait_moving(fleet, robots), finish(process, 5)[1] + logs_of_the_testbed()
     killed = time.time()
     fleet.kill("r1")
-    stopped = stop_time(fleet, [0, 2], killed)
+    stopped = stop_time(fleet, [0, 2, 3], killed)
     code, out = finish(process)
     assert stopped <= 0.2, "robots stood %.3f s after r1 was killed:\n%s" % (stopped, out)
     assert code != 0 and "robot r1 stopped answering at step" in out, out
@@ -154,3 +166,39 @@ def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
     stopped = stop_time(fleet, robots, killed)
     finish(process)
     assert stopped <= 0.5, "robots stood %.3f s after the arena was killed" % stopped
+
+
+@pytest.mark.tracking("camera")
+def test_the_camera_path(fleet_testbed):
+    """A fleet tracked by the camera stand-in's images and the tag tracker: a guide listing completes; a
+    tag hidden for 0.5 s stops every robot within 0.2 s of the first frame without it (the camera's own
+    record of it) and ends the run naming the robot; the next run works once the tag is seen again."""
+    fleet, env, bags, _ = fleet_testbed
+    script = os.path.join(REPO, "examples", "guide", "3_3_1_leader_follower_formation_control.py")
+    completed = run(env, SEEDED, "--no-video", "--", "--set", "iterations=150", "1", script, timeout=240)
+    out = completed.stdout + completed.stderr
+    assert completed.returncode == 0, out
+    assert "robots collided" not in out and "outside the boundaries" not in out, out
+
+    import json
+
+    from std_msgs.msg import String
+    probe = RosProbe(int(env["ROS_DOMAIN_ID"]), "hide_probe")
+    try:
+        hidden = []
+        probe.node.create_subscription(String, "/camera/hidden", lambda msg: hidden.append(json.loads(msg.data)), 10)
+        hide = probe.node.create_publisher(String, "/camera/hide", 10)
+        assert probe.spin_until(lambda: hide.get_subscription_count() > 0, 10)
+        process = start_run(env, CIRCLES)
+        assert wait_moving(fleet, [0, 1, 2, 3]), finish(process, 5)[1] + logs_of_the_testbed()
+        hide.publish(String(data="r1 0.5"))
+        assert probe.spin_until(lambda: hidden, 5), "the camera never hid r1's tag"
+        stopped = stop_time(fleet, [0, 1, 2, 3], hidden[0]["since"])
+        code, out = finish(process)
+        assert stopped <= 0.2, "robots stood %.3f s after r1's tag was first hidden:\n%s" % (stopped, out)
+        assert code != 0 and "robot r1 lost tracking at step" in out, out
+    finally:
+        probe.node.destroy_node()
+    completed = run(env, CIRCLES, "--no-video", "--time-limit", "2")
+    out = completed.stdout + completed.stderr
+    assert "Stopped at the time limit" in out and "lost tracking" not in out, out

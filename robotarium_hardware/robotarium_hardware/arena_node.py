@@ -43,7 +43,7 @@ from sensor_msgs.msg import BatteryState
 from std_msgs.msg import String
 
 from robotarium_core import cdr, control, kinematics, model, outcomes, rps2
-from robotarium_core.node_tools import declare_parameter, run_node
+from robotarium_core.node_tools import declare_parameter, run_node, take_waiting
 from robotarium_core.topics import CMD_REQUESTED, LATCHED, OUTPUT_QOS, readers_matched
 from robotarium_hardware import fleet as fleets
 from robotarium_hardware.tracking import FleetTestbed, Roster
@@ -97,18 +97,20 @@ class HardwareArenaNode(SimulatorNode):
         self._stepped = threading.Condition()
         self.command_pubs = []
         self._twists = []
+        self.inputs = []   # (subscription, what to do with a message): the poses and signs of life
         for i, robot in enumerate(self.fleet.robots):
             stamped = robot.cmd_type == "TwistStamped"
             self.command_pubs.append(self.create_publisher(TwistStamped if stamped else Twist,
                                                            self.fleet.cmd_topic(robot), 10))
             self._twists.append(TwistStamped() if stamped else Twist())
-            self.create_subscription(PoseStamped, self.fleet.pose_topic(robot),
-                                     lambda data, i=i: self.roster.pose_message(i, data, time.monotonic()),
-                                     qos_profile_sensor_data, raw=True)
+            self.inputs.append((self.create_subscription(
+                PoseStamped, self.fleet.pose_topic(robot), lambda data, i=i: self.roster.pose_message(
+                    i, data, time.monotonic()), qos_profile_sensor_data, raw=True),
+                lambda data, now, i=i: self.roster.pose_message(i, data, now)))
             if robot.answer_topic:
-                self.create_subscription(Odometry, robot.answer_topic,
-                                         lambda data, i=i: self.roster.answer(i, time.monotonic()),
-                                         qos_profile_sensor_data, raw=True)
+                self.inputs.append((self.create_subscription(
+                    Odometry, robot.answer_topic, lambda data, i=i: self.roster.answer(i, time.monotonic()),
+                    qos_profile_sensor_data, raw=True), lambda data, now, i=i: self.roster.answer(i, now)))
             if robot.battery_topic:
                 self.create_subscription(BatteryState, robot.battery_topic,
                                          lambda msg, i=i: self.roster.battery_state(i, msg.percentage),
@@ -136,6 +138,7 @@ class HardwareArenaNode(SimulatorNode):
                                         "(./robotarium run without a fleet)." % self.fleet.name)
         name, planned = experiment.build_testbed(request, self.config)   # the request's checks, its initial conditions
         robots = self.roster.pick(planned.number_of_robots, time.monotonic())
+        self.roster.in_the_way(robots, time.monotonic(), self.config.arena)
         return name, FleetTestbed(planned.poses, self.config, robots, lambda: self.roster.measured(robots))
 
     async def before_arming(self, request, testbed, run):
@@ -173,7 +176,9 @@ class HardwareArenaNode(SimulatorNode):
             deadline = time.monotonic() + 10.0
             while not readers_matched(self, self.drive_pub, "safety") and time.monotonic() < deadline:
                 await self.sleep(0.01)
-            drive_on = rps2.DriveOn(goals, self.config, drive_on_controller, lambda dxu, x: dxu, np.random.default_rng())
+            # No barrier of its own (the safety node is the barrier) and no waves: robots start wherever they stand.
+            drive_on = rps2.DriveOn(goals, self.config, drive_on_controller, lambda dxu, x: dxu, np.random.default_rng(),
+                                    waves=False)
             thread = threading.Thread(target=self._drive, args=(drive_on, drive, testbed, result), daemon=True)
             thread.start()
             while thread.is_alive():
@@ -247,11 +252,20 @@ class HardwareArenaNode(SimulatorNode):
         late, self._last_check = now - self._last_check > 3 * FAULT_CHECK, now
         if tb is None or late:
             return   # a check this late means this process stalled: its poses may still wait in its queues
+        # Everything that came is counted first (the executor may not have got to every subscription yet).
+        for subscription, handle in self.inputs:
+            for data in take_waiting(subscription):
+                handle(data, now)
         faults = self.roster.faults(tb.robots, now)
         if not faults:
             return
         self.send_zeros()   # at once: every robot stops
         cause = "%s at step %d" % ("; ".join(faults), tb.steps)
+        self.get_logger().warning("%s (%s)" % (cause, "; ".join(
+            "%s: pose %.0f ms ago, stamp %.0f ms behind, answer %.0f ms ago" % (
+                self.fleet.robots[i].name, 1e3 * (now - self.roster.pose_at[i]),
+                1e3 * (np.nanmax(self.roster.stamps) - self.roster.stamps[i]), 1e3 * (now - self.roster.answer_at[i]))
+            for i in tb.robots)))
         if self.driving:
             with self._stepped:
                 self._drive_abort = cause

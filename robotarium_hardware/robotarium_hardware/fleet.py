@@ -14,7 +14,7 @@ a bad one raises FleetError naming the field ("robots[2].cmd_type must be Twist 
     command_latency: 0.03          # s from the arena to the wheels, declared (the safety layer's figure)
     tracking_latency: 0.02         # s from the robots to a pose, declared
     calibration: {x: -1.6, y: -1.0, yaw: 0.0}   # mocap frame -> arena: the mocap origin in the arena, its x axis
-    camera: {image_topic: /camera/image_raw, corner_tags: [0, 1, 2, 3], tag_size: 0.09}
+    camera: {image_topic: /camera/image_raw, corner_tags: [0, 1, 2, 3], tag_size: 0.075}
     robots:
       - name: r0                   # cmd_topic /r0/cmd_vel, pose_topic /vrpn_mocap/r0/pose by default
         cmd_type: TwistStamped
@@ -74,7 +74,8 @@ class Camera:
     image_topic: str = "/camera/image_raw"   # sensor_msgs/Image, mono8 or bgr8
     corner_tags: tuple = (0, 1, 2, 3)        # ArUco ids at the arena's corners (x_min, y_min), (x_max, y_min),
                                              # (x_max, y_max), (x_min, y_max): their centres define the arena frame
-    tag_size: float = 0.09                   # m, the side of a robot's tag (black border included)
+    tag_size: float = 0.075                  # m, the side of a robot's tag (black border included; a white margin of
+                                             # a sixth of it around: two robots' tags never touch)
     corner_tag_size: float = 0.12            # m, the side of a corner tag
     pose_prefix: str = "/tag_tracker"        # the tracker publishes each robot's PoseStamped on <prefix>/<robot>/pose
 

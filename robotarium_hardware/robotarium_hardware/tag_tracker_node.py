@@ -27,6 +27,7 @@ from robotarium_hardware.tags import TagTracker, parse_compressed, parse_image
 from robotarium_hardware.templates import Template
 
 REPORT_PERIOD = 10.0   # s between the log's figures
+MISSES_LOGGED = 20     # tags missing from a frame (after one that had them) said in the log
 
 
 class TagTrackerNode(Node):
@@ -51,7 +52,8 @@ class TagTrackerNode(Node):
                                  newest, raw=True)
         self.create_subscription(CompressedImage, fleet.camera.image_topic + "/compressed",
                                  lambda data: self.on_image(data, parse_compressed), newest, raw=True)
-        self.frames = self.dropped = self.poses = 0
+        self.frames = self.dropped = self.poses = self.missed = 0
+        self.last = {}
         self.latency, self.cpu = [], []
         self.create_timer(REPORT_PERIOD, self.report)
         self.get_logger().info("tag tracker ready: %d robots' tags (%s) on %s" % (
@@ -65,6 +67,13 @@ class TagTrackerNode(Node):
             self.dropped += 1
             return
         found = self.tracker.track(gray)
+        for i in set(self.last) - set(found):   # a tag seen in the frame before, not in this one
+            self.missed += 1
+            if self.missed <= MISSES_LOGGED:
+                self.get_logger().info("%s's tag (%d) not found in the frame of %.3f; it was at (%.3f, %.3f) a frame "
+                                       "before" % (self.fleet.robots[i].name, self.fleet.robots[i].tag, stamp,
+                                                   *self.last[i][:2]))
+        self.last = found
         sec, nanosec = divmod(int(round(stamp * 1e9)), 10**9)
         for i, (x, y, theta) in found.items():
             self.pose_pubs[i].publish(self.template.build(sec, nanosec, x, y, np.sin(theta / 2), np.cos(theta / 2)))

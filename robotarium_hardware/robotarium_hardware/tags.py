@@ -40,7 +40,7 @@ def detector():
 def marker_image(tag, margin_cells=1):
     """The marker `tag` with a white margin, as a square uint8 image."""
     marker = cv2.aruco.generateImageMarker(dictionary(), int(tag), MARKER_PIXELS)
-    pad = margin_cells * MARKER_PIXELS // CELLS
+    pad = int(round(margin_cells * MARKER_PIXELS / CELLS))
     return cv2.copyMakeBorder(marker, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=255)
 
 
@@ -64,7 +64,7 @@ class OverheadCamera:
     project(): floor points -> pixels."""
     width: int = 1280
     height: int = 800
-    focal: float = 780.0      # pixels
+    focal: float = 880.0      # pixels: the arena and its corner tags fill the frame
     altitude: float = 2.6     # m above the floor
     tilt: float = 0.08        # rad
     centre: tuple = (0.0, 0.0)
@@ -135,11 +135,11 @@ class Renderer:
         """The image of robots at `poses` (3 x N, arena frame) wearing `tags` (N ids); robots whose index is
         in `hidden` show no tag (a hand over it)."""
         image = self.background.copy()
-        for k in range(poses.shape[1]):
-            x, y, theta = poses[:, k]
-            rim = self.camera.project(np.array([[x, y], [x + self.robot_radius, y]]))
+        for x, y, _ in poses.T:   # the bodies first, then the tags on top of them (a tag's corners reach past its
+            rim = self.camera.project(np.array([[x, y], [x + self.robot_radius, y]]))   # body over a neighbour's)
             radius = int(round(np.hypot(*(rim[1] - rim[0]))))
             cv2.circle(image, tuple(int(round(v)) for v in rim[0]), radius, 40, -1, cv2.LINE_AA)
+        for k, (x, y, theta) in enumerate(poses.T):
             if k not in hidden:
                 self._paste(image, tags[k], square(x, y, theta, self.tag_size))
         if self.blur:

@@ -111,11 +111,17 @@ class Roster:
             self.battery[i] = 100.0 * percentage
 
     def tracked(self, now):
-        """Robots with a pose within lost_after, and not lost_behind the fleet's newest: a tracking system that
-        stopped loses every robot after lost_after, a robot missing from frames that show the others after
-        lost_behind, and a stall of this process (all poses late alike) none."""
-        newest = np.max(self.pose_at)
-        return (now - self.pose_at <= self.fleet.lost_after) & (newest - self.pose_at <= self.fleet.lost_behind)
+        """Robots with a pose that came within lost_after, and whose newest pose is not lost_behind the fleet's
+        newest by the tracking system's own stamps: a tracking system that stopped loses every robot after
+        lost_after, a robot missing from frames that show the others after lost_behind, and a stall of this
+        process (all poses late alike, stamps as they were) none."""
+        fresh = now - self.pose_at <= self.fleet.lost_after
+        stamped = np.isfinite(self.stamps) & (self.stamps > 0)   # (a source that stamps nothing is judged by age only)
+        if not stamped.any():
+            return fresh
+        behind = np.zeros(self.size, dtype=bool)
+        behind[stamped] = np.max(self.stamps[stamped]) - self.stamps[stamped] > self.fleet.lost_behind
+        return fresh & ~behind
 
     def answering(self, now):
         return ~self.answers | (now - self.answer_at <= self.fleet.answer_timeout)
@@ -142,6 +148,20 @@ class Roster:
             "Switch the robots on and in view of the tracking, or ask for fewer." % (
                 number, len(ready), self.fleet.name, "is" if len(ready) == 1 else "are",
                 ", ".join(states[i].name for i in ready) or "none", "; ".join(missing)))
+
+    def in_the_way(self, indices, now, arena):
+        """Robots present and tracked that stand inside the arena but are not among `indices` (the run's):
+        the safety layer knows nothing of them, so the run's robots could drive into them. RobotariumError
+        naming them, or None."""
+        inside = ~model.outside_arena(self.poses, arena) & self.tracked(now)
+        inside[indices] = False
+        if inside.any():
+            names = [self.fleet.robots[i].name for i in np.flatnonzero(inside)]
+            raise model.RobotariumError(
+                "robot(s) %s of fleet %s stand in the arena but are not in this experiment of %d robots: the safety "
+                "layer does not know of them, so the experiment's robots could drive into them. Park them outside "
+                "the arena (or out of the tracking's view), or run an experiment with all of them." % (
+                    ", ".join(names), self.fleet.name, len(indices)))
 
     def faults(self, indices, now):
         """Why robots `indices` cannot go on (lost tracking, stopped answering), one phrase per robot

@@ -74,12 +74,17 @@ def test_faults_name_the_robot_that_lost_tracking_or_stopped_answering():
     roster.answer(0, now=1.0)
     run = np.array([0, 1, 2])
     assert roster.faults(run, now=1.05) == []
-    # the others seen again, r2 not: lost once it lags them by more than lost_behind
+    # the others seen again, r2 not: lost once its newest pose's stamp lags theirs by more than lost_behind
+    for i in range(3):
+        roster.pose(i, 0.0, 0.1 * i, 0.0, now=1.0, stamp=100.0)
     for t in (1.03, 1.06):
-        roster.pose(0, 0.0, 0.0, 0.0, now=t)
-        roster.pose(1, 0.0, 0.1, 0.0, now=t)
+        roster.pose(0, 0.0, 0.0, 0.0, now=t, stamp=99.0 + t)
+        roster.pose(1, 0.0, 0.1, 0.0, now=t, stamp=99.0 + t)
         roster.answer(0, now=t)
-    assert roster.faults(run, now=1.06) == ["robot r2 lost tracking"]
+        assert roster.faults(run, now=t) == ([] if t < 1.05 else ["robot r2 lost tracking"])
+    # this process stalled: the poses that came late carry their own stamps, so nobody is behind
+    roster.pose(2, 0.0, 0.2, 0.0, now=1.06, stamp=100.06)
+    assert roster.faults(run, now=1.06) == []
     # a tracking system that stops loses every robot after lost_after; a robot that stops answering says so
     assert roster.faults(run[:2], now=1.13) == ["robot r0 lost tracking", "robot r1 lost tracking"]
     assert roster.faults(run[:2], now=1.17) == ["robot r0 stopped answering", "robot r1 lost tracking"]
@@ -94,3 +99,13 @@ def test_the_arenas_testbed_counts_on_measured_poses_and_thresholds_its_commands
     tb.step()
     assert tb.collisions == 1 and tb.steps == 2   # the second step counted on the measured poses, 5 cm apart
     assert tb.expire_commands(now=1.0, timeout=0.5).all() and not tb.commands_out().any()
+
+
+def test_a_robot_of_the_fleet_in_the_arena_but_not_in_the_experiment_is_in_the_way():
+    roster = Roster(fleets.from_dict({"robots": ["r0", "r1", "r2"]}))
+    roster.pose(0, 0.0, 0.0, 0.0, now=1.0)
+    roster.pose(1, 0.5, 0.0, 0.0, now=1.0)
+    roster.pose(2, 2.5, 0.0, 0.0, now=1.0)   # parked beyond the arena's edge
+    assert roster.in_the_way(np.array([0, 1]), 1.0, DEFAULT.arena) is None
+    with pytest.raises(model.RobotariumError, match="robot.s. r1 of fleet fleet stand in the arena but are not in"):
+        roster.in_the_way(np.array([0]), 1.0, DEFAULT.arena)

@@ -1,12 +1,12 @@
-"""Three robots drive small circles where they stand (the simulated fleet's first three, 0.4 m apart), for
+"""Four robots drive small circles where they stand (a simulated fleet of four, 0.4 m apart), for
 the fault tests of tests/test_own_robots.py: long enough to be stopped mid-run."""
 import numpy as np
 
 import rps.robotarium as robotarium
 
-N = 3
+N = 4
 iterations = 900
-initial_conditions = np.array([[-1.0, -0.6, -0.2], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+initial_conditions = np.array([[-0.6, -0.2, 0.2, 0.6], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]])
 r = robotarium.Robotarium(number_of_robots=N, show_figure=False, initial_conditions=initial_conditions,
                           sim_in_real_time=True)
 for _ in range(iterations):
