@@ -30,6 +30,7 @@ k". 2.x experiments (sensors, obstacles) are refused: they run on the simulator.
     ros2 run robotarium_hardware arena --ros-args -r __ns:=/robotarium -p fleet_file:=fleet.yaml \\
         --params-file install/share/robotarium_core/config/testbed.yaml
 """
+import dataclasses
 import json
 import sys
 import threading
@@ -55,9 +56,11 @@ from robotarium_sim.simulator_node import SimulatorNode
 FLEET = "fleet"               # the roster topic (relative to the namespace)
 FAULT_CHECK = 0.01            # s between looks for a robot that lost tracking or stopped answering
 ROSTER_PERIOD = 1.0           # s between roster messages
-# 2.x's drive-on controller (robotarium_client robotarium2.DRIVE_ON_CONTROLLER), from core's control laws.
+# 2.x's drive-on controller (robotarium_client robotarium2.DRIVE_ON_CONTROLLER), from core's control laws; it
+# stops driving within position_error - position_epsilon (2 cm) and turning within rotation_error (0.03 rad),
+# inside the fleet's drive_on_position_error and drive_on_rotation_error (3 cm, 0.05 rad: 2.x's 0.1 rad would not do).
 DRIVE_ON = dict(linear_velocity_gain=0.8, angular_velocity_limit=np.pi / 3, speed_limit=0.15, position_error=0.05,
-                position_epsilon=0.03, rotation_error=0.1)
+                position_epsilon=0.03, rotation_error=0.03)
 DRIVE_ON_STEP_WAIT = 2.0      # s the drive-on waits for the next tick before it gives up
 
 
@@ -147,19 +150,20 @@ class HardwareArenaNode(SimulatorNode):
         testbed starts from the poses measured there. None, or why the start is refused."""
         goals, robots = testbed.poses.copy(), testbed.robots
         start = self.roster.measured(robots)
-        c = self.config
+        c = dataclasses.replace(self.config, drive_on_position_error=self.fleet.drive_on_position_error,
+                                drive_on_rotation_error=self.fleet.drive_on_rotation_error)
         if not model.at_pose_mask(start, goals, c.drive_on_position_error, c.drive_on_rotation_error).all():
             try:
                 drive_testbed = FleetTestbed(start, c, robots, lambda: self.roster.measured(robots))
             except model.RobotariumError as error:
                 return "the robots cannot drive on from where they stand: %s" % error
-            problem = await self.drive_on(run.run_id, drive_testbed, goals)
+            problem = await self.drive_on(run.run_id, drive_testbed, goals, c)
             if problem is not None:
                 return problem
         testbed.poses = self.roster.measured(robots)
         return None
 
-    async def drive_on(self, run_id, testbed, goals):
+    async def drive_on(self, run_id, testbed, goals, config):
         drive = Experiment.started(run_id + "_drive_on", "drive_on", True)
         n = testbed.number_of_robots
         armed = await self.arm_safety(ArmSafety.Request(
@@ -177,7 +181,7 @@ class HardwareArenaNode(SimulatorNode):
             while not readers_matched(self, self.drive_pub, "safety") and time.monotonic() < deadline:
                 await self.sleep(0.01)
             # No barrier of its own (the safety node is the barrier) and no waves: robots start wherever they stand.
-            drive_on = rps2.DriveOn(goals, self.config, drive_on_controller, lambda dxu, x: dxu, np.random.default_rng(),
+            drive_on = rps2.DriveOn(goals, config, drive_on_controller, lambda dxu, x: dxu, np.random.default_rng(),
                                     waves=False)
             thread = threading.Thread(target=self._drive, args=(drive_on, drive, testbed, result), daemon=True)
             thread.start()

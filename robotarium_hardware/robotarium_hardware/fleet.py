@@ -103,6 +103,9 @@ class Fleet:
     lost_behind: float = 0.05      # s a robot's newest pose may lag the fleet's newest: a 30 Hz camera's robot
                                    # missing from 2 frames in a row (1 is forgiven) while the others are seen
     answer_timeout: float = 0.1    # s: 5 messages of a 50 Hz odometry
+    drive_on_position_error: float = 0.03   # m: the drive-on phase ends when every robot is this close to its
+    drive_on_rotation_error: float = 0.05   # rad ... and its heading this close: tighter than the simulator's 2.x
+                                            # drive-on (5 cm, 0.2 rad), so the experiment starts where the script says
     command_latency: float = DEFAULT.command_latency    # s, declared: the arena to the wheels
     tracking_latency: float = DEFAULT.tracking_latency  # s, declared: the robots to a pose
     calibration: Calibration = Calibration()
@@ -193,6 +196,9 @@ def from_dict(document):
         raise FleetError("tracking must be mocap or camera; received %r." % (tracking,))
     if "name" in document and (not isinstance(document["name"], str) or not NAME.fullmatch(document["name"])):
         raise FleetError("name must be a letter then letters, digits or '_'; received %r." % (document["name"],))
+    for field in ("drive_on_position_error", "drive_on_rotation_error"):
+        if field in document:
+            document[field] = _number(field, document[field], 0.005, 1.0)
     for field in ("lost_after", "lost_behind", "answer_timeout", "command_latency", "tracking_latency"):
         if field in document:
             document[field] = _number(field, document[field], 0.0, 10.0)

@@ -8,7 +8,7 @@ N = 4
 iterations = 900
 initial_conditions = np.array([[-0.6, -0.2, 0.2, 0.6], [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]])
 r = robotarium.Robotarium(number_of_robots=N, show_figure=False, initial_conditions=initial_conditions,
-                          sim_in_real_time=True)
+                          sim_in_real_time=False)   # a hardware arena runs it in real time all the same
 for _ in range(iterations):
     r.get_poses()
     r.set_velocities(np.arange(N), np.array([[0.08] * N, [0.8] * N]))
