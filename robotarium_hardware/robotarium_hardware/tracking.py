@@ -15,6 +15,7 @@ import numpy as np
 
 from robotarium_core import model
 
+SETTLE = 0.005   # s: the poses of one frame of a tracking system (sent together) have all come this long after the first
 # Reasons a pose is dropped (counted per robot, shown by status).
 DROPS = ("malformed", "not_finite")
 
@@ -117,10 +118,13 @@ class Roster:
         process (all poses late alike, stamps as they were) none."""
         fresh = now - self.pose_at <= self.fleet.lost_after
         stamped = np.isfinite(self.stamps) & (self.stamps > 0)   # (a source that stamps nothing is judged by age only)
-        if not stamped.any():
+        # The fleet's newest frame by the poses that came SETTLE ago or more: a frame's poses come one by one, and
+        # a robot whose pose of a frame is still on its way is not behind.
+        settled = stamped & (now - self.pose_at >= SETTLE)
+        if not settled.any():
             return fresh
         behind = np.zeros(self.size, dtype=bool)
-        behind[stamped] = np.max(self.stamps[stamped]) - self.stamps[stamped] > self.fleet.lost_behind
+        behind[stamped] = np.max(self.stamps[settled]) - self.stamps[stamped] > self.fleet.lost_behind
         return fresh & ~behind
 
     def answering(self, now):

@@ -13,7 +13,7 @@ from robotarium_hardware import fleet as fleets
 from robotarium_hardware.templates import Template
 from robotarium_hardware.tracking import FleetTestbed, Roster, parse_pose_stamped, yaw_from_quaternion
 
-FLEET = fleets.from_dict({"robots": [{"name": "r0", "answer_topic": "/r0/odom"}, "r1", "r2"], "lost_after": 0.06,
+FLEET = fleets.from_dict({"robots": [{"name": "r0", "answer_topic": "/r0/odom"}, "r1", "r2"], "lost_after": 0.08,
                           "lost_behind": 0.05, "answer_timeout": 0.1, "calibration": {"x": 1.0, "yaw": math.pi / 2}})
 
 
@@ -59,7 +59,7 @@ def test_an_experiment_for_more_robots_than_are_ready_is_refused_naming_them():
     assert list(roster.pick(3, now=5.05)) == [0, 1, 2]
     roster.pose(1, 0.1, 0.0, 0.0, now=5.1)
     roster.pose(2, 0.2, 0.0, 0.0, now=5.1)
-    with pytest.raises(model.RobotariumError) as error:   # r0: no pose for 0.1 s and its odometry silent
+    with pytest.raises(model.RobotariumError) as error:   # r0: no pose for 0.11 s and its odometry silent
         roster.pick(3, now=5.11)
     message = str(error.value)
     assert "asks for 3 robots, but only 2" in message and "(r1, r2)" in message
@@ -79,14 +79,15 @@ def test_faults_name_the_robot_that_lost_tracking_or_stopped_answering():
         roster.pose(i, 0.0, 0.1 * i, 0.0, now=1.0, stamp=100.0)
     for t in (1.03, 1.06):
         roster.pose(0, 0.0, 0.0, 0.0, now=t, stamp=99.0 + t)
+        assert roster.faults(run, now=t) == []   # the frame's other poses may still be on their way
         roster.pose(1, 0.0, 0.1, 0.0, now=t, stamp=99.0 + t)
         roster.answer(0, now=t)
-        assert roster.faults(run, now=t) == ([] if t < 1.05 else ["robot r2 lost tracking"])
+        assert roster.faults(run, now=t + 0.006) == ([] if t < 1.05 else ["robot r2 lost tracking"])
     # this process stalled: the poses that came late carry their own stamps, so nobody is behind
-    roster.pose(2, 0.0, 0.2, 0.0, now=1.06, stamp=100.06)
-    assert roster.faults(run, now=1.06) == []
+    roster.pose(2, 0.0, 0.2, 0.0, now=1.065, stamp=100.06)
+    assert roster.faults(run, now=1.07) == []
     # a tracking system that stops loses every robot after lost_after; a robot that stops answering says so
-    assert roster.faults(run[:2], now=1.13) == ["robot r0 lost tracking", "robot r1 lost tracking"]
+    assert roster.faults(run[:2], now=1.15) == ["robot r0 lost tracking", "robot r1 lost tracking"]
     assert roster.faults(run[:2], now=1.17) == ["robot r0 stopped answering", "robot r1 lost tracking"]
 
 
