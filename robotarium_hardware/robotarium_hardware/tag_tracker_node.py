@@ -85,9 +85,10 @@ class TagTrackerNode(Node):
     def report(self):
         if self.frames:
             self.get_logger().info("%d frames, %.1f robots seen a frame, latency median %.1f ms, CPU %.1f ms a frame; "
-                                   "%d images dropped" % (self.frames, self.poses / self.frames,
-                                                          1e3 * np.median(self.latency), 1e3 * np.median(self.cpu),
-                                                          self.dropped))
+                                   "%d images dropped; tags read on a second look: %d of %d" % (
+                                       self.frames, self.poses / self.frames, 1e3 * np.median(self.latency),
+                                       1e3 * np.median(self.cpu), self.dropped, self.tracker.recovered,
+                                       self.tracker.retries))
         self.frames = self.poses = 0
         self.latency, self.cpu = [], []
 

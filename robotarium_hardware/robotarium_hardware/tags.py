@@ -155,20 +155,42 @@ class TagTracker:
     image that showed all four, so a corner hidden for a moment costs nothing), each robot's tag its pose.
     `tags`: {tag id: robot index}."""
 
+    RETRY = 40   # pixels around a missing tag's last place that a second, slower detector looks at
+
     def __init__(self, arena, corner_tags, tags):
         self.detector = detector()
+        parameters = cv2.aruco.DetectorParameters()   # OpenCV's own: three threshold windows (3, 13, 23)
+        parameters.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+        self.thorough = cv2.aruco.ArucoDetector(dictionary(), parameters)
         self.corner_tags = list(corner_tags)
         self.corners = corner_positions(arena).astype(np.float32)
         self.tags = dict(tags)
         self.homography = None
+        self.last = {}   # tag -> its corners' pixels in the frame before
+        self.retries = self.recovered = 0
 
     def track(self, image):
         """{robot index: (x, y, theta)} of the robots whose tag is in `image` (none before the corner tags
         were seen once)."""
         found, ids, _ = self.detector.detectMarkers(image)
-        if ids is None:
+        by_id = {} if ids is None else {int(i): c.reshape(4, 2) for i, c in zip(ids.ravel(), found)}
+        # A robot's tag seen in the frame before and missing now: OpenCV's slower detector looks again around its
+        # last place (a tag that noise and JPEG made unreadable to one threshold window is read by another); a
+        # tag that is really hidden stays missing at the cost of a small crop.
+        for tag in self.tags:
+            if tag not in by_id and tag in self.last:
+                self.retries += 1
+                x0, y0 = np.maximum(self.last[tag].min(axis=0).astype(int) - self.RETRY, 0)
+                x1, y1 = self.last[tag].max(axis=0).astype(int) + self.RETRY
+                crop = np.ascontiguousarray(image[y0:y1, x0:x1])
+                again, again_ids, _ = self.thorough.detectMarkers(crop)
+                for i, c in zip(() if again_ids is None else again_ids.ravel(), again):
+                    if int(i) == tag:
+                        by_id[tag] = c.reshape(4, 2) + np.float32([x0, y0])
+                        self.recovered += 1
+        self.last = {t: c for t, c in by_id.items() if t in self.tags}
+        if not by_id:
             return {}
-        by_id = {int(i): c.reshape(4, 2) for i, c in zip(ids.ravel(), found)}
         if all(t in by_id for t in self.corner_tags):
             centres = np.float32([by_id[t].mean(axis=0) for t in self.corner_tags])
             self.homography = cv2.getPerspectiveTransform(centres, self.corners)

@@ -44,7 +44,9 @@ def test_a_hidden_tag_is_not_found_and_a_hidden_corner_keeps_the_last_frame():
     renderer = tags.Renderer(tags.OverheadCamera(), DEFAULT.arena, CORNERS, c.corner_tag_size, c.tag_size)
     poses, ids = scene(4, 3)
     tracker = tags.TagTracker(DEFAULT.arena, CORNERS, {t: k for k, t in enumerate(ids)})
+    assert sorted(tracker.track(renderer.render(poses, ids))) == [0, 1, 2]
     assert sorted(tracker.track(renderer.render(poses, ids, hidden={1}))) == [0, 2]
+    assert tracker.retries == 1 and tracker.recovered == 0   # looked for again where it was, and not found
     # a frame without the corner tags (a person in the way): the last homography still places the robots
     blank = tags.Renderer(tags.OverheadCamera(), DEFAULT.arena, [], c.corner_tag_size, c.tag_size)
     found = tracker.track(blank.render(poses, ids))
