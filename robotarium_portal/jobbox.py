@@ -278,7 +278,10 @@ def notes_in(output_path):
 class JobBox:
     """The box of one job slot (a worker runs one job a slot at a time): `<root>/<name>/`, its account."""
 
-    def __init__(self, root, name, limits, keep=()):
+    def __init__(self, root, name, limits, keep=(), own_network=True):
+        # own_network False: the machine's network (a worker that moves real robots: its testbed's hardware arena
+        # talks to them there); the box keeps its mount namespace, folder, account, limits and environment.
+        self.own_network = own_network
         self.root = Path(root).resolve()
         self.folder = self.root / name
         self.work, self.home, self.tmp = self.folder / "work", self.folder / "home", self.folder / "tmp"
@@ -322,9 +325,11 @@ class JobBox:
         if isolated():
             # Fast DDS's shared memory: the testbed's segments are the service's, the script's account may not
             # write them (localhost-only discovery adds that transport whatever FASTDDS_BUILTIN_TRANSPORTS says).
-            # So UDP only, and discovery on the "subnet": in the box's namespace that is its own loopback.
+            # So UDP only, and discovery on the "subnet": in the box's namespace that is its own loopback (on the
+            # machine's network, a robots' worker's, discovery stays as the job's environment says).
             env["FASTDDS_BUILTIN_TRANSPORTS"] = "UDPv4"
-            env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
+            if self.own_network:
+                env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
         env[script_box.VARIABLE] = script_box.describe(self.user, self.uid, self.gid, self.home,
                                                        self.limits.script_limits())
         return env
@@ -336,7 +341,7 @@ class JobBox:
         keep = {os.path.realpath(p) for p in (sys.base_prefix, sys.prefix, repository, self.root, *self.keep)}
         hide = [p for p in (home, *SHARED_TMP) if os.path.isdir(p) and os.path.realpath(p) != "/"]
         spec = {"user_namespace": not isolated(), "hide": hide, "keep": sorted(keep),
-                "tmpfs_bytes": self.limits.disk_bytes}
+                "tmpfs_bytes": self.limits.disk_bytes, "own_network": self.own_network}
         return [sys.executable, os.path.abspath(__file__), "enter", json.dumps(spec), "--", *command]
 
     def run(self, command, env, output_path, timeout, started=None):
@@ -483,7 +488,8 @@ def loopback_up():
 
 def enter(spec, command):
     uid, gid = os.geteuid(), os.getegid()
-    flags = os.CLONE_NEWNET | os.CLONE_NEWNS | (os.CLONE_NEWUSER if spec["user_namespace"] else 0)
+    own_network = spec.get("own_network", True)
+    flags = (os.CLONE_NEWNET if own_network else 0) | os.CLONE_NEWNS | (os.CLONE_NEWUSER if spec["user_namespace"] else 0)
     try:
         os.unshare(flags)
     except OSError as error:
@@ -499,7 +505,8 @@ def enter(spec, command):
             f.write("%d %d 1" % (gid, gid))
     libc = ctypes.CDLL(None, use_errno=True)
     _mount(libc, None, "/", None, MS_REC | MS_PRIVATE)   # nothing done here reaches the machine's mounts
-    loopback_up()
+    if own_network:
+        loopback_up()
     hidden = [os.path.realpath(p) for p in spec["hide"]]
     keep = [p for p in spec["keep"] if any(p.startswith(h + "/") for h in hidden) and os.path.isdir(p)]
     kept = [(p, os.open(p, os.O_PATH | os.O_DIRECTORY)) for p in keep]   # reachable after the tmpfs covers them

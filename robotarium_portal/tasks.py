@@ -10,6 +10,7 @@ import os
 import re
 import shutil
 import time
+from pathlib import Path
 
 from django.conf import settings
 from django.db import transaction
@@ -99,7 +100,7 @@ def stopping():
     return (jobs_dir() / "stopping").exists()
 
 
-def run_command(command, cwd, env, output_path, timeout, job):
+def run_command(command, cwd, env, output_path, timeout, job, own_network=True):
     """Run command in the job's own box (jobbox: its namespaces, folder, account and limits; cwd's files are
     copied into the box's folder, where it runs), its output in a file. The box's process group is in
     jobs/<job>.pgid while it runs (serve stops it there). The exit code, or None when it ran past timeout
@@ -107,7 +108,7 @@ def run_command(command, cwd, env, output_path, timeout, job):
     pgid_file = jobs_dir() / ("%s.pgid" % job)
     # a box per worker slot: the slots on one machine differ in their ROS_DOMAIN_ID (a bounded set of accounts)
     box = jobbox.JobBox(settings.JOB_BOXES_DIR, "%s-%s" % (job, env.get("ROS_DOMAIN_ID", "0")),
-                        jobbox.Limits(**settings.JOB_LIMITS), keep=[settings.DATA_DIR])
+                        jobbox.Limits(**settings.JOB_LIMITS), keep=[settings.DATA_DIR], own_network=own_network)
     try:
         box.prepare(cwd)
         return box.run(command, env, output_path, timeout, started=lambda pid: pgid_file.write_text(str(pid))).code
@@ -300,6 +301,22 @@ def current_step(experiment):
     return int(steps[-1]) if steps else None
 
 
+# Set (to its fleet file) for the run slot of a worker that moves real robots (robotarium_portal.workers --fleet).
+FLEET_VARIABLE = "ROBOTARIUM_PORTAL_FLEET"
+
+
+def bring_results(output_path, results):
+    """A run on the robots is recorded by the worker's own testbed, in its bags folder; the run folder that
+    ./robotarium run named ("results in FOLDER") moves into the experiment's results/."""
+    try:
+        lines = Path(output_path).read_text(errors="replace").splitlines()
+    except OSError:
+        return
+    named = [line.split("results in ", 1)[1].split(" (open ")[0].strip() for line in lines if "] results in " in line]
+    if named and Path(named[-1]).is_dir() and not Path(named[-1]).resolve().is_relative_to(Path(results).resolve()):
+        shutil.move(named[-1], Path(results) / Path(named[-1]).name)
+
+
 @failing_truthfully
 def run_experiment(experiment):
     """./robotarium run in real time, hardware-like, in the experiment's own working folder; then the results."""
@@ -309,12 +326,19 @@ def run_experiment(experiment):
     copy_files(experiment.files_dir, work)
     results.mkdir(parents=True)
     limit = time_limit()
-    command = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--hardware", "--no-verdict",
-               "--time-limit", "%g" % limit, "--bags-dir", str(results), "--results-dir", str(results),
-               experiment.main_file]
+    fleet = os.environ.get(FLEET_VARIABLE)
+    if fleet:   # a worker of robots (./robotarium worker --fleet): its hardware arena's testbed, on its run domain
+        command = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--no-local-testbed", "--no-verdict",
+                   "--time-limit", "%g" % limit, "--results-dir", str(results), experiment.main_file]
+    else:
+        command = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--hardware", "--no-verdict",
+                   "--time-limit", "%g" % limit, "--bags-dir", str(results), "--results-dir", str(results),
+                   experiment.main_file]
     began = time.monotonic()
     code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_RUN_DOMAIN"), root / "output.txt",
-                       limit + RESULTS_GRACE, RUN_CLUSTER)
+                       limit + RESULTS_GRACE, RUN_CLUSTER, own_network=not fleet)
+    if fleet:
+        bring_results(root / "output.txt", results)
     experiment.timings = dict(experiment.timings or {}, run_command=round(time.monotonic() - began, 3))
     if stopping():
         return "the service stopped during the run of experiment %d" % experiment.pk
