@@ -146,10 +146,11 @@ def main(args):
                              if "simulator" in t["nodes"] or "arena" in t["nodes"]
                              else "no simulator: nothing can run here"))
         print("      stop it: ./robotarium stop --domain %s --namespace %s" % (t["domain"], t["namespace"]))
-    roster = fleet_roster(here[1], timeout=1.0 if statuses.get(here) is not None else 0.0)
-    if roster:
-        print(roster)
     local_here = local_testbeds.matching(found, here[1], here[0])
+    if statuses.get(here) is not None and any("arena" in t["nodes"] for t in local_here):
+        roster = fleet_roster(here[1], timeout=2.0)   # a hardware arena of this machine: its robots
+        if roster:
+            print(roster)
     print("On ROS_DOMAIN_ID %s, namespace %s (this shell's, where ./robotarium run goes): %s%s" % (
         here[0], here[1], described(here)[0],
         "" if local_here or statuses.get(here) is None else " (not started on this machine)"))
