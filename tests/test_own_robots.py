@@ -228,3 +228,39 @@ def test_the_camera_path(fleet_testbed):
     completed = run(env, CIRCLES, "--no-video", "--time-limit", "2")
     out = completed.stdout + completed.stderr
     assert "Stopped at the time limit" in out and "lost tracking" not in out, out
+
+
+def test_the_fleet_command_serves_a_fleet_and_up_refuses_a_bad_fleet_file(tmp_path):
+    """./robotarium fleet: the fleet file, one line per robot with its pid, "fleet ready"; Ctrl-C stops every
+    process of it. ./robotarium up --fleet with a bad fleet file: one line naming the field, exit code 2."""
+    env = node_env(unique_domain_id())
+    process = subprocess.Popen([sys.executable, "-m", "robotarium_cli", "fleet", "--robots", "2", "--fleet",
+                                str(tmp_path / "fleet.yaml")], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                               text=True, start_new_session=True)
+    lines = []
+    try:
+        for line in process.stdout:
+            lines.append(line.strip())
+            if line.strip() == "fleet ready" or len(lines) > 20:
+                break
+        assert lines[-1] == "fleet ready", lines
+        pids = [int(line.split()[-1]) for line in lines if line.startswith("robot r")]
+        assert [line.split()[1] for line in lines if line.startswith("robot r")] == ["r0", "r1"] and len(pids) == 2
+        assert all(os.path.exists("/proc/%d" % pid) for pid in pids)
+        assert "robots:" in (tmp_path / "fleet.yaml").read_text()
+        os.killpg(process.pid, signal.SIGINT)
+        out, _ = process.communicate(timeout=30)
+        assert process.returncode == 0 and "fleet stopped" in out, out
+        deadline = time.monotonic() + 5
+        while any(os.path.exists("/proc/%d" % pid) for pid in pids) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not any(os.path.exists("/proc/%d" % pid) for pid in pids)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("robots: [{name: r0, cmd_type: Twist3D}]\n")
+    up = subprocess.run([sys.executable, "-m", "robotarium_cli", "up", "--fleet", str(bad)], env=env,
+                        capture_output=True, text=True, timeout=60)
+    assert up.returncode == 2 and "robots[0].cmd_type must be Twist or TwistStamped" in up.stderr, up.stderr
