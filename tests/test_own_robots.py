@@ -55,13 +55,20 @@ def start_run(env, script, *args):
                             cwd=os.path.dirname(script), start_new_session=True)
 
 
-def wait_moving(fleet, robots, timeout=60.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if np.all(np.abs(fleet.world.read()[robots, V]) > 0.05):
-            return True
-        time.sleep(0.01)
-    return False
+def wait_moving(fleet, robots, env, timeout=60.0):
+    """Until the run has started (its drive-on phase, which is not the run, over: the testbed's status says
+    RUNNING) and every robot of `robots` drives."""
+    from robotarium_core.topics import STATUS_QOS
+    from robotarium_msgs.msg import TestbedStatus
+    probe = RosProbe(int(env["ROS_DOMAIN_ID"]), "status_probe")
+    try:
+        status = []
+        probe.node.create_subscription(TestbedStatus, "/robotarium/status", lambda msg: status.append(msg.state),
+                                       STATUS_QOS)
+        return probe.spin_until(lambda: status and status[-1] == TestbedStatus.STATE_RUNNING and np.all(
+            np.abs(fleet.world.read()[robots, V]) > 0.05), timeout)
+    finally:
+        probe.node.destroy_node()
 
 
 def stop_time(fleet, robots, since, timeout=3.0):
@@ -160,7 +167,7 @@ def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
 
     # A robot process killed mid-run: every other robot stops within 0.2 s; the run ends naming it.
     process = start_run(env, CIRCLES)
-    assert wait_moving(fleet, robots), finish(process, 5)[1] + logs_of_the_testbed()
+    assert wait_moving(fleet, robots, env), finish(process, 5)[1] + logs_of_the_testbed()
     killed = time.time()
     fleet.kill("r1")
     stopped = stop_time(fleet, [0, 2, 3], killed)
@@ -173,7 +180,7 @@ def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
     # The robot back: the next run works (the drive-on brings the robots back to the initial conditions).
     fleet.restart("r1")
     process = start_run(env, CIRCLES)
-    assert wait_moving(fleet, robots), finish(process, 5)[1] + logs_of_the_testbed()
+    assert wait_moving(fleet, robots, env), finish(process, 5)[1] + logs_of_the_testbed()
 
     # The motion capture stopped mid-run: every robot stops within 0.2 s.
     stopped_at = time.time()
@@ -186,7 +193,7 @@ def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
     # The arena killed -9 mid-run: each robot stops on its own command timeout, within 0.5 s.
     fleet.restart("mocap")
     process = start_run(env, CIRCLES)
-    assert wait_moving(fleet, robots), finish(process, 5)[1] + logs_of_the_testbed()
+    assert wait_moving(fleet, robots, env), finish(process, 5)[1] + logs_of_the_testbed()
     killed = time.time()
     os.killpg(tb.processes["arena"][0].pid, signal.SIGKILL)
     stopped = stop_time(fleet, robots, killed)
@@ -216,7 +223,7 @@ def test_the_camera_path(fleet_testbed):
         hide = probe.node.create_publisher(String, "/camera/hide", 10)
         assert probe.spin_until(lambda: hide.get_subscription_count() > 0, 10)
         process = start_run(env, CIRCLES)
-        assert wait_moving(fleet, [0, 1, 2, 3]), finish(process, 5)[1] + logs_of_the_testbed()
+        assert wait_moving(fleet, [0, 1, 2, 3], env), finish(process, 5)[1] + logs_of_the_testbed()
         hide.publish(String(data="r1 0.5"))
         assert probe.spin_until(lambda: hidden, 5), "the camera never hid r1's tag"
         stopped = stop_time(fleet, [0, 1, 2, 3], hidden[0]["since"])
