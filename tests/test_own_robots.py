@@ -39,7 +39,7 @@ def fleet_testbed(tmp_path_factory, request):
     domain = unique_domain_id()
     folder = tmp_path_factory.mktemp("fleet")
     fleet = SimulatedFleet(ROBOTS, mark.args[0] if mark else "mocap", str(folder / "fleet.yaml"), env=node_env(domain),
-                           log_dir=str(folder))
+                           log_dir=str(folder), **(mark.kwargs if mark else {}))
     fleet.start(say=lambda line: None)
     try:
         assert fleet.wait_ready(), "the fleet did not come up: %s" % fleet.failed()
@@ -98,6 +98,13 @@ def path_distance(path, reference):
     return np.min(np.hypot(path[0][:, None] - reference[0][None], path[1][:, None] - reference[1][None]), axis=1)
 
 
+# Tests that do not measure the stop bounds give a robot and the tracking 0.15 s before they count as gone: a
+# machine loaded by other test workers can hold a process back 60 ms (docs/own-robots.md), which ends a run
+# with the fault tests' 0.06 s.
+RELAXED = dict(answer_timeout=0.15, lost_after=0.15)
+
+
+@pytest.mark.tracking("mocap", **RELAXED)
 def test_a_guide_listing_completes_on_a_simulated_fleet_as_on_the_simulator(fleet_testbed, tmp_path):
     """Guide listing 3.6.1 (leader-follower with data saving; 150 iterations: run_seeded --set) through
     `up --fleet` on a fleet tracked by motion capture: it completes with no collision and no robot outside,
@@ -201,21 +208,15 @@ def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
     assert stopped <= 0.5, "robots stood %.3f s after the arena was killed" % stopped
 
 
-@pytest.mark.tracking("camera")
+@pytest.mark.tracking("camera", **RELAXED)   # a hidden tag is found by lost_behind (60 ms: two frames), as before
 def test_the_camera_path(fleet_testbed):
-    """A fleet tracked by the camera stand-in's images and the tag tracker: a guide listing completes; a
-    tag hidden for 0.5 s stops every robot within 0.2 s of the first frame without it (the camera's own
-    record of it) and ends the run naming the robot; the next run works once the tag is seen again."""
-    fleet, env, bags, _ = fleet_testbed
-    script = os.path.join(REPO, "examples", "guide", "3_3_1_leader_follower_formation_control.py")
-    completed = run(env, SEEDED, "--no-video", "--", "--set", "iterations=150", "1", script, timeout=240)
-    out = completed.stdout + completed.stderr
-    assert completed.returncode == 0, out
-    assert "robots collided" not in out and "outside the boundaries" not in out, out
-
+    """A fleet tracked by the camera stand-in's images and the tag tracker: a tag hidden for 0.5 s stops
+    every robot within 0.2 s of the first frame without it (the camera's own record of it) and ends the run
+    naming the robot; then a guide listing completes (the tag seen again, the next run works)."""
     import json
 
     from std_msgs.msg import String
+    fleet, env, bags, _ = fleet_testbed
     probe = RosProbe(int(env["ROS_DOMAIN_ID"]), "hide_probe")
     try:
         hidden = []
@@ -232,9 +233,11 @@ def test_the_camera_path(fleet_testbed):
         assert code != 0 and "robot r1 lost tracking at step" in out, out
     finally:
         probe.node.destroy_node()
-    completed = run(env, CIRCLES, "--no-video", "--time-limit", "2")
+    script = os.path.join(REPO, "examples", "guide", "3_3_1_leader_follower_formation_control.py")
+    completed = run(env, SEEDED, "--no-video", "--", "--set", "iterations=150", "1", script, timeout=240)
     out = completed.stdout + completed.stderr
-    assert "Stopped at the time limit" in out and "lost tracking" not in out, out
+    assert completed.returncode == 0, out
+    assert "robots collided" not in out and "outside the boundaries" not in out and "lost tracking" not in out, out
 
 
 def test_the_fleet_command_serves_a_fleet_and_up_refuses_a_bad_fleet_file(tmp_path):

@@ -10,6 +10,7 @@ truth) and talk DDS. The fleet file it serves is written first; then one line pe
 or its starter's death): then every process of it stops.
 """
 import argparse
+import dataclasses
 import os
 import signal
 import subprocess
@@ -62,8 +63,9 @@ class SimulatedFleet:
     """The processes of a simulated fleet (robots, then the stand-in), tied to this process by its lifeline.
     env: their environment (a test's domain); log_dir: one log per process."""
 
-    def __init__(self, number, tracking="mocap", fleet_file=None, env=None, log_dir=None):
-        self.fleet = fleet_of(number, tracking)
+    def __init__(self, number, tracking="mocap", fleet_file=None, env=None, log_dir=None, **fleet_fields):
+        # fleet_fields: fields of the fleet file it writes other than fleet_of's (a test's thresholds)
+        self.fleet = dataclasses.replace(fleet_of(number, tracking), **fleet_fields)
         self.fleet_file = os.path.abspath(fleet_file or "fleet.yaml")
         self.env = dict(env or os.environ)
         self.log_dir = log_dir or tempfile.mkdtemp(prefix="robotarium-fleet-")
