@@ -47,6 +47,7 @@ from robotarium_core import cdr, control, kinematics, model, outcomes, rps2
 from robotarium_core.node_tools import declare_parameter, run_node, take_waiting
 from robotarium_core.topics import CMD_REQUESTED, LATCHED, OUTPUT_QOS, readers_matched
 from robotarium_hardware import fleet as fleets
+from robotarium_hardware.steady import steady
 from robotarium_hardware.tracking import FleetTestbed, Roster
 from robotarium_msgs.srv import ArmSafety
 from robotarium_sim import experiment
@@ -123,6 +124,7 @@ class HardwareArenaNode(SimulatorNode):
         self.roster_pub = self.create_publisher(String, FLEET, LATCHED)
         self.create_timer(FAULT_CHECK, self.check_faults)
         self.create_timer(ROSTER_PERIOD, self.publish_roster)
+        steady()
         self.get_logger().info("hardware arena ready: fleet %s, %d robots (%s), tracking %s" % (
             self.fleet.name, len(self.fleet.robots), ", ".join(self.fleet.names), self.fleet.tracking))
 

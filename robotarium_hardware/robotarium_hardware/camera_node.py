@@ -22,6 +22,7 @@ from std_msgs.msg import String
 from robotarium_core.config import DEFAULT
 from robotarium_core.node_tools import declare_parameter, run_node
 from robotarium_hardware.fleet import Camera
+from robotarium_hardware.steady import steady
 from robotarium_hardware.tags import OverheadCamera, Renderer, compressed_bytes
 from robotarium_hardware.world import World
 
@@ -55,6 +56,7 @@ class CameraNode(Node):
         self.hidden_pub = self.create_publisher(String, "/camera/hidden", 10)
         self.create_subscription(String, "/camera/hide", self.on_hide, 10)
         self.create_timer(1.0 / rate, self.frame)
+        steady()
         self.get_logger().info("camera ready: %d robots' tags at %g Hz on %s" % (len(self.names), rate, topic))
 
     def on_hide(self, msg):

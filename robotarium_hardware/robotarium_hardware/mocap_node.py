@@ -21,6 +21,7 @@ from rclpy.qos import qos_profile_sensor_data
 from robotarium_core.config import DEFAULT
 from robotarium_core.node_tools import declare_parameter, run_node
 from robotarium_hardware.fleet import Calibration
+from robotarium_hardware.steady import steady
 from robotarium_hardware.templates import Template
 from robotarium_hardware.world import World
 
@@ -53,6 +54,7 @@ class MocapNode(Node):
         self.template = Template(msg, ("header.stamp.sec", "header.stamp.nanosec", "pose.position.x", "pose.position.y",
                                        "pose.orientation.z", "pose.orientation.w"))
         self.create_timer(1.0 / rate, self.frame)
+        steady()
         self.get_logger().info("motion capture ready: %d bodies at %g Hz" % (len(self.names), rate))
 
     def frame(self):

@@ -25,6 +25,7 @@ from sensor_msgs.msg import BatteryState
 
 from robotarium_core.config import DEFAULT
 from robotarium_core.node_tools import declare_parameter, run_node
+from robotarium_hardware.steady import steady
 from robotarium_hardware.templates import Template
 from robotarium_hardware.world import World
 from robotarium_sim.hardware import TICK, HardwareParameters, Pipeline
@@ -82,6 +83,7 @@ class RobotNode(Node):
         self.advance()
         self.create_timer(1.0 / RATE, self.advance)
         self.create_timer(BATTERY_PERIOD, self.publish_battery)
+        steady()
         self.get_logger().info("robot %s ready at (%.2f, %.2f, %.2f)" % (name, *start))
 
     def on_command(self, msg):

@@ -23,6 +23,7 @@ from sensor_msgs.msg import CompressedImage, Image
 from robotarium_core.config import DEFAULT
 from robotarium_core.node_tools import declare_parameter, run_node
 from robotarium_hardware import fleet as fleets
+from robotarium_hardware.steady import steady
 from robotarium_hardware.tags import TagTracker, parse_compressed, parse_image
 from robotarium_hardware.templates import Template
 
@@ -56,6 +57,7 @@ class TagTrackerNode(Node):
         self.last = {}
         self.latency, self.cpu = [], []
         self.create_timer(REPORT_PERIOD, self.report)
+        steady()
         self.get_logger().info("tag tracker ready: %d robots' tags (%s) on %s" % (
             len(fleet.robots), ", ".join("%s %d" % (r.name, r.tag) for r in fleet.robots), fleet.camera.image_topic))
 
