@@ -118,13 +118,15 @@ class Roster:
         process (all poses late alike, stamps as they were) none."""
         fresh = now - self.pose_at <= self.fleet.lost_after
         stamped = np.isfinite(self.stamps) & (self.stamps > 0)   # (a source that stamps nothing is judged by age only)
-        # The fleet's newest frame by the poses that came SETTLE ago or more: a frame's poses come one by one, and
-        # a robot whose pose of a frame is still on its way is not behind.
+        # The fleet's newest frame: the newest that half the robots have, by the poses that came SETTLE ago or more.
+        # A frame's poses come one by one (a dozen of them take a while on a loaded machine), and a robot whose pose
+        # of a frame is still on its way is not behind; a robot missing from frames that the others are in is.
         settled = stamped & (now - self.pose_at >= SETTLE)
         if not settled.any():
             return fresh
+        newest = np.sort(self.stamps[settled])[np.count_nonzero(settled) // 2]
         behind = np.zeros(self.size, dtype=bool)
-        behind[stamped] = np.max(self.stamps[settled]) - self.stamps[stamped] > self.fleet.lost_behind
+        behind[stamped] = newest - self.stamps[stamped] > self.fleet.lost_behind
         return fresh & ~behind
 
     def answering(self, now):

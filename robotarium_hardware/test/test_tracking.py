@@ -110,3 +110,18 @@ def test_a_robot_of_the_fleet_in_the_arena_but_not_in_the_experiment_is_in_the_w
     assert roster.in_the_way(np.array([0, 1]), 1.0, DEFAULT.arena) is None
     with pytest.raises(model.RobotariumError, match="robot.s. r1 of fleet fleet stand in the arena but are not in"):
         roster.in_the_way(np.array([0]), 1.0, DEFAULT.arena)
+
+
+def test_a_frame_still_arriving_puts_nobody_behind():
+    """Twelve robots, one frame's poses arriving one by one (a loaded machine): while fewer than half have the
+    new frame, the others are not behind; a robot missing from the frames the others are in is."""
+    fleet = fleets.from_dict({"robots": ["r%d" % k for k in range(12)], "lost_after": 0.5, "lost_behind": 0.05})
+    roster = Roster(fleet)
+    for k in range(12):
+        roster.pose(k, 0.3 * k - 1.5, 0.0, 0.0, now=1.0, stamp=10.0)
+    for k in range(5):   # 5 of 12 have a frame 60 ms newer
+        roster.pose(k, 0.3 * k - 1.5, 0.0, 0.0, now=1.06, stamp=10.06)
+    assert roster.faults(np.arange(12), now=1.07) == []
+    for k in range(5, 11):   # all but r11 have it
+        roster.pose(k, 0.3 * k - 1.5, 0.0, 0.0, now=1.07, stamp=10.06)
+    assert roster.faults(np.arange(12), now=1.08) == ["robot r11 lost tracking"]
