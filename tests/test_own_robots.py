@@ -50,7 +50,8 @@ def fleet_testbed(tmp_path_factory, request):
 
 
 def start_run(env, script, *args):
-    return subprocess.Popen([sys.executable, "-m", "robotarium_cli", "run", "--no-local-testbed", "--no-video", *args,
+    return subprocess.Popen([sys.executable, "-m", "robotarium_cli", "run", "--no-local-testbed", "--no-video",
+                             "--no-verdict", *args,
                              script], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             cwd=os.path.dirname(script), start_new_session=True)
 
@@ -113,7 +114,7 @@ def test_a_guide_listing_completes_on_a_simulated_fleet_as_on_the_simulator(flee
     fleet, env, bags, _ = fleet_testbed
     script = os.path.join(REPO, "examples", "guide", "3_6_1_leader_follower_data_saving.py")
     args = ("--", "--set", "iterations=150", "1", script)
-    completed = run(env, SEEDED, *args, timeout=240)
+    completed = run(env, SEEDED, "--no-verdict", *args, timeout=240)
     out = completed.stdout + completed.stderr
     assert completed.returncode == 0, out
     assert "##### DEBUG OUTPUT #####" in out, out
@@ -127,7 +128,8 @@ def test_a_guide_listing_completes_on_a_simulated_fleet_as_on_the_simulator(flee
 
     # The same script and seed on the simulator (a testbed of its own, lockstep: the same steps as fast as can be).
     sim_bags = tmp_path / "sim_bags"
-    simulated = subprocess.run([sys.executable, "-m", "robotarium_cli", "run", "--lockstep", "--no-video", "--bags-dir",
+    simulated = subprocess.run([sys.executable, "-m", "robotarium_cli", "run", "--lockstep", "--no-video", "--no-verdict",
+                                "--bags-dir",
                                 str(sim_bags), SEEDED, *args], env=node_env(unique_domain_id()), capture_output=True,
                                text=True, cwd=os.path.dirname(script), timeout=240)
     assert simulated.returncode == 0, simulated.stdout + simulated.stderr
@@ -234,7 +236,7 @@ def test_the_camera_path(fleet_testbed):
     finally:
         probe.node.destroy_node()
     script = os.path.join(REPO, "examples", "guide", "3_3_1_leader_follower_formation_control.py")
-    completed = run(env, SEEDED, "--no-video", "--", "--set", "iterations=150", "1", script, timeout=240)
+    completed = run(env, SEEDED, "--no-video", "--no-verdict", "--", "--set", "iterations=150", "1", script, timeout=240)
     out = completed.stdout + completed.stderr
     assert completed.returncode == 0, out
     assert "robots collided" not in out and "outside the boundaries" not in out and "lost tracking" not in out, out

@@ -95,6 +95,8 @@ class HardwareArenaNode(SimulatorNode):
                              "./robotarium fleet writes one for a simulated fleet)")
         self.fleet = fleets.load(path)   # FleetError (a ValueError): run_node says it and exits 2
         self.roster = Roster(self.fleet)
+        # what the safety node widens its margins by (ArmSafety.latency): the fleet's declared latencies
+        self.latency = self.fleet.command_latency + self.fleet.tracking_latency
         self.driving = False
         self._drive_abort = None
         self._last_check = time.monotonic()
@@ -144,7 +146,7 @@ class HardwareArenaNode(SimulatorNode):
         name, planned = experiment.build_testbed(request, self.config)   # the request's checks, its initial conditions
         robots = self.roster.pick(planned.number_of_robots, time.monotonic())
         self.roster.in_the_way(robots, time.monotonic(), self.config.arena)
-        return name, FleetTestbed(planned.poses, self.config, robots, lambda: self.roster.measured(robots))
+        return name, FleetTestbed(planned.poses, self.config, robots, lambda: self.roster.measured(robots), self.latency)
 
     async def before_arming(self, request, testbed, run):
         """The drive-on phase: from where the robots stand to the initial conditions (testbed.poses), as a
@@ -156,7 +158,7 @@ class HardwareArenaNode(SimulatorNode):
                                 drive_on_rotation_error=self.fleet.drive_on_rotation_error)
         if not model.at_pose_mask(start, goals, c.drive_on_position_error, c.drive_on_rotation_error).all():
             try:
-                drive_testbed = FleetTestbed(start, c, robots, lambda: self.roster.measured(robots))
+                drive_testbed = FleetTestbed(start, c, robots, lambda: self.roster.measured(robots), self.latency)
             except model.RobotariumError as error:
                 return "the robots cannot drive on from where they stand: %s" % error
             problem = await self.drive_on(run.run_id, drive_testbed, goals, c)
@@ -170,7 +172,7 @@ class HardwareArenaNode(SimulatorNode):
         n = testbed.number_of_robots
         armed = await self.arm_safety(ArmSafety.Request(
             run_id=drive.run_id, number_of_robots=n, real_time=True, token=drive.token, safety_key=drive.safety_key,
-            poses_key=drive.poses_key))
+            poses_key=drive.poses_key, latency=testbed.latency))
         if armed is not True:
             return armed
         self.get_logger().info("driving %d robots (%s) on to the initial conditions of %s" % (

@@ -192,10 +192,12 @@ class FleetTestbed(model.Testbed):
     `measure()` (the roster's newest) instead of an integration. robots: the fleet indices of the
     run's robots 0..N-1."""
 
-    def __init__(self, poses, config, robots, measure):
+    def __init__(self, poses, config, robots, measure, latency=0.0):
         super().__init__(poses, config)
         self.robots = np.asarray(robots, dtype=int)
         self.measure = measure
+        # s beyond the certificate's one step (ArmSafety.latency): the fleet's declared tracking + command latency
+        self.latency = float(latency)
 
     def _move(self):
         self.poses = self.measure()

@@ -93,7 +93,8 @@ def test_faults_name_the_robot_that_lost_tracking_or_stopped_answering():
 
 def test_the_arenas_testbed_counts_on_measured_poses_and_thresholds_its_commands():
     measured = np.array([[-0.5, 0.5], [0.0, 0.0], [0.0, 0.0]])
-    tb = FleetTestbed(measured, DEFAULT, [0, 1], lambda: np.array([[-0.5, -0.45], [0.0, 0.0], [0.0, 0.0]]))
+    tb = FleetTestbed(measured, DEFAULT, [0, 1], lambda: np.array([[-0.5, -0.45], [0.0, 0.0], [0.0, 0.0]]), 0.025)
+    assert tb.latency == 0.025   # what the safety node widens its margins by (ArmSafety.latency)
     tb.set_commands([0, 1], [1.0, 0.1], [0.0, 0.0], now=0.0)
     assert np.allclose(tb.commands_out()[0], [DEFAULT.max_linear_velocity, 0.1])
     tb.step()
