@@ -69,6 +69,9 @@ if TYPE_CHECKING:
 
 STARTUP_WAIT = 60.0   # s for a testbed started here to come up
 STEP_TIMEOUT = 10.0   # s without poses after a step() before we give up with an explanation
+# s a start may take: a hardware arena (robotarium_hardware) answers once its drive-on phase brought the robots to
+# the initial conditions, which took up to 30 s for the guide's listings on a loaded 2-core machine
+START_WAIT = 180.0
 CONFIG_WAIT = 2.0     # s for the testbed's latched configuration once its services answer
 GRAPH_POLL = 0.01     # s between looks at what only the DDS graph says (a reader matched) while waiting
 
@@ -437,7 +440,7 @@ class Robotarium(RobotariumABC):
         a ticket nobody asks with)."""
         said, said_at = None, 0.0
         while True:
-            response = self._call(self._start_client, request)
+            response = self._call(self._start_client, request, timeout=START_WAIT)
             if not response.busy:
                 if said is not None:   # it waited: say that its turn came, not only what it waited for
                     print("[robotarium] your turn: the testbed is free%s" % (
