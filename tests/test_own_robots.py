@@ -99,10 +99,11 @@ def path_distance(path, reference):
     return np.min(np.hypot(path[0][:, None] - reference[0][None], path[1][:, None] - reference[1][None]), axis=1)
 
 
-# Tests that do not measure the stop bounds give a robot and the tracking 0.15 s before they count as gone: a
-# machine loaded by other test workers can hold a process back 60 ms (docs/own-robots.md), which ends a run
-# with the fault tests' 0.06 s.
-RELAXED = dict(answer_timeout=0.15, lost_after=0.15)
+# Tests that do not measure the stop bounds give a robot and the tracking a second before they count as gone
+# or behind: a machine loaded by other test workers (CI runs one more worker than cores) can hold a stand-in or
+# the arena back 60-150 ms (docs/own-robots.md), which ends a run with the fault tests' 0.06 s. What they test
+# is the run and its results; the bounds are the fault tests'.
+RELAXED = dict(answer_timeout=1.0, lost_after=1.0, lost_behind=1.0)
 
 
 @pytest.mark.tracking("mocap", **RELAXED)
@@ -210,11 +211,11 @@ def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
     assert stopped <= 0.5, "robots stood %.3f s after the arena was killed" % stopped
 
 
-@pytest.mark.tracking("camera", **RELAXED)   # a hidden tag is found by lost_behind (60 ms: two frames), as before
-def test_the_camera_path(fleet_testbed):
+@pytest.mark.tracking("camera", answer_timeout=1.0, lost_after=1.0)   # a hidden tag: found by lost_behind (60 ms)
+def test_a_hidden_tag_stops_every_robot(fleet_testbed):
     """A fleet tracked by the camera stand-in's images and the tag tracker: a tag hidden for 0.5 s stops
     every robot within 0.2 s of the first frame without it (the camera's own record of it) and ends the run
-    naming the robot; then a guide listing completes (the tag seen again, the next run works)."""
+    naming the robot."""
     import json
 
     from std_msgs.msg import String
@@ -235,6 +236,12 @@ def test_the_camera_path(fleet_testbed):
         assert code != 0 and "robot r1 lost tracking at step" in out, out
     finally:
         probe.node.destroy_node()
+
+
+@pytest.mark.tracking("camera", **RELAXED)
+def test_a_guide_listing_completes_on_a_camera_tracked_fleet(fleet_testbed):
+    """The camera path end to end: the camera stand-in's images, the tag tracker, the arena."""
+    fleet, env, bags, _ = fleet_testbed
     script = os.path.join(REPO, "examples", "guide", "3_3_1_leader_follower_formation_control.py")
     completed = run(env, SEEDED, "--no-video", "--no-verdict", "--", "--set", "iterations=150", "1", script, timeout=240)
     out = completed.stdout + completed.stderr
