@@ -150,6 +150,7 @@ def test_a_guide_listing_completes_on_a_simulated_fleet_as_on_the_simulator(flee
         assert np.percentile(gap, 95) < 0.06 and gap.max() < 0.1, (k, np.percentile(gap, 95), gap.max())
 
 
+@pytest.mark.realtime   # every robot stopped within 0.2 s
 def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
     fleet, env, bags, tb = fleet_testbed
     robots = [0, 1, 2, 3]   # the run's robots: the whole fleet
@@ -211,6 +212,7 @@ def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
     assert stopped <= 0.5, "robots stood %.3f s after the arena was killed" % stopped
 
 
+@pytest.mark.realtime   # every robot stopped within 0.2 s
 @pytest.mark.tracking("camera", answer_timeout=1.0, lost_after=1.0)   # a hidden tag: found by lost_behind (60 ms)
 def test_a_hidden_tag_stops_every_robot(fleet_testbed):
     """A fleet tracked by the camera stand-in's images and the tag tracker: a tag hidden for 0.5 s stops
