@@ -1,9 +1,9 @@
 """What the service keeps: who may use it (Profile beside Django's User) and the experiments."""
-import json
-
 from django.conf import settings
 from django.db import models
 from django.utils import timezone
+
+from robotarium_core import run_record
 
 
 def without_nul(value):
@@ -102,12 +102,10 @@ class Experiment(models.Model):
         and the second 0: a script that behaves differently on the robots than in verification (one
         that stays still while verified and drives robots head-on in the run). Else None."""
         counts = (self.verification or {}).get("counts") or {}
-        run_json = self.results_dir / "run.json" if self.results_dir else None
-        try:
-            run = json.loads(run_json.read_text()) if run_json else {}
-        except (OSError, ValueError):
+        run = run_record.read(str(self.results_dir)) if self.results_dir else None
+        if run is None:
             return None
-        in_run, verified = int(run.get("ideal_interventions") or 0), counts.get("safety_interventions")
+        in_run, verified = run.ideal_interventions, counts.get("safety_interventions")
         if in_run and verified == 0:
             return in_run, verified
         return None

@@ -19,6 +19,7 @@ from django.utils import timezone
 from django_q.models import OrmQ
 from django_q.tasks import async_task
 
+from robotarium_core import run_record
 from robotarium_portal import jobbox, mail
 from robotarium_portal.database import database_retry
 from robotarium_portal.files import copy_files
@@ -342,15 +343,15 @@ def run_experiment(experiment):
     experiment.timings = dict(experiment.timings or {}, run_command=round(time.monotonic() - began, 3))
     if stopping():
         return "the service stopped during the run of experiment %d" % experiment.pk
-    folders = sorted((p for p in results.iterdir() if (p / "run.json").exists()), key=lambda p: p.stat().st_mtime)
-    run = json.loads((folders[-1] / "run.json").read_text()) if folders else {}
-    outcome = run.get("outcome", "")
+    folders = sorted((p for p in results.iterdir() if (p / run_record.FILE).exists()), key=lambda p: p.stat().st_mtime)
+    run = (run_record.read(str(folders[-1])) if folders else None) or run_record.RunRecord()
+    outcome = run.outcome
     # What the page said before the run (not verified; an earlier run cut short by a stop) stays said.
     earlier = "\n\n" + experiment.detail if experiment.detail else ""
     experiment.results = str(folders[-1].relative_to(experiment.folder)) if folders else ""
     experiment.run_outcome = outcome
     if outcome in ("completed", "time_limit"):
-        detail = run.get("detail") or "Run completed."
+        detail = run.detail or "Run completed."
         differs = experiment.differs_from_verification()
         if differs is not None:
             mail.try_sending(mail.tell_administrators_of_a_difference, experiment, *differs)
@@ -358,8 +359,8 @@ def run_experiment(experiment):
                        run_outcome=outcome, timings=experiment.timings)
     if code is None:
         why = "the run did not end within %d s of its start" % (limit + RESULTS_GRACE)
-    elif run.get("detail"):
-        why = run["detail"]
+    elif run.detail:
+        why = run.detail
     else:
         why = "./robotarium run ended with exit code %s and no results:\n%s" % (code, _tail(root / "output.txt"))
     return _finish(experiment, Experiment.FAILED, "Failed: " + why + box_notes(root / "output.txt") + earlier,
