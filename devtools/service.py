@@ -208,7 +208,7 @@ class Service:
     def submit(self, items):
         env = dict(self.env(), PASSWORD=PASSWORD, ROBOTARIUM_PORTAL_DATA=self.data,
                    ROBOTARIUM_PORTAL_DATABASE=self.postgres.url(), DJANGO_SETTINGS_MODULE="robotarium_portal.settings",
-                   PYTHONPATH=REPO)
+                   PYTHONPATH=os.pathsep.join([REPO, os.environ.get("PYTHONPATH", "")]))
         result = subprocess.run([sys.executable, "-c", SUBMIT], input=json.dumps(items), env=env, cwd=REPO,
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=TIMEOUT)
         assert result.returncode == 0, result.stderr
