@@ -48,6 +48,8 @@ def main(argv=None):
                         help="the node faults to take in turn (default: kill and freeze in turn, the node at random): "
                              + ", ".join(soak.NODE_FAULTS))
     parser.add_argument("--no-disk", action="store_true", help="no full disk")
+    parser.add_argument("--time-limit", type=int, default=90,
+                        help="each run's time limit, s of testbed time (90): a goal loop that never converges stops there")
     parser.add_argument("--video", action="store_true", help="make each run's video (default: --no-video)")
     parser.add_argument("--work", help="the soak's folder (default: a new temporary one)")
     parser.add_argument("--keep", action="store_true", help="keep every run's folder")
@@ -67,7 +69,7 @@ def main(argv=None):
           % (soak.load(), runs, args.seed, args.node_every, work), flush=True)
     _, plans, lines = soak.run_soak(
         work, runs, args.seed, node_every=args.node_every, sample_every=args.sample_every, keep=args.keep,
-        video=args.video, say=lambda line: print(line, flush=True), real_time=args.real_time, long=args.long,
+        video=args.video, time_limit=args.time_limit, say=lambda line: print(line, flush=True), real_time=args.real_time, long=args.long,
         client_faults=args.client_faults, disk=not args.no_disk, node_faults=args.node_faults, progress=1 if args.verbose else 25)
     print("\n".join(lines))
     print("end: %s, %s; %.1f min for %d runs" % (time.strftime("%Y-%m-%d %H:%M:%S"), soak.load(),

@@ -109,23 +109,28 @@ class Planned:
     length: str            # "short" or "long"
     fault: str = ""        # "" or a kind above
     at_step: int = 0       # the step of its experiment at which the fault is injected (mid-run faults)
+    iterations: int = 0    # the script's iteration count read as this (scripts that have one)
 
     def run_seeded_args(self):
-        """run_seeded.py's arguments before SEED SCRIPT: how long this run is."""
+        """run_seeded.py's arguments before SEED SCRIPT: how long this run is. A loop with no iteration
+        count runs shortened in real time (a coarse grid of goals takes minutes at 30 Hz)."""
         args = []
         if self.script.iterations:
-            args += ["--iterations", str(ITERATIONS[(self.mode, self.length)])]
-        elif self.length == "short":
+            args += ["--iterations", str(self.iterations)]
+        elif self.length == "short" or self.mode == "real-time":
             args += [a for s in self.script.sets for a in ("--set", s)]
         return args
 
 
-def plan(runs, seed, node_every=50, real_time=0.3, long=0.3, client_faults=0.16, disk=True, node_faults=None):
+def plan(runs, seed, node_every=50, real_time=0.3, long=0.3, client_faults=0.16, disk=True, node_faults=None,
+         iterations=None):
     """The runs of a soak, drawn from `seed`: a node fault about every `node_every` runs (kill and freeze
     in turn, the node at random), the full disk once (if `disk`), a client fault or a flood in about
     `client_faults` of the other runs, each client fault at least once where there are runs enough
     (node_faults: the node faults to take in turn instead, e.g. ["kill:safety", "freeze:recorder"]); a run
-    with a fault runs long enough to be hit: a script with an iteration count, long."""
+    with a fault runs long enough to be hit: a script with an iteration count, long. iterations: {(mode,
+    length): count} in place of ITERATIONS (a fault's step is drawn from the first 40 % of a long run)."""
+    iterations = {**ITERATIONS, **(iterations or {})}
     rng = random.Random(seed)
     scripts = catalog()
     plans = [Planned(n, rng.choice(scripts), "real-time" if rng.random() < real_time else "lockstep",
@@ -160,7 +165,9 @@ def plan(runs, seed, node_every=50, real_time=0.3, long=0.3, client_faults=0.16,
             # mid-run: the flood's process has started and matched the testbed by then
             p.script, p.length = rng.choice(counted), "long"
             if p.fault != "flood":
-                p.at_step = rng.randint(20, 120) if p.mode == "real-time" else rng.randint(30, 400)
+                p.at_step = rng.randint(20, max(21, int(0.4 * iterations[(p.mode, "long")])))
+    for p in plans:
+        p.iterations = iterations[(p.mode, p.length)]
     return plans
 
 
@@ -173,8 +180,9 @@ def expected(fault):
     """How a run this fault hit must end: a list of alternatives, each (outcome, exit code, words its cause in
     run.json names, how its recording ended: None whole, else recording_stopped_because, words the first line of
     its report.txt has)."""
-    if fault in ("", "flood"):
-        return [("completed", 0, "", None, "Run completed.")]
+    if fault in ("", "flood"):   # (a goal loop that never converges: stopped at the time limit, as it says)
+        return [("completed", 0, "", None, "Run completed."),
+                ("time_limit", 5, "Stopped at the time limit", None, "Stopped at the time limit")]
     if fault == "client_sigkill":   # the testbed ends it (client_lease), run.json says what killed it
         return [("interrupted", 128 + signal.SIGKILL, "killed by SIGKILL", None, "its client was gone")]
     if fault == "run_sigint":
@@ -426,10 +434,13 @@ class Result:
 class Soak:
     """One testbed (`up`) on a domain of its own in `work`, and the runs of a plan on it."""
 
-    def __init__(self, work, seed=1, keep=False, video=False, say=print):
+    def __init__(self, work, seed=1, keep=False, video=False, say=print, time_limit=90):
         self.work = os.path.abspath(work)
         os.makedirs(self.work, exist_ok=True)
         self.seed, self.keep, self.video, self.say = seed, keep, video, say
+        # s of testbed time: a goal loop that never converges (a listing's random goals, now and then) is
+        # stopped at it, as the Robotarium stops one at its slot's end; that is no fault of the testbed
+        self.time_limit = time_limit
         self.domain = unique_domain_id()
         self.results_dir = os.path.join(self.work, "results")
         self.scripts_dir = os.path.join(self.work, "scripts")
@@ -487,7 +498,7 @@ class Soak:
                 result.fault = ""   # skipped: said once in disk_note
         script = os.path.join(self.scripts_dir, p.script.path)
         command = [sys.executable, "-m", "robotarium_cli", "run", "--no-local-testbed", "--no-verdict",
-                   "--results-dir", self.results_dir, "--%s" % p.mode, "--time-limit", "600"]
+                   "--results-dir", self.results_dir, "--%s" % p.mode, "--time-limit", str(self.time_limit)]
         if not self.video:
             command.append("--no-video")
         command += [RUN_SEEDED, *p.run_seeded_args(), str(self.seed * 100003 + p.n), script, *p.script.args]
@@ -672,7 +683,8 @@ class Soak:
                 result.verdict = "lost"
                 result.why_lost = wrong
             else:
-                result.verdict = "by fault" if fault else "completed"
+                result.verdict = "by fault" if fault else (
+                    "time limit" if record.outcome == "time_limit" else "completed")
         if result.fault == "flood" and record is not None:
             dropped = sum(sum(v.values()) for v in (record.dropped or {}).values() if isinstance(v, dict))
             result.injected = "flood: %d arrays dropped by the testbed" % dropped if dropped else result.injected
@@ -768,11 +780,16 @@ def summary(soak, plans):
                     apis["guide"], apis["rps2"]))
     completed = [r for r in results if r.verdict == "completed"]
     by_fault = [r for r in results if r.verdict == "by fault"]
-    lost = [r for r in results if r.verdict not in ("completed", "by fault")]
+    limited = [r for r in results if r.verdict == "time limit"]
+    lost = [r for r in results if r.verdict not in ("completed", "by fault", "time limit")]
     missed = [r for r in completed if r.fault and r.fault != "flood"]
     floods = [r for r in completed if r.fault == "flood"]
     lines.append("runs completed: %d (%d with a flood during the run, %d with a fault that came after the run's "
                  "end or not at all)" % (len(completed), len(floods), len(missed)))
+    if limited:
+        lines.append("runs stopped at the time limit (%d s of testbed time; no fault): %d: %s" % (
+            soak.time_limit, len(limited), ", ".join("run %d %s %s (numpy seed %d)" % (
+                r.n, r.script, r.mode, soak.seed * 100003 + r.n) for r in limited)))
     lines.append("runs ended by a fault: %d, each cause checked against the fault injected:" % len(by_fault))
     kinds = sorted({r.fault for r in results if r.fault and r.fault != "flood"})
     for kind in kinds:
@@ -830,11 +847,11 @@ def summary(soak, plans):
 
 
 def run_soak(work, runs, seed, node_every=50, sample_every=100, keep=False, video=False, say=print, progress=25,
-             **plan_args):
+             time_limit=90, **plan_args):
     """Plan, run and summarise a soak in `work`; returns (Soak, plans, summary lines). Everything it
     started is stopped when it returns or fails."""
     plans = plan(runs, seed, node_every=node_every, **plan_args)
-    soak = Soak(work, seed=seed, keep=keep, video=video, say=say)
+    soak = Soak(work, seed=seed, keep=keep, video=video, say=say, time_limit=time_limit)
     try:
         soak.start()
         soak.soak(plans, sample_every=sample_every, progress=progress)
