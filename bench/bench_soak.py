@@ -69,8 +69,9 @@ def main(argv=None):
           % (soak.load(), runs, args.seed, args.node_every, work), flush=True)
     _, plans, lines = soak.run_soak(
         work, runs, args.seed, node_every=args.node_every, sample_every=args.sample_every, keep=args.keep,
-        video=args.video, time_limit=args.time_limit, say=lambda line: print(line, flush=True), real_time=args.real_time, long=args.long,
-        client_faults=args.client_faults, disk=not args.no_disk, node_faults=args.node_faults, progress=1 if args.verbose else 25)
+        video=args.video, time_limit=args.time_limit, say=lambda line: print(line, flush=True),
+        progress=1 if args.verbose else 25, real_time=args.real_time, long=args.long,
+        client_faults=args.client_faults, disk=not args.no_disk, node_faults=args.node_faults)
     print("\n".join(lines))
     print("end: %s, %s; %.1f min for %d runs" % (time.strftime("%Y-%m-%d %H:%M:%S"), soak.load(),
                                                 (time.monotonic() - began) / 60.0, runs))
