@@ -37,6 +37,8 @@ def main(argv=None):
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--runs", type=int, default=None, help="runs (default 500; --service: experiments, 200)")
     parser.add_argument("--seed", type=int, default=1, help="draws the scripts, modes, lengths and faults (default 1)")
+    parser.add_argument("--minutes", type=float,
+                        help="start no run after this many minutes: as many of the runs as fit (default: all)")
     parser.add_argument("--node-every", type=int, default=50, help="a node killed or frozen about every N runs (50)")
     parser.add_argument("--sample-every", type=int, default=100,
                         help="the nodes' RSS, fds and threads at run 1 and every N runs (100), and at the end")
@@ -65,16 +67,17 @@ def main(argv=None):
     work = args.work or tempfile.mkdtemp(prefix="robotarium-soak-")
     began = time.monotonic()
     print("soak benchmark, %s, %s" % (time.strftime("%Y-%m-%d %H:%M:%S"), soak.machine()), flush=True)
-    print("start: %s; %d runs, seed %d, a node fault about every %d runs; work folder %s"
-          % (soak.load(), runs, args.seed, args.node_every, work), flush=True)
-    _, plans, lines = soak.run_soak(
+    print("start: %s; %d runs%s, seed %d, a node fault about every %d runs; work folder %s"
+          % (soak.load(), runs, " or as many as fit in %g minutes" % args.minutes if args.minutes else "", args.seed,
+             args.node_every, work), flush=True)
+    soaked, plans, lines = soak.run_soak(
         work, runs, args.seed, node_every=args.node_every, sample_every=args.sample_every, keep=args.keep,
-        video=args.video, time_limit=args.time_limit, say=lambda line: print(line, flush=True),
+        video=args.video, time_limit=args.time_limit, minutes=args.minutes, say=lambda line: print(line, flush=True),
         progress=1 if args.verbose else 25, real_time=args.real_time, long=args.long,
         client_faults=args.client_faults, disk=not args.no_disk, node_faults=args.node_faults)
     print("\n".join(lines))
     print("end: %s, %s; %.1f min for %d runs" % (time.strftime("%Y-%m-%d %H:%M:%S"), soak.load(),
-                                                (time.monotonic() - began) / 60.0, runs))
+                                                (time.monotonic() - began) / 60.0, len(soaked.results)))
     return 0
 
 

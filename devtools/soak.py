@@ -695,10 +695,13 @@ class Soak:
 
     # -- the whole soak
 
-    def soak(self, plans, sample_every=100, progress=25):
-        """Run the plans in order; returns the Results (in self.results)."""
+    def soak(self, plans, sample_every=100, progress=25, minutes=None):
+        """Run the plans in order (no new one after `minutes`, if given); returns the Results (in self.results)."""
         started = time.monotonic()
         for p in plans:
+            if minutes and time.monotonic() - started > 60.0 * minutes:
+                self.say("  %.0f minutes are up: %d of the %d runs planned ran" % (minutes, p.n - 1, len(plans)))
+                break
             self.ensure_testbed(p.n - 1, self._killed_before(p.n))
             result = self.run(p)
             self.results.append(result)
@@ -710,10 +713,11 @@ class Soak:
                     ("fault %s: %s" % (result.fault, result.injected or "not injected (the run ended first)"))
                     if result.fault else "no fault", result.verdict or "pending",
                     (": " + result.why_lost) if result.why_lost else "", time.monotonic() - started))
-        self.ensure_testbed(len(plans), self._killed_before(len(plans) + 1))
+        last = len(self.results)
+        self.ensure_testbed(last, self._killed_before(last + 1))
         self.finish_unfinished()
-        if not self.samples or self.samples[-1][0] != "run %d" % len(plans):
-            self.sample("end (run %d)" % len(plans))
+        if not self.samples or self.samples[-1][0] != "run %d" % last:
+            self.sample("end (run %d)" % last)
         return self.results
 
     def _killed_before(self, n):
@@ -847,14 +851,14 @@ def summary(soak, plans):
 
 
 def run_soak(work, runs, seed, node_every=50, sample_every=100, keep=False, video=False, say=print, progress=25,
-             time_limit=90, **plan_args):
+             time_limit=90, minutes=None, **plan_args):
     """Plan, run and summarise a soak in `work`; returns (Soak, plans, summary lines). Everything it
     started is stopped when it returns or fails."""
     plans = plan(runs, seed, node_every=node_every, **plan_args)
     soak = Soak(work, seed=seed, keep=keep, video=video, say=say, time_limit=time_limit)
     try:
         soak.start()
-        soak.soak(plans, sample_every=sample_every, progress=progress)
+        soak.soak(plans, sample_every=sample_every, progress=progress, minutes=minutes)
         return soak, plans, summary(soak, plans)
     finally:
         soak.close()
