@@ -17,8 +17,12 @@ process); RSS, open file descriptors and threads of every node (/proc/<pid>/stat
 100, 200, ... and at the end. Every run is logged, one JSON line each, in WORK/soak.jsonl; the folders of runs
 that were not lost are removed as they are judged (--keep keeps them).
 
---service: the same through `./robotarium serve` with a worker for --runs experiments: not built (see
-docs/benchmarks.md, "Soak"); the option says so and exits 2.
+--service: the same through the service (devtools/soak_service.py): PostgreSQL of its own, `./robotarium serve
+--jobs 0` and one `./robotarium worker`, --runs experiments (200 by default) submitted a few at a time (the
+single-file listings and examples, numpy seeded, long loops shortened), each verified and run in real time;
+the worker killed outright mid-run about every --worker-every experiments (a new one started), PostgreSQL
+restarted once mid-run. It prints each experiment's end judged (completed, rejected by its verification, ended
+by the fault, lost), the time from submission to the run's start, and the portal's and the worker's sizes.
 """
 import argparse
 import os
@@ -57,15 +61,26 @@ def main(argv=None):
     parser.add_argument("--keep", action="store_true", help="keep every run's folder")
     parser.add_argument("--verbose", action="store_true", help="a line for every run")
     parser.add_argument("--service", action="store_true",
-                        help="through ./robotarium serve and a worker, with a database restart (not built yet)")
+                        help="through ./robotarium serve and a worker, with a database restart (docstring above)")
+    parser.add_argument("--worker-every", type=int, default=50,
+                        help="--service: the worker killed mid-run about every N experiments (50)")
     args = parser.parse_args(argv)
-    if args.service:
-        print("bench soak --service: not built yet; the testbed soak (without --service) is. docs/benchmarks.md, "
-              "'Soak', says why.")
-        return 2
-    runs = args.runs or 500
+    runs = args.runs or (200 if args.service else 500)
     work = args.work or tempfile.mkdtemp(prefix="robotarium-soak-")
     began = time.monotonic()
+    if args.service:
+        from devtools import soak_service
+        print("soak benchmark through the service, %s, %s" % (time.strftime("%Y-%m-%d %H:%M:%S"), soak.machine()),
+              flush=True)
+        print("start: %s; %d experiments%s, seed %d; work folder %s" % (
+            soak.load(), runs, " or as many as fit in %g minutes" % args.minutes if args.minutes else "", args.seed,
+            work), flush=True)
+        soaked, lines = soak_service.run_service_soak(work, runs, args.seed, say=lambda line: print(line, flush=True),
+                                                      minutes=args.minutes, worker_every=args.worker_every)
+        print("\n".join(lines))
+        print("end: %s, %s; %.1f min for %d experiments" % (time.strftime("%Y-%m-%d %H:%M:%S"), soak.load(),
+                                                           (time.monotonic() - began) / 60.0, len(soaked.items)))
+        return 0
     print("soak benchmark, %s, %s" % (time.strftime("%Y-%m-%d %H:%M:%S"), soak.machine()), flush=True)
     print("start: %s; %d runs%s, seed %d, a node fault about every %d runs; work folder %s"
           % (soak.load(), runs, " or as many as fit in %g minutes" % args.minutes if args.minutes else "", args.seed,
