@@ -147,8 +147,10 @@ def plan(runs, seed, node_every=50, real_time=0.3, long=0.3, client_faults=0.16,
         free.remove(i)
         plans[i].fault = node_faults[k % len(node_faults)] if node_faults else "%s:%s" % (
             kinds[k % 2], rng.choice(sorted(NODES)))
-    if disk and free:
-        plans[free.pop(0)].fault = "disk_full"
+    early = [i for i in free if i < max(2, runs // 4)]   # in the first quarter: a soak cut short still has it
+    if disk and early:
+        free.remove(early[0])
+        plans[early[0]].fault = "disk_full"
     for kind in CLIENT_FAULTS:   # each at least once
         if free:
             plans[free.pop(0)].fault = kind
@@ -847,6 +849,18 @@ def summary(soak, plans):
             pid, size = nodes.get(n, (None, None))
             cells.append("%-28s" % ("%.1f / %d / %d (pid %d)" % (size + (pid,)) if size else "-"))
         lines.append("  %-16s " % label + "".join(cells))
+    lines.append("growth within one process (its first sample to its last):")
+    for n in names:
+        spans = {}
+        for label, nodes in soak.samples:
+            pid, size = nodes.get(n, (None, None))
+            if size:
+                spans.setdefault(pid, []).append((label, size))
+        for pid, seen in spans.items():
+            if len(seen) > 1:
+                (first, a), (last, b) = seen[0], seen[-1]
+                lines.append("  %-10s pid %-7d %s -> %s: RSS %+.1f MB, fds %+d, threads %+d" % (
+                    n, pid, first, last, b[0] - a[0], b[1] - a[1], b[2] - a[2]))
     return lines
 
 
