@@ -193,7 +193,7 @@ class LocalTestbed:
 
     def begin_stop(self, grace=5.0):
         """SIGINT everyone (the simulator ends a running experiment, the recorder closes its bag:
-        node_tools.run_node's wind-down, at most 2 s); stop() then waits for them. Between the two
+        node_main.run_node's wind-down, at most 2 s); stop() then waits for them. Between the two
         the caller may do other work (./robotarium run makes the results once the bag is closed,
         while the nodes exit)."""
         if self.gate is not None or self._stop_deadline is not None:
@@ -239,7 +239,7 @@ def _kill_group(process):
 
 def testbed_answers(ns=None, timeout=3.0):
     """True when a simulator on this DDS domain offers <ns>/start_experiment within `timeout`."""
-    from robotarium_core.node_tools import wait_for_service
+    from robotarium_core.discovery import wait_for_service
     from robotarium_msgs.srv import StartExperiment
 
     with probe_node("robotarium_probe") as (node, _):
@@ -339,7 +339,7 @@ def _probe_context(domain=None, discovery_range=None):
     from rclpy.context import Context
     from rclpy.node import Node
 
-    from robotarium_core.node_tools import init_context
+    from robotarium_core.dds_settings import init_context
     # What rcl will read: the environment's, unless given (a test changes ROS_DOMAIN_ID in process).
     key = (str(domain) if domain is not None else os.environ.get("ROS_DOMAIN_ID", "").strip() or "0",
            discovery_range or os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", ""))
@@ -367,7 +367,7 @@ def close_probe_contexts():
     """Tear down the probe contexts (for a long-lived process that leaves a domain, such as the tests)."""
     import rclpy
 
-    from robotarium_core.node_tools import wait_for_quiet_discovery
+    from robotarium_core.discovery import wait_for_quiet_discovery
     while _probe_contexts:
         _, (context, anchor) = _probe_contexts.popitem()
         wait_for_quiet_discovery(anchor)   # the participant goes with the anchor

@@ -252,8 +252,8 @@ class Robotarium(RobotariumABC):
         from std_msgs.msg import String
 
         from robotarium_bringup.testbed import LocalTestbed, security_enabled
+        from robotarium_core.dds_settings import init_context
         from robotarium_core.executor import LeanExecutor
-        from robotarium_core.node_tools import init_context
         from robotarium_core.topics import (
             CMD_REQUESTED,
             CONFIG,
@@ -314,7 +314,7 @@ class Robotarium(RobotariumABC):
 
         local_allowed = self._options.local_testbed
         wait = self._options.connect_wait if local_allowed else max(self._options.connect_wait, STARTUP_WAIT)
-        from robotarium_core.node_tools import wait_for_service
+        from robotarium_core.discovery import wait_for_service
         if not wait_for_service(self._start_client, wait):
             if not local_allowed:
                 self._shutdown()
@@ -543,7 +543,7 @@ class Robotarium(RobotariumABC):
 
     def _take_newest_poses(self) -> None:
         """Take every poses message the reader holds now (this run's newest ends up in _latest)."""
-        from robotarium_core.node_tools import take_waiting
+        from robotarium_core.subscriptions import take_waiting
         for data in take_waiting(self._poses_subscription):
             self._on_poses(data)
 
@@ -587,7 +587,7 @@ class Robotarium(RobotariumABC):
               resend: float | None = None) -> StartExperiment.Response | EndExperiment.Response:
         """The answer to `request`; with `resend` (s; only for a request answered the same however
         often it comes) sent again while unanswered."""
-        from robotarium_core.node_tools import wait_for_service
+        from robotarium_core.discovery import wait_for_service
         if not wait_for_service(client, timeout):
             raise TestbedLost("The testbed's %s service is gone." % client.srv_name)
         deadline = time.monotonic() + timeout
@@ -622,7 +622,7 @@ class Robotarium(RobotariumABC):
     def _shutdown(self) -> None:
         import rclpy
 
-        from robotarium_core.node_tools import wait_for_quiet_discovery
+        from robotarium_core.discovery import wait_for_quiet_discovery
         if self._node is not None:
             self._executor.shutdown()
             wait_for_quiet_discovery(self._node)   # the participant goes with the node

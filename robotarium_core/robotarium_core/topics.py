@@ -39,7 +39,7 @@ keeps each one until the matched reader acknowledged it, even where the reader s
 the writer a moment later.
 
 A reader that acts on the present (the client's and the safety node's poses) takes every sample
-its reader holds before it acts and keeps the newest (node_tools.take_waiting): a slow reader never
+its reader holds before it acts and keeps the newest (subscriptions.take_waiting): a slow reader never
 works through the history one old sample per step (a 60 ms loop would trail the testbed by the 50
 queued ticks, 1.7 s), and a flood of foreign samples cannot push the testbed's own out of a short
 history.

@@ -44,7 +44,10 @@ from sensor_msgs.msg import BatteryState
 from std_msgs.msg import String
 
 from robotarium_core import cdr, control, kinematics, model, outcomes, rps2
-from robotarium_core.node_tools import declare_parameter, run_node, take_waiting
+from robotarium_core.dds_health import fast_dds_watchdogs
+from robotarium_core.node_main import run_node
+from robotarium_core.parameters import declare_parameter
+from robotarium_core.subscriptions import take_waiting
 from robotarium_core.topics import CMD_REQUESTED, LATCHED, OUTPUT_QOS, readers_matched
 from robotarium_hardware import fleet as fleets
 from robotarium_hardware.steady import steady
@@ -325,7 +328,7 @@ def main(args=None):
         print(USAGE)
         return 0
     from robotarium_core import presence
-    return run_node(HardwareArenaNode, "arena", args, claim=presence.SIMULATOR)
+    return run_node(HardwareArenaNode, "arena", args, claim=presence.SIMULATOR, watchdogs=fast_dds_watchdogs())
 
 
 if __name__ == "__main__":

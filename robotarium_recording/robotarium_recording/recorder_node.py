@@ -57,7 +57,10 @@ from std_msgs.msg import String
 
 from robotarium_core import cdr, presence
 from robotarium_core.config import DEFAULT, FIELDS
-from robotarium_core.node_tools import declare_parameter, run_node, take_waiting
+from robotarium_core.dds_health import fast_dds_watchdogs
+from robotarium_core.node_main import run_node
+from robotarium_core.parameters import declare_parameter
+from robotarium_core.subscriptions import take_waiting
 from robotarium_core.topics import (
     CMD_REQUESTED,
     CMD_SAFE,
@@ -496,7 +499,7 @@ class RecorderNode(Node):
             self.recording_pub.publish(String(data=""))
 
     def at_rest(self):
-        """No run is being recorded: restarting the node loses nothing (node_tools.check_ports)."""
+        """No run is being recorded: restarting the node loses nothing (dds_health.SharedMemoryPortWatch)."""
         return self.session.state == "idle"
 
     def wind_down(self, reason):
@@ -510,7 +513,8 @@ class RecorderNode(Node):
 
 def main(args=None):
     # a run in progress is closed properly on the way out: summary, final metadata.yaml
-    return run_node(RecorderNode, "recorder", args, before_destroy=lambda node: node.close(), claim=presence.RECORDER)
+    return run_node(RecorderNode, "recorder", args, before_destroy=lambda node: node.close(), claim=presence.RECORDER,
+                    watchdogs=fast_dds_watchdogs())
 
 
 if __name__ == "__main__":

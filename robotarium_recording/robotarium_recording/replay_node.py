@@ -32,7 +32,7 @@ from rclpy.serialization import serialize_message
 from rclpy.utilities import remove_ros_args
 from std_srvs.srv import SetBool
 
-from robotarium_core.node_tools import init_context
+from robotarium_core.dds_settings import init_context
 from robotarium_recording.bag import Bag
 from robotarium_recording.recorder_node import message_class
 from robotarium_recording.replay_display import Figure, Keyboard

@@ -47,7 +47,8 @@ from visualization_msgs.msg import Marker
 import foxglove
 from robotarium_core import cdr, lifeline, scene
 from robotarium_core.config import DEFAULT, ConfigError, TestbedConfig
-from robotarium_core.node_tools import run_node
+from robotarium_core.dds_health import fast_dds_watchdogs
+from robotarium_core.node_main import run_node
 from robotarium_core.topics import (
     CMD_REQUESTED,
     CMD_SAFE,
@@ -366,7 +367,8 @@ def view(args, error, ros_args=()):
               flush=True)
         return node
 
-    return run_node(make_node, "view", ["view"] + list(ros_args), before_destroy=lambda node: server.stop())
+    return run_node(make_node, "view", ["view"] + list(ros_args), before_destroy=lambda node: server.stop(),
+                    watchdogs=fast_dds_watchdogs())
 
 
 if __name__ == "__main__":

@@ -48,7 +48,7 @@ Poses come in and cmd_safe and safety_report go out as CDR bytes read and writte
 barrier QP.
 
 Newest poses: before filtering a real-time command it takes every poses message its reader holds
-(node_tools.take_waiting), so a loaded node never filters with poses queued behind newer ones. A
+(subscriptions.take_waiting), so a loaded node never filters with poses queued behind newer ones. A
 pose's age is counted from when it reached this node (no clock shared with the simulator is
 needed, and this node's own backlog never counts against the poses): late poses under load do not
 stop robots until they are older than `pose_timeout` (0.5 s, the command timeout: by then the
@@ -67,7 +67,10 @@ from rclpy.node import Node
 from std_msgs.msg import String
 
 from robotarium_core import cdr, model, presence
-from robotarium_core.node_tools import declare_config, run_node, take_waiting
+from robotarium_core.dds_health import fast_dds_watchdogs
+from robotarium_core.node_main import run_node
+from robotarium_core.parameters import declare_config
+from robotarium_core.subscriptions import take_waiting
 from robotarium_core.topics import (
     CMD_REQUESTED,
     CMD_SAFE,
@@ -138,7 +141,7 @@ class SafetyNode(Node):
                 list(c.arena)))
 
     def at_rest(self):
-        """No experiment is guarded: restarting the node loses nothing (node_tools.check_ports)."""
+        """No experiment is guarded: restarting the node loses nothing (dds_health.SharedMemoryPortWatch)."""
         return not self.armed.run_id
 
     def on_arm(self, request, response):
@@ -210,7 +213,7 @@ class SafetyNode(Node):
             self.api = settings.get("api") or ""   # 2.x's rule for the actuator-limit flag
 
     def on_requests(self, data):
-        """Everything waiting on cmd_requested at once (node_tools.take_waiting): foreign arrays are
+        """Everything waiting on cmd_requested at once (subscriptions.take_waiting): foreign arrays are
         dropped in microseconds; of the client's own, in real time only the newest counts (as on
         the robots' firmware), in lockstep each is a step."""
         # One at a time, as taken: an array refused is freed before the next is taken.
@@ -386,7 +389,7 @@ class SafetyNode(Node):
 
 
 def main(args=None):
-    return run_node(SafetyNode, "safety", args, claim=presence.SAFETY)
+    return run_node(SafetyNode, "safety", args, claim=presence.SAFETY, watchdogs=fast_dds_watchdogs())
 
 
 if __name__ == "__main__":

@@ -73,8 +73,11 @@ from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
 from robotarium_core import cdr, markers, model, outcomes, presence, rps2, scene
+from robotarium_core.dds_health import fast_dds_watchdogs
 from robotarium_core.line import Line
-from robotarium_core.node_tools import declare_config, declare_parameter, run_node, take_waiting
+from robotarium_core.node_main import run_node
+from robotarium_core.parameters import declare_config, declare_parameter
+from robotarium_core.subscriptions import take_waiting
 from robotarium_core.topics import (
     CMD_SAFE,
     CONFIG,
@@ -500,11 +503,11 @@ class SimulatorNode(Node):
         return response
 
     def at_rest(self):
-        """No experiment runs: restarting the node loses nothing (node_tools.check_ports)."""
+        """No experiment runs: restarting the node loses nothing (dds_health.SharedMemoryPortWatch)."""
         return self.testbed is None
 
     def wind_down(self, reason):
-        """Stopping (a signal, or the process that started the testbed is gone: node_tools.run_node):
+        """Stopping (a signal, or the process that started the testbed is gone: node_main.run_node):
         end the running experiment as end_experiment does, and wait until its last statuses reached
         every subscriber, so the recorder records the end and closes the run."""
         if self.testbed is not None:
@@ -519,7 +522,7 @@ class SimulatorNode(Node):
     # -- commands ----------------------------------------------------------------------------
 
     def on_commands(self, data):
-        """Everything waiting on cmd_safe at once (node_tools.take_waiting), so that a flood of
+        """Everything waiting on cmd_safe at once (subscriptions.take_waiting), so that a flood of
         foreign arrays never fills the queue and pushes the safety node's out."""
         for each in chain([data], take_waiting(self.commands)):   # one at a time: a refused one is freed at once
             self.on_command(each)
@@ -659,7 +662,7 @@ class SimulatorNode(Node):
 
 
 def main(args=None):
-    return run_node(SimulatorNode, "simulator", args, claim=presence.SIMULATOR)
+    return run_node(SimulatorNode, "simulator", args, claim=presence.SIMULATOR, watchdogs=fast_dds_watchdogs())
 
 
 if __name__ == "__main__":
