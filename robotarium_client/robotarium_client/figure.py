@@ -3,7 +3,7 @@ in rps's layout, the same drawer as the video and the replay figure.
 
 With no display (or MPLBACKEND=Agg) the figure is built on the Agg backend and not redrawn every
 step: nobody would see it, and a script's savefig() still renders it fully. What a script draws
-on r.axes is recorded as data for the video (robotarium_recording.drawing), not rendered here.
+on r.axes is recorded as data for the video (robotarium_client.drawing), not rendered here.
 """
 import robotarium_recording as recording
 

@@ -30,7 +30,7 @@ class ArenaFigure2(recording.ArenaFigure):
         self.rays = [[self.axes.plot([np.nan, np.nan], [np.nan, np.nan], linewidth=0.5, color=cmap(i % 20),
                                      zorder=2)[0] for _ in range(7)]
                      for i in range(r.number_of_robots)] if sensors and r.show_distance_rays else []
-        # The figure's own, not the script's drawing (robotarium_recording.drawing ignores these).
+        # The figure's own, not the script's drawing (robotarium_client.drawing ignores these).
         self.own_artists.update(self.endpoints)
         self.own_artists.update(line for lines in self.rays for line in lines)
         self.figure.subplots_adjust(left=0.01, right=0.99, bottom=0.01, top=0.99)
