@@ -1,33 +1,14 @@
 """The hardware arena node: the simulator's place in the testbed, moving a lab's own robots.
 
-It is the simulator node (robotarium_sim.simulator_node: the same topics, services, status, experiment
-life, tokens and keys, the safety node's arming, model.StepGate, the command timeout, the report's
-counters; node name `simulator`, so the safety node, the client and the recorder see no difference)
-with the world replaced by the fleet of a fleet file (robotarium_hardware.fleet):
+It is the simulator node (robotarium_sim.simulator_node: the same topics, services, status,
+experiment life, secrets, model.StepGate, command timeout and counters; node name `simulator`)
+with the world replaced by the fleet of a fleet file (robotarium_hardware.fleet): each robot's
+cmd_vel out at 30 Hz, its pose in from motion capture or the tag tracker, the roster on
+<ns>/fleet. A start takes the first N robots present and tracked, drives them onto the initial
+conditions (rps2.DriveOn, under the safety node), then runs in real time; a robot that loses
+tracking or stops answering stops every robot and ends the run. How: docs/own-robots.md.
 
-  towards the robots  each robot's cmd_vel (geometry_msgs/Twist or TwistStamped, topic and type from
-                      the fleet file) at the testbed's rate (30 Hz) while a run lasts: the command in
-                      force, thresholded to the GTernal's limits along its arc; zeros once it is older
-                      than the command timeout; zeros to every robot at the end of a run, when a robot
-                      fails, and when the node stops
-  from the robots     each robot's pose (geometry_msgs/PoseStamped, from motion capture as vrpn_mocap
-                      publishes it, or from the tag tracker), converted to the arena frame by the fleet
-                      file's calibration (yaw from the quaternion; NaN and malformed poses are dropped and
-                      counted); its odometry as a sign of life (answer_topic) and its battery
-                      (sensor_msgs/BatteryState), where it publishes them
-  fleet               std_msgs/String (JSON, latched, once a second): the roster, which robots are present
-                      and tracked, their battery (./robotarium status shows it)
-
-A start takes the first N robots that are present and tracked (or is refused, naming them all), then
-drives them from wherever they stand to the experiment's initial conditions (the drive-on phase: the
-2.x simulator's algorithm, robotarium_core.rps2.DriveOn, under the safety node like every command, as
-a run of its own that is not recorded), then starts the experiment, in real time whatever was asked
-(real robots have no lockstep). A robot that loses tracking (no pose for the fleet's lost_after) or
-stops answering (no odometry for its answer_timeout) during a run or the drive-on stops every robot at
-once (checked every 10 ms) and ends the run with a cause that names it: "robot r3 lost tracking at step
-k". 2.x experiments (sensors, obstacles) are refused: they run on the simulator.
-
-    ros2 run robotarium_hardware arena --ros-args -r __ns:=/robotarium -p fleet_file:=fleet.yaml \\
+    ros2 run robotarium_hardware arena --ros-args -r __ns:=/robotarium -p fleet_file:=fleet.yaml \
         --params-file install/share/robotarium_core/config/testbed.yaml
 """
 import dataclasses

@@ -1,20 +1,13 @@
 """Recorded runs: rosbag2 folders with MCAP storage, read without ROS (no rclpy).
 
-A run folder, as `ros2 bag record -s mcap` makes it and `ros2 bag info/play`, rosbags and Foxglove
-read it:
-    <run_id>/metadata.yaml       rosbag2 metadata, version 9 (Jazzy)
-    <run_id>/<run_id>_0.mcap     MCAP, profile "ros2": one `ros2msg` schema per type holding the whole
-                                 concatenated .msg text, `cdr` messages, zstd-compressed chunks
-
-The recorder writes it with robotarium_recording.bag_writer (BagWriter: a killed writer leaves a
-readable file), from the message definitions, type hashes and QoS profiles of
-robotarium_recording.schema.
-
-Reading (Bag) scans the records in file order and stops cleanly at a torn tail, so even a file cut
-in the middle of a write gives back every complete chunk; `recover_bag()` rewrites such a file's
-tail and metadata.yaml so that other readers open it too (like `ros2 bag reindex`).
-Messages decode with a rosbags typestore: Jazzy's standard types plus the schemas stored in the
-bag itself (so an old bag still decodes after our .msg files change).
+A run folder is what `ros2 bag record -s mcap` makes: <run_id>/metadata.yaml (rosbag2 metadata,
+version 9, Jazzy) and <run_id>/<run_id>_0.mcap (profile "ros2": one `ros2msg` schema per type,
+`cdr` messages, zstd-compressed chunks), written by bag_writer.BagWriter from schema's message
+definitions, type hashes and QoS profiles. Reading (Bag) scans the records in file order and stops
+cleanly at a torn tail, so a file cut mid-write gives back every complete chunk; `recover_bag()`
+rewrites such a file's tail and metadata.yaml so that other readers open it too (like `ros2 bag
+reindex`). Messages decode with a rosbags typestore: Jazzy's standard types plus the schemas stored
+in the bag itself (so an old bag still decodes after our .msg files change).
 """
 import errno
 import functools

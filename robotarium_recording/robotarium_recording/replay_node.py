@@ -3,21 +3,11 @@
     ./robotarium replay BAG [--rate R] [--loop] [--figure] [--view] [--namespace NS] [--timing T] [--into-live]
     ros2 run robotarium_recording replay BAG ...
 
-Every recorded topic except /rosout (the log lines stay in the bag: republishing them would mix
-them with live logs) is published again, serialized bytes as recorded, scaled by 1/rate: a
-lockstep run (recorded as fast as it ran) in experiment time, step k at k time steps, as its
-video plays; a real-time run at its recorded receive times. A namespace where a live testbed
-answers is refused unless --into-live says so. QoS follows what the recorded publishers offered (reliable unless one of
-them was best effort; transient local only if all of them were). Pause and resume: the space bar
-(or p) when started from a terminal, q quits; or the service <ns>/replay/pause
-(std_srvs/SetBool: true pauses, false resumes). --figure draws the run as its live figure was
-(arena_figure.ArenaFigure with ids and what the script drew); with no display (Agg) the replay is
-written as a video to --figure-file (default <bag>/replay.mp4). --view also serves the replay to
-Foxglove: the view node (view_node.py, as `./robotarium view` runs it for a live testbed) in a
-process of its own subscribes to the republished topics like any viewer, and the replay starts once
-it has matched; so the live view and the replay's share one path, DDS included. Played once (no
---loop), it also waits for a viewer (a Foxglove client) to subscribe, else it would be over before
-anyone looked.
+Every recorded topic but /rosout goes out again as its recorded bytes, with the QoS its recorded
+publishers offered, scaled by 1/rate: a lockstep run in experiment time, a real-time run at its
+recorded times. A namespace where a live testbed answers is refused unless --into-live. --figure
+draws it as its live figure was (or writes a video without a display); --view serves it to
+Foxglove through the view node. What each option does: docs/user-guide.md (replay).
 """
 import argparse
 import os
