@@ -11,6 +11,7 @@ testbed's process, and never signalled.
 import json
 import os
 import signal
+import socket
 import tempfile
 import time
 
@@ -220,7 +221,6 @@ def running_here(namespace, domain):
     """The testbed of this machine with a live node in `namespace` on `domain`, as the identity a
     node claims its place with (robotarium_core.claim: who, host, pid, since, testbed, owner), or
     None. Where discovery reaches this machine only, this is the whole answer, at once."""
-    import socket
     for testbed in matching(find(), namespace, domain):
         if not testbed["nodes"]:
             continue

@@ -20,6 +20,7 @@ import traceback
 
 from robotarium_client import session
 from robotarium_client.errors import EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete
+from robotarium_client.figure import skip_headless_idle_draws
 from robotarium_core import lifeline, outcomes, run_record
 
 ORPHAN_EXIT = 1.5
@@ -87,7 +88,6 @@ def run(script, script_args):
     for signum in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(signum, _raise_interrupted)
     if os.environ.get("MPLBACKEND", "").lower() == "agg":   # headless (./robotarium run chose it)
-        from robotarium_client.figure import skip_headless_idle_draws
         skip_headless_idle_draws()
     try:
         runpy.run_path(script, run_name="__main__")

@@ -17,6 +17,7 @@ import json
 import math
 import os
 import sys
+import tokenize
 
 RULES = ("collisions", "boundary", "robots", "duration", "compile", "imports", "script_error", "no_end")
 STDLIB = "stdlib"   # the entry of verify_allowed_modules that stands for Python's standard library
@@ -40,7 +41,6 @@ COMPILE_ERRORS = (SyntaxError, ValueError, UnicodeDecodeError)
 def compile_script(script):
     """The script's source and syntax tree, compiled as `python SCRIPT` would (its encoding
     line honoured); raises one of COMPILE_ERRORS where python would refuse it."""
-    import tokenize
     with tokenize.open(script) as f:
         source = f.read()
     tree = ast.parse(source, filename=script)

@@ -5,6 +5,7 @@ obstacles and, when the script asks for them, each robot's distance-sensor endpo
 import numpy as np
 
 import robotarium_recording as recording
+from robotarium_core.sensors import sensor_rays
 
 
 class ArenaFigure2(recording.ArenaFigure):
@@ -43,7 +44,6 @@ class ArenaFigure2(recording.ArenaFigure):
             for i, scatter in enumerate(self.endpoints):
                 scatter.set_offsets(ends[:, :, i].T)
             if self.rays:
-                from robotarium_core.sensors import sensor_rays
                 origins, _ = sensor_rays(poses, r.config.distance_sensor_poses, r.config.distance_sensor_origin_offset)
                 for i, lines in enumerate(self.rays):
                     for j, line in enumerate(lines):

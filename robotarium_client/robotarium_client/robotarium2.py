@@ -11,6 +11,8 @@ runs it, through the always-on safety node). What runs and where it differs: doc
 import numpy as np
 
 from robotarium_client import robotarium as backend
+from robotarium_client.figure import live_figure
+from robotarium_client.figure2 import ArenaFigure2
 from robotarium_core import rps2
 from robotarium_core.config import DEFAULT
 from robotarium_core.model import RobotariumError
@@ -115,7 +117,7 @@ class Robotarium(backend.Robotarium):
         return self._reading("orientations", (self.number_of_robots,))
 
     def robot_colormap(self):
-        import matplotlib.pyplot as plt
+        import matplotlib.pyplot as plt  # matplotlib only for a script that draws
         return plt.get_cmap("tab20")
 
     # -- the drive-on phase ---------------------------------------------------------------------------
@@ -123,6 +125,7 @@ class Robotarium(backend.Robotarium):
     def initialize(self, initial_conditions):
         """Drive from the charger slots to the initial conditions (2.x's algorithm, rps2.DriveOn; see
         the module)."""
+        # rps, not at import: the script's first import of rps sets it up for one API (api_level)
         from rps.utilities.barrier_certificates import create_uni_barrier_certificate
         from rps.utilities.controllers import create_pose_controller_hybrid
         n = self.number_of_robots
@@ -161,6 +164,7 @@ class Robotarium(backend.Robotarium):
 
     def _connect(self):
         super()._connect()
+        # ROS here, as robotarium.Robotarium._connect: importing the client costs no rclpy
         from robotarium_core.topics import SENSORS, TESTBED_QOS
         from robotarium_msgs.msg import SensorReadings
         self._node.create_subscription(SensorReadings, SENSORS, self._on_sensors, TESTBED_QOS)
@@ -197,8 +201,6 @@ class Robotarium(backend.Robotarium):
 
     def _new_arena_figure(self):
         """The live figure in 2.x's layout (robotarium_abc's _make_figure watches what is drawn on it)."""
-        from robotarium_client.figure import live_figure
-        from robotarium_client.figure2 import ArenaFigure2
         arena_figure = live_figure(self.config.arena, self.robot_radius, self.poses, ArenaFigure2)
         arena_figure.dress(self)
         return arena_figure

@@ -95,6 +95,7 @@ class RobotariumABC(abc.ABC):
         """Random initial conditions when the script gives none. rps draws these in the script's
         process from numpy's global generator, so a script that seeds numpy gets the same start as
         on the Robotarium simulator."""
+        # rps, not at import: the script's first import of rps sets it up for one API (api_level)
         from rps.utilities.misc import generate_initial_conditions
         return generate_initial_conditions(self.number_of_robots, spacing=0.2, width=2.5, height=1.5)
 

@@ -215,7 +215,7 @@ def charger_slots(number_of_robots, rng, config=model.DEFAULT, goals=None):
     slots = np.array(slots, dtype=float)
     if goals is None:
         return slots[rng.choice(len(slots), number_of_robots, replace=False)].T
-    from scipy.optimize import linear_sum_assignment
+    from scipy.optimize import linear_sum_assignment  # here: slow to import, needed only with goals
     goals = np.asarray(goals, dtype=float)
     cost = np.hypot(goals[0][:, None] - slots[:, 0][None], goals[1][:, None] - slots[:, 1][None])
     robots, chosen = linear_sum_assignment(cost)

@@ -24,7 +24,7 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import String
 
-from robotarium_core import cdr, control, kinematics, model, outcomes, rps2
+from robotarium_core import cdr, control, kinematics, model, outcomes, presence, rps2
 from robotarium_core.dds_health import fast_dds_watchdogs
 from robotarium_core.node_main import run_node
 from robotarium_core.parameters import declare_parameter
@@ -33,6 +33,7 @@ from robotarium_core.topics import CMD_REQUESTED, LATCHED, OUTPUT_QOS, readers_m
 from robotarium_hardware import fleet as fleets
 from robotarium_hardware.steady import steady
 from robotarium_hardware.tracking import FleetTestbed, Roster
+from robotarium_msgs.msg import TwistArray
 from robotarium_msgs.srv import ArmSafety
 from robotarium_sim import experiment
 from robotarium_sim.experiment import Experiment
@@ -106,7 +107,7 @@ class HardwareArenaNode(SimulatorNode):
                                          lambda msg, i=i: self.roster.battery_state(i, msg.percentage),
                                          qos_profile_sensor_data)
         # The drive-on phase's commands go through the safety node like a client's.
-        self.drive_pub = self.create_publisher(cdr_twist_array_type(), CMD_REQUESTED, OUTPUT_QOS)
+        self.drive_pub = self.create_publisher(TwistArray, CMD_REQUESTED, OUTPUT_QOS)
         self.roster_pub = self.create_publisher(String, FLEET, LATCHED)
         self.create_timer(FAULT_CHECK, self.check_faults)
         self.create_timer(ROSTER_PERIOD, self.publish_roster)
@@ -291,11 +292,6 @@ class HardwareArenaNode(SimulatorNode):
                        for s in self.roster.states(now)]})))
 
 
-def cdr_twist_array_type():
-    from robotarium_msgs.msg import TwistArray
-    return TwistArray
-
-
 USAGE = """usage: ros2 run robotarium_hardware arena --ros-args -r __ns:=/robotarium -p fleet_file:=FILE
                                         [--params-file testbed.yaml]
 
@@ -308,7 +304,6 @@ def main(args=None):
     if "--help" in (args or sys.argv) or "-h" in (args or sys.argv)[1:2]:
         print(USAGE)
         return 0
-    from robotarium_core import presence
     return run_node(HardwareArenaNode, "arena", args, claim=presence.SIMULATOR, watchdogs=fast_dds_watchdogs())
 
 

@@ -13,15 +13,19 @@ import errno
 import functools
 import glob
 import hashlib
+import io
+import json
 import os
 import struct
 from collections import namedtuple
 
 import numpy as np
 import yaml
+from mcap.data_stream import ReadDataStream
 from mcap.records import Channel, Chunk, Footer, Message, Schema
-from mcap.stream_reader import StreamReader
+from mcap.stream_reader import StreamReader, breakup_chunk
 
+from robotarium_core.config import DEFAULT, TestbedConfig
 from robotarium_recording.bag_writer import (
     MAGIC,
     METADATA_TMP,
@@ -180,6 +184,7 @@ class Bag:
     def typestore(self):
         """A rosbags typestore with Jazzy's types and every schema stored in this bag."""
         if self._typestore is None:
+            # rosbags' types take seconds to import: only for a bag whose messages are decoded
             from rosbags.typesys import Stores, get_types_from_msg, get_typestore
             store = get_typestore(Stores.ROS2_JAZZY)
             for name, text in self.schemas.items():
@@ -262,7 +267,6 @@ class Bag:
     def config(self):
         """The TestbedConfig the run was made with (the simulator's `config` topic); the packaged
         default for a bag recorded before the configuration travelled with runs."""
-        from robotarium_core.config import DEFAULT, TestbedConfig
         name = self.topic("config", required=False)
         if name not in self.topics:
             return DEFAULT
@@ -272,7 +276,6 @@ class Bag:
     def drawings(self):
         """What the script drew on r.axes: the drawing messages (robotarium_recording.drawing), in
         recorded order; [] for a run that drew nothing or a bag recorded before they were kept."""
-        import json
         name = self.topic("drawing", required=False)
         if name not in self.topics:
             return []
@@ -288,7 +291,6 @@ class Bag:
     def experiment(self):
         """The experiment's settings (the simulator's `experiment` topic: api, obstacles, drive-on
         goals) as a dict; {} for a bag recorded before they travelled with runs."""
-        import yaml
         name = self.topic("experiment", required=False)
         if name not in self.topics:
             return {}
@@ -386,10 +388,6 @@ def _write_recovered_metadata(path):
 def _complete_record_ends(data):
     """Offsets just after each complete data-section record of an MCAP file's bytes, in order (a
     chunk counts only if it decompresses and its CRC matches); just the magic's end if none is."""
-    import io
-
-    from mcap.data_stream import ReadDataStream
-    from mcap.stream_reader import breakup_chunk
     pos = len(MAGIC)
     ends = []
     while pos + 9 <= len(data):

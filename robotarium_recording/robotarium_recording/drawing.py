@@ -110,6 +110,7 @@ class DrawingPainter:
         return True
 
     def _make(self, spec):
+        # matplotlib's classes here, not at the top: importing this module must not import matplotlib
         from matplotlib.collections import PathCollection
         from matplotlib.patches import PathPatch
         from matplotlib.path import Path

@@ -23,10 +23,13 @@ from rclpy.utilities import remove_ros_args
 from std_srvs.srv import SetBool
 
 from robotarium_core.dds_settings import init_context
+from robotarium_core.topics import readers_matched
+from robotarium_msgs.srv import StartExperiment
 from robotarium_recording.bag import Bag
 from robotarium_recording.recorder_node import message_class
 from robotarium_recording.replay_display import Figure, Keyboard
 from robotarium_recording.replay_timing import ReplayClock, experiment_times
+from robotarium_recording.schema import message_definition
 from robotarium_recording.view_node import ViewProcess, add_view_arguments
 
 SKIPPED_TOPICS = {"/rosout"}
@@ -77,7 +80,6 @@ class ReplayNode(Node):
         another definition than the one installed (a message gained fields since): republishing the
         recorded bytes as they are would reach no subscriber (they fail to deserialize). Fields that are
         gone are dropped, new ones keep their defaults."""
-        from robotarium_recording.schema import message_definition
         converters = {}
         for type_name in {self.bag.topics[t].type for t in self.publishers_by_topic}:
             recorded = self.bag.schemas.get(type_name)
@@ -224,7 +226,6 @@ def add_arguments(parser):
 
 def live_testbed_answers(node, namespace, timeout):
     """True when a simulator offers <namespace>/start_experiment on this domain (a live testbed)."""
-    from robotarium_msgs.srv import StartExperiment
     client = node.create_client(StartExperiment, "%s/start_experiment" % namespace.rstrip("/"))
     try:
         return client.wait_for_service(timeout_sec=timeout)
@@ -235,7 +236,6 @@ def live_testbed_answers(node, namespace, timeout):
 def wait_for_view(node, poses_topic):
     """Until the view's subscriptions matched the replay's publishers (the poses' first: the scene is
     made of them), so that the view gets the replay from its first message."""
-    from robotarium_core.topics import readers_matched
     publishers = list(node.publishers_by_topic.values())
     first = node.publishers_by_topic.get(poses_topic)
     deadline = time.monotonic() + VIEW_MATCH
@@ -253,7 +253,6 @@ def wait_for_subscriber(node, poses_topic, timeout=SUBSCRIBER_WAIT):
     """Until the poses publisher has matched at least one subscriber, and every publisher every
     reader the graph shows (a reliable writer sends only to the readers it has matched: what it
     published before is lost to the others)."""
-    from robotarium_core.topics import readers_matched
     publisher = node.publishers_by_topic.get(poses_topic)
     if publisher is None:
         return True

@@ -17,6 +17,7 @@ import sys
 import numpy as np
 
 from robotarium_core import model, outcomes, rps2, run_record
+from robotarium_recording import page, pictures
 from robotarium_recording.bag import Bag
 
 COUNTS_ONLY = 5             # SafetyReport.STATUS_COUNTS_ONLY: no array was filtered
@@ -408,7 +409,6 @@ def preload(video=True):
         from matplotlib.backends import backend_agg  # noqa: F401
         from rosbags.typesys.stores import ros2_jazzy  # noqa: F401
 
-        from robotarium_recording import page, pictures  # noqa: F401
         if video:
             import PIL.ImageDraw  # noqa: F401
             pictures.ffmpeg_path()
@@ -422,7 +422,6 @@ def write_results(bag_dir, progress=True, *, out_dir=None, video=True, run=None)
     run.json beside the bag) says how the run ended where the bag cannot and goes on the page.
     Returns {"report": path, "trajectories": path, "video": path, "page": path} ("video" only when
     video=True and the bag has poses). Prints nothing but progress (stderr)."""
-    from robotarium_recording import page, pictures
     bag = Bag(bag_dir)
     out_dir = os.path.abspath(out_dir or bag.path)
     os.makedirs(out_dir, exist_ok=True)
