@@ -23,7 +23,8 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from devtools import PACKAGE_SOURCES, REPO
-from robotarium_core.node_tools import init_context, wait_for_quiet_discovery
+from robotarium_core.dds_settings import init_context
+from robotarium_core.discovery import wait_for_quiet_discovery
 from robotarium_core.topics import CMD_SAFE, SAFETY_ARM, SAFETY_REPORT, SAFETY_REPORT_QOS, TESTBED_QOS
 
 # Domain ids 1..101 only: DDS derives its UDP ports from the domain (7400 + 250 x domain + ...), and
@@ -116,7 +117,7 @@ class NodeProcess:
             return f.read().decode(errors="replace")
 
     def stacks(self, wait=0.5):
-        """Every thread's Python stack of a node started by node_tools.run_node (SIGUSR1 makes it
+        """Every thread's Python stack of a node started by node_main.run_node (SIGUSR1 makes it
         write them to its log), as its log has them; for the message of a test that found it stuck."""
         if not self.alive() or not self.log_path:
             return ""
@@ -375,7 +376,7 @@ class SafetyStandIn:
         SafetyReport (without `report`, the test sends it: publish_report)."""
         msg.token = self.armed.safety_key
         if self.armed.real_time and msg.step == 0:
-            from robotarium_core.node_tools import take_waiting
+            from robotarium_core.subscriptions import take_waiting
             for data in take_waiting(self.poses):
                 self._on_poses(data)
             if self.poses_step < 0 and not self.probe.spin_until(lambda: self.poses_step >= 0, 10):
