@@ -62,7 +62,7 @@ import django
 django.setup()
 from django.contrib.auth import get_user_model
 from django.utils import timezone
-from robotarium_portal import tasks
+from robotarium_portal import jobs
 from robotarium_portal.models import Experiment, ExperimentFile, Profile
 user, made = get_user_model().objects.get_or_create(username="ada@example.org", email="ada@example.org")
 if made:
@@ -78,10 +78,38 @@ for item in json.loads(sys.stdin.read()):
     ExperimentFile.objects.create(experiment=e, name="main.py", size=len(item["script"]))
     e.state, e.submitted_at = Experiment.SUBMITTED, timezone.now()
     e.save()
-    tasks.enqueue_verification(e)
+    jobs.enqueue_verification(e)
     pks.append(e.pk)
 print(json.dumps(pks))
 """
+
+
+def django_for_tests():
+    """Django in this test process, on a data folder of its own (made once per process, removed at its exit),
+    its tables made, mail into Django's test outbox and a fast password hasher (Django's advice for tests;
+    the service keeps PBKDF2). Returns the data folder. Both the portal's own tests and tests/ use it."""
+    from django.conf import settings
+    if settings.configured:
+        return settings.DATA_DIR
+    import atexit
+    import shutil
+    import tempfile
+
+    import django
+    from django.core.management import call_command
+    from django.test.utils import setup_test_environment
+
+    from robotarium_portal.data_folder import prepare
+    data = prepare(tempfile.mkdtemp(prefix="robotarium-portal-test-"))
+    atexit.register(shutil.rmtree, data, ignore_errors=True)
+    os.environ["ROBOTARIUM_PORTAL_DATA"] = str(data)
+    os.environ["ROBOTARIUM_PORTAL_HOSTS"] = "testserver,localhost,127.0.0.1"
+    os.environ["DJANGO_SETTINGS_MODULE"] = "robotarium_portal.settings"
+    django.setup()
+    setup_test_environment()   # mail into django.core.mail.outbox
+    settings.PASSWORD_HASHERS = ["django.contrib.auth.hashers.MD5PasswordHasher"]
+    call_command("migrate", interactive=False, verbosity=0)
+    return data
 
 
 def run_quietly(*command):
@@ -208,7 +236,7 @@ class Service:
     def submit(self, items):
         env = dict(self.env(), PASSWORD=PASSWORD, ROBOTARIUM_PORTAL_DATA=self.data,
                    ROBOTARIUM_PORTAL_DATABASE=self.postgres.url(), DJANGO_SETTINGS_MODULE="robotarium_portal.settings",
-                   PYTHONPATH=REPO)
+                   PYTHONPATH=os.pathsep.join([REPO, os.environ.get("PYTHONPATH", "")]))
         result = subprocess.run([sys.executable, "-c", SUBMIT], input=json.dumps(items), env=env, cwd=REPO,
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, timeout=TIMEOUT)
         assert result.returncode == 0, result.stderr

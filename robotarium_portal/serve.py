@@ -1,5 +1,5 @@
 """./robotarium serve: the portal (waitress, a WSGI server) and its own worker (django-q2 clusters:
-"verify" and "runs", robotarium_portal.workers) on this machine, everything kept in one data folder and
+"verify" and "runs", robotarium_portal.supervisor) on this machine, everything kept in one data folder and
 its database (SQLite there, or PostgreSQL with --database, for workers on other machines). Stop it
 (Ctrl-C) and start it again: the experiments' states are in the database, the jobs are made again from them."""
 import argparse
@@ -49,7 +49,7 @@ def parse(argv):
 
 
 def setup_django(data, database=""):
-    from robotarium_portal.workers import setup_django as setup
+    from robotarium_portal.supervisor import setup_django as setup
     setup(data, database)
 
 
@@ -105,11 +105,11 @@ def main(argv=None):
 
     import waitress
 
-    from robotarium_portal import tasks
-    from robotarium_portal.workers import Stop, Supervisor, forget_dead_local_workers, stop_on_signals
+    from robotarium_portal import jobs
+    from robotarium_portal.supervisor import Stop, Supervisor, forget_dead_local_workers, stop_on_signals
     from robotarium_portal.wsgi import application
     forget_dead_local_workers()   # this machine's slots whose supervisor is gone hand their jobs back
-    tasks.reconcile()   # before any worker: the jobs again from the experiments' states
+    jobs.reconcile()   # before any worker: the jobs again from the experiments' states
     hosts = ["localhost", "127.0.0.1", "[::1]"] + args.allowed_host + (
         [args.host] if args.host not in ("0.0.0.0", "::") else [])
     try:

@@ -1,29 +1,19 @@
-"""Django settings of the portal. Everything the service keeps lives under one data folder
-(ROBOTARIUM_PORTAL_DATA, default service/ in the repository): the SQLite database, the secret key,
-the experiments' files and results, and outgoing mail (unless an SMTP server is configured)."""
+"""Django settings of the portal, read from the environment; importing them makes nothing.
+
+Everything the service keeps lives under one data folder (ROBOTARIUM_PORTAL_DATA, default service/
+in the repository): the SQLite database, the secret key, the experiments' files and results, and
+outgoing mail (unless an SMTP server is configured). robotarium_portal.data_folder.prepare() makes
+the folder and its secret key; serve, the worker and the tests call it before Django starts."""
 import os
-import secrets
 from pathlib import Path
+
+from robotarium_portal.data_folder import read_secret_key
 
 REPOSITORY = Path(os.environ.get("ROBOTARIUM_ROOT") or Path(__file__).resolve().parent.parent)
 DATA_DIR = Path(os.environ.get("ROBOTARIUM_PORTAL_DATA") or REPOSITORY / "service").resolve()
-DATA_DIR.mkdir(parents=True, exist_ok=True)
-DATA_DIR.chmod(0o700)   # the service's alone: no job's script may read it (jobbox)
 EXPERIMENTS_DIR = DATA_DIR / "experiments"
 MAIL_DIR = DATA_DIR / "mail"
-
-
-def _secret_key():
-    """Made once per service and kept in its data folder (never in the repository)."""
-    path = DATA_DIR / "secret_key"
-    if not path.exists():
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-        with os.fdopen(fd, "w") as f:
-            f.write(secrets.token_urlsafe(50))
-    return path.read_text().strip()
-
-
-SECRET_KEY = _secret_key()
+SECRET_KEY = read_secret_key(DATA_DIR)   # "" until prepare() made it: Django then refuses to sign anything
 DEBUG = os.environ.get("ROBOTARIUM_PORTAL_DEBUG") == "1"
 ALLOWED_HOSTS = [h for h in os.environ.get("ROBOTARIUM_PORTAL_HOSTS", "localhost,127.0.0.1,[::1]").split(",") if h]
 # The address the service is reached at, for links in mail sent by the worker (no request at hand there).

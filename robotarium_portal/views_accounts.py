@@ -5,7 +5,6 @@ from django.contrib.admin.views.decorators import staff_member_required
 from django.contrib.auth import get_user_model
 from django.contrib.auth.forms import AuthenticationForm
 from django.shortcuts import get_object_or_404, redirect, render
-from django.utils import timezone
 from django.utils.encoding import force_str
 from django.utils.http import urlsafe_base64_decode
 from django.views.decorators.http import require_POST
@@ -72,8 +71,7 @@ def approvals(request):
 @require_POST
 def approve(request, pk):
     profile = get_object_or_404(Profile, pk=pk)
-    profile.approved, profile.approved_at, profile.approved_by = True, timezone.now(), request.user
-    profile.save(update_fields=["approved", "approved_at", "approved_by"])
-    mail.try_sending(mail.send_approved, profile.user)
+    if profile.approve(request.user):
+        mail.try_sending(mail.send_approved, profile.user)
     messages.success(request, "Approved %s (%s)." % (profile.name, profile.user.email))
     return redirect("approvals")

@@ -9,14 +9,11 @@ from django.contrib.auth.decorators import login_required
 from django.db import transaction
 from django.http import Http404, HttpResponse
 from django.shortcuts import redirect, render
-from django.utils import timezone
 from django.views.decorators.http import require_POST
 
-from robotarium_portal import files, tasks
+from robotarium_portal import files, jobs
 from robotarium_portal.forms import ExperimentForm
 from robotarium_portal.models import Experiment, ExperimentFile, ReturnMessage
-
-EDITABLE = (Experiment.SAVED, Experiment.REJECTED, Experiment.FAILED, Experiment.CANCELLED)
 
 
 def visible_experiment(request, pk):
@@ -31,7 +28,7 @@ def queue_summary():
     """Total experiments in the queue (running included) and the wait for a new one: each may take up to
     the time limit (15 minutes), first come, first served."""
     waiting = Experiment.objects.filter(state__in=(Experiment.QUEUED, Experiment.RUNNING)).count()
-    return {"in_queue": waiting, "wait_minutes": round(waiting * tasks.time_limit() / 60)}
+    return {"in_queue": waiting, "wait_minutes": round(waiting * jobs.time_limit() / 60)}
 
 
 @login_required
@@ -78,10 +75,9 @@ def _submit(request, experiment):
         if pending >= settings.PORTAL_MAX_PENDING:
             return ("You have %d experiments pending, the most one may have; submit this one when one of them "
                     "has finished (it is saved)." % pending)
-        experiment.state, experiment.detail, experiment.submitted_at = Experiment.SUBMITTED, "", timezone.now()
-        experiment.results, experiment.run_outcome, experiment.verification = "", "", None
-        experiment.save()
-        transaction.on_commit(lambda: tasks.enqueue_verification(experiment))
+        if not experiment.submit():
+            return "It is %s already." % experiment.state
+        transaction.on_commit(lambda: jobs.enqueue_verification(experiment))
     return None
 
 
@@ -117,7 +113,7 @@ def create(request):
 def experiment_page(request, pk):
     experiment = visible_experiment(request, pk)
     form = None
-    if experiment.state in EDITABLE and experiment.owner_id == request.user.pk:
+    if experiment.state in Experiment.EDITABLE and experiment.owner_id == request.user.pk:
         result = _edit(request, experiment)
         if not isinstance(result, ExperimentForm):
             return result
@@ -130,9 +126,9 @@ def experiment_page(request, pk):
     names = {name for name, _ in listing}
     context = {
         "experiment": experiment, "form": form, "scripts": experiment.files.all(),
-        "step": tasks.current_step(experiment) if experiment.state == Experiment.RUNNING else None,
+        "step": jobs.current_step(experiment) if experiment.state == Experiment.RUNNING else None,
         "differs": experiment.differs_from_verification(),
-        "place": experiment.place_in_queue(), "slot_minutes": round(tasks.time_limit() / 60),
+        "place": experiment.place_in_queue(), "slot_minutes": round(jobs.time_limit() / 60),
         "return_messages": experiment.return_messages.all(),
         "results": results_dir is not None,
         "video": next((n for n in ("run.mp4", "run.gif") if n in names), None),

@@ -1,8 +1,10 @@
 """The jobs the workers run (django-q2 tasks): verify a submission, run the oldest queued experiment.
 
-Each job claims its experiment with a conditional UPDATE (state X -> Y where the state is still X), so a
-job handed out twice, or two workers, never verify or run one experiment twice. The experiment table is
-the truth; the broker's queue only says that there is work (reconcile() rebuilds it from the table)."""
+Each job changes its experiment only through the model's transitions (Experiment.claim_verification,
+claim_next_run, queue, reject, fail, complete): conditional UPDATEs, so a job handed out twice, or two
+workers, never verify or run one experiment twice, and an outcome is written only while its worker still
+holds the experiment. The experiment table is the truth; the broker's queue only says that there is work
+(reconcile() rebuilds it from the table). Each job's command runs in a box of its own (jobbox)."""
 import functools
 import json
 import logging
@@ -14,20 +16,21 @@ import time
 from django.conf import settings
 from django.db import transaction
 from django.db.models import F, Q
-from django.utils import timezone
 from django_q.models import OrmQ
 from django_q.tasks import async_task
 
+from robotarium_core.config import TestbedConfig
 from robotarium_portal import jobbox, mail
 from robotarium_portal.database import database_retry
 from robotarium_portal.files import copy_files
 from robotarium_portal.jobbox import stop_group
-from robotarium_portal.models import Experiment, Worker, without_nul
+from robotarium_portal.models import Experiment, Worker
 
 logger = logging.getLogger("robotarium_portal")
 VERIFY_CLUSTER, RUN_CLUSTER = "verify", "runs"
 # ./robotarium verify's exit codes (its fixed interface)
 VERIFY_ACCEPTED, VERIFY_TESTBED, VERIFY_REJECTED = 0, 4, 6
+SERVICE_STOPPED = "The service stopped"   # the cause a requeue names when a worker was stopped properly
 VERIFY_TIMEOUT = 540      # s; under the verify cluster's job timeout (settings.Q_CLUSTER)
 RESULTS_GRACE = 600       # s after the time limit for the start, the end and the results' video
 STEP_LINE = re.compile(rb"\[robotarium\] step (\d+)")
@@ -39,12 +42,11 @@ SECRET_VARIABLES = ("ROBOTARIUM_SMTP_PASSWORD", "ROBOTARIUM_SMTP_USER", "DJANGO_
 @functools.cache
 def time_limit():
     """The testbed configuration's time limit (900 s: the Robotarium's 15-minute slot); read once."""
-    from robotarium_core.config import TestbedConfig
     return TestbedConfig.load().time_limit
 
 
 def enqueue_verification(experiment):
-    async_task("robotarium_portal.tasks.verify_experiment", experiment.pk, cluster=VERIFY_CLUSTER,
+    async_task("robotarium_portal.jobs.verify_experiment", experiment.pk, cluster=VERIFY_CLUSTER,
                task_name="verify #%d" % experiment.pk)
 
 
@@ -55,7 +57,7 @@ def me():
 
 
 def enqueue_run():
-    async_task("robotarium_portal.tasks.run_next", cluster=RUN_CLUSTER, task_name="run the next experiment")
+    async_task("robotarium_portal.jobs.run_next", cluster=RUN_CLUSTER, task_name="run the next experiment")
 
 
 def reconcile():
@@ -64,12 +66,8 @@ def reconcile():
     worker (on another machine) holds stays its own."""
     OrmQ.objects.filter(key__in=[VERIFY_CLUSTER, RUN_CLUSTER]).delete()
     unheld = Q(worker__isnull=True) | ~Q(worker__state=Worker.ALIVE)
-    for experiment in Experiment.objects.filter(unheld, state=Experiment.RUNNING):
-        experiment.state, experiment.worker = Experiment.QUEUED, None
-        experiment.detail = ("The service stopped during run %d (at %s); the experiment runs again from the start."
-                             % (experiment.attempts, timezone.now().strftime("%Y-%m-%d %H:%M UTC")))
-        experiment.save(update_fields=["state", "detail", "worker"])
-    Experiment.objects.filter(unheld, state=Experiment.VERIFYING).update(state=Experiment.SUBMITTED, worker=None)
+    for experiment in Experiment.objects.filter(unheld, state__in=(Experiment.RUNNING, Experiment.VERIFYING)):
+        experiment.requeue(experiment.worker_id, SERVICE_STOPPED)
     for experiment in Experiment.objects.filter(state=Experiment.SUBMITTED).order_by("submitted_at", "pk"):
         enqueue_verification(experiment)
     for _ in range(Experiment.objects.filter(state=Experiment.QUEUED).count()):
@@ -166,10 +164,10 @@ def failing_truthfully(job):
 
 def verify_experiment(pk):
     """./robotarium verify on a copy of the experiment's files: accepted -> queued, else rejected or failed."""
-    if not database_retry(lambda: Experiment.objects.filter(pk=pk, state=Experiment.SUBMITTED).update(
-            state=Experiment.VERIFYING, worker=me()), "claiming a verification"):
+    experiment = Experiment.objects.filter(pk=pk).first()
+    if experiment is None or not database_retry(lambda: experiment.claim_verification(me()), "claiming a verification"):
         return "experiment %d is not waiting for verification" % pk
-    return _working_on("verify #%d" % pk, lambda: _verify(Experiment.objects.get(pk=pk)))
+    return _working_on("verify #%d" % pk, lambda: _verify(experiment))
 
 
 def _working_on(job, work):
@@ -210,11 +208,10 @@ def _verify(experiment):
     except (OSError, ValueError):
         verdict = None
     if code == VERIFY_ACCEPTED and verdict and verdict.get("verdict") == "accepted":
-        return _queue(experiment, verdict, "")
+        return _queue(experiment, verdict)
     if code == VERIFY_REJECTED and verdict:
         return _finish(experiment, Experiment.REJECTED, "Rejected by the verification:\n" + rejection_text(verdict)
-                       + box_notes(output),
-                       verification=verdict, timings=experiment.timings)
+                       + box_notes(output), verification=verdict, timings=experiment.timings)
     if code is None:
         why = "the verification did not end within %d s" % VERIFY_TIMEOUT
     elif code == VERIFY_TESTBED:
@@ -225,13 +222,10 @@ def _verify(experiment):
                    % (why, box_notes(output), _tail(output)), verification=verdict, timings=experiment.timings)
 
 
-def _queue(experiment, verdict, detail):
+def _queue(experiment, verdict):
     def queue():
         with transaction.atomic():
-            if not Experiment.objects.filter(pk=experiment.pk, state=Experiment.VERIFYING, worker=me()).update(
-                    state=Experiment.QUEUED, queued_at=timezone.now(), verification=without_nul(verdict),
-                    detail=without_nul(detail),
-                    timings=experiment.timings, worker=None):
+            if not experiment.queue(me(), verdict, experiment.timings):
                 return False
             enqueue_run()   # in the same transaction: queued and its job, or neither
             return True
@@ -240,47 +234,34 @@ def _queue(experiment, verdict, detail):
     return "experiment %d queued" % experiment.pk
 
 
+TRANSITIONS = {Experiment.REJECTED: Experiment.reject, Experiment.FAILED: Experiment.fail,
+               Experiment.COMPLETED: Experiment.complete}
+
+
 def _finish(experiment, state, detail, **fields):
-    """The job's outcome, unless the experiment was decided elsewhere meanwhile (an administrator cancelled
-    it, or this worker was found lost): that stays, and a cancelled run keeps what it recorded."""
+    """The job's outcome (rejected, failed, completed) and its mail, unless the experiment was decided elsewhere
+    meanwhile (an administrator cancelled it, or this worker was found lost): that stays, and a cancelled run
+    keeps what it recorded."""
     def write():
-        with transaction.atomic():
-            current = Experiment.objects.select_for_update().get(pk=experiment.pk)
-            if current.state not in (Experiment.VERIFYING, Experiment.RUNNING) or current.worker_id != me():
-                if current.state == Experiment.CANCELLED and fields.get("results"):
-                    Experiment.objects.filter(pk=current.pk).update(
-                        **{k: v for k, v in fields.items() if k in ("results", "run_outcome", "timings")})
-                return False
-            current.state, current.detail, current.finished_at, current.worker = state, detail, timezone.now(), None
-            for name, value in fields.items():
-                setattr(current, name, value)
-            current.save()
+        if TRANSITIONS[state](experiment, me(), detail, **fields):
             return True
+        if fields.get("results"):
+            experiment.keep_results(**{k: v for k, v in fields.items() if k in ("results", "run_outcome", "timings")})
+        return False
     if not database_retry(write, "writing the outcome of experiment %d" % experiment.pk):
         return "experiment %d was decided elsewhere meanwhile (cancelled, or its worker found lost)" % experiment.pk
-    experiment.refresh_from_db()
-    try:
-        if state == Experiment.COMPLETED:
-            mail.send_completed(experiment)
-        else:
-            mail.send_issues_found(experiment)
-    except Exception as error:   # noqa: BLE001 - the mail server's trouble; the page tells the truth anyway
-        logger.error("could not mail %s about experiment %d: %s", experiment.owner.email, experiment.pk, error)
+    if state == Experiment.COMPLETED:
+        mail.try_sending(mail.send_completed, experiment)
+    else:
+        mail.try_sending(mail.send_issues_found, experiment)
     return "experiment %d %s" % (experiment.pk, state)
 
 
 def run_next():
     """Claim the oldest queued experiment (first come, first served) and run it."""
-    def claim():
-        while True:
-            experiment = Experiment.objects.filter(state=Experiment.QUEUED).order_by("queued_at", "pk").first()
-            if experiment is None or Experiment.objects.filter(pk=experiment.pk, state=Experiment.QUEUED).update(
-                    state=Experiment.RUNNING, started_at=timezone.now(), attempts=F("attempts") + 1, worker=me()):
-                return experiment   # else another worker took it first: try the next
-    experiment = database_retry(claim, "claiming a run")
+    experiment = database_retry(lambda: Experiment.claim_next_run(me()), "claiming a run")
     if experiment is None:
         return "the queue is empty"
-    experiment.refresh_from_db()
     return _working_on("run #%d" % experiment.pk, lambda: run_experiment(experiment))
 
 
