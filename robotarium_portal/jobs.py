@@ -67,7 +67,8 @@ def reconcile():
     OrmQ.objects.filter(key__in=[VERIFY_CLUSTER, RUN_CLUSTER]).delete()
     unheld = Q(worker__isnull=True) | ~Q(worker__state=Worker.ALIVE)
     for experiment in Experiment.objects.filter(unheld, state__in=(Experiment.RUNNING, Experiment.VERIFYING)):
-        experiment.requeue(experiment.worker_id, SERVICE_STOPPED)
+        experiment.requeue(experiment.worker_id, SERVICE_STOPPED,
+                           experiment.worker.last_heartbeat if experiment.worker else None)   # when it stopped
     for experiment in Experiment.objects.filter(state=Experiment.SUBMITTED).order_by("submitted_at", "pk"):
         enqueue_verification(experiment)
     for _ in range(Experiment.objects.filter(state=Experiment.QUEUED).count()):

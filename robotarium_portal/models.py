@@ -1,6 +1,8 @@
-"""What the service keeps: who may use it (Profile beside Django's User), the experiments and their state
-machine (Experiment's transitions), the workers' job slots (Worker)."""
+"""What the service keeps: who may use it (Profile beside Django's User, ApiToken), the experiments and
+their state machine (Experiment's transitions), the workers' job slots (Worker)."""
+import hashlib
 import json
+import secrets
 
 from django.conf import settings
 from django.db import models
@@ -10,8 +12,8 @@ from django.utils import timezone
 ANY = object()   # a transition that holds for whichever worker holds the experiment
 
 
-def _now_text():
-    return timezone.now().strftime("%Y-%m-%d %H:%M:%S UTC")
+def _now_text(when=None):
+    return (when or timezone.now()).strftime("%Y-%m-%d %H:%M:%S UTC")
 
 
 def without_nul(value):
@@ -40,6 +42,8 @@ class Profile(models.Model):
     approved_at = models.DateTimeField(null=True, blank=True)
     approved_by = models.ForeignKey(settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL,
                                     related_name="+")
+    refused_at = models.DateTimeField(null=True, blank=True)
+    refusal_reason = models.TextField(max_length=2000, blank=True)   # mailed to the person
 
     def __str__(self):
         return "%s <%s>" % (self.name, self.user.email)
@@ -51,10 +55,52 @@ class Profile(models.Model):
     def approve(self, by):
         """An administrator approves the account (once: True when it was waiting)."""
         if not Profile.objects.filter(pk=self.pk, approved=False).update(approved=True, approved_at=timezone.now(),
-                                                                          approved_by=by):
+                                                                          approved_by=by, refused_at=None):
             return False
         self.refresh_from_db()
         return True
+
+    def refuse(self, by, reason):
+        """An administrator refuses the account, with a reason mailed to its owner (once; it may be approved
+        later all the same)."""
+        if not Profile.objects.filter(pk=self.pk, approved=False, refused_at=None).update(
+                refused_at=timezone.now(), refusal_reason=reason, approved_by=by):
+            return False
+        self.refresh_from_db()
+        return True
+
+
+class ApiToken(models.Model):
+    """A person's key to the JSON API (./robotarium submit): only its SHA-256 is kept, the key itself is shown
+    once when it is made. It acts as its owner: the same accounts, permissions and 404s as the pages."""
+    PREFIX = "rbt_"
+    user = models.ForeignKey(settings.AUTH_USER_MODEL, on_delete=models.CASCADE, related_name="api_tokens")
+    digest = models.CharField(max_length=64, unique=True)
+    shown = models.CharField(max_length=16)   # its first characters, to tell tokens apart on the account page
+    created = models.DateTimeField(default=timezone.now)
+    last_used = models.DateTimeField(null=True, blank=True)
+
+    class Meta:
+        ordering = ["-created"]
+
+    @staticmethod
+    def _digest(key):
+        return hashlib.sha256(key.encode()).hexdigest()
+
+    @classmethod
+    def make(cls, user):
+        """(the token, its key: shown once, kept nowhere)."""
+        key = cls.PREFIX + secrets.token_urlsafe(32)
+        return cls.objects.create(user=user, digest=cls._digest(key), shown=key[:12]), key
+
+    @classmethod
+    def user_of(cls, key):
+        """The active user whose key this is, or None."""
+        token = cls.objects.filter(digest=cls._digest(key or "")).select_related("user").first()
+        if token is None or not token.user.is_active:
+            return None
+        cls.objects.filter(pk=token.pk).update(last_used=timezone.now())
+        return token.user
 
 
 class Experiment(models.Model):
@@ -173,10 +219,10 @@ class Experiment(models.Model):
         return self._transition(self.PENDING, self.CANCELLED, finished_at=timezone.now(),
                                 detail="Cancelled by an administrator (%s) at %s." % (by, _now_text()))
 
-    def requeue(self, worker, why):
-        """Its worker stopped (a service stopped, a worker lost): a run goes back to the head of the queue
-        (its queued_at kept) and runs again from the start; a verification is made again."""
-        at = _now_text()
+    def requeue(self, worker, why, when=None):
+        """Its worker stopped (a service stopped, a worker lost) at `when` (default now): a run goes back to the
+        head of the queue (its queued_at kept) and runs again from the start; a verification is made again."""
+        at = _now_text(when)
         if self.state == self.RUNNING:
             detail = "%s during run %d (at %s); the experiment runs again from the start." % (why, self.attempts, at)
             return self._transition([self.RUNNING], self.QUEUED, worker, detail=detail, worker_id=None)

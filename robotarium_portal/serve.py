@@ -9,8 +9,9 @@ import os
 import signal
 import sys
 import threading
-import time
 from pathlib import Path
+
+from robotarium_portal.supervisor import database_url
 
 REPOSITORY = Path(__file__).resolve().parent.parent
 
@@ -28,15 +29,18 @@ def parse(argv):
     parser.add_argument("--data", default=str(REPOSITORY / "service"),
                         help="the service's folder (default: service/ in the repository); workers on other "
                              "machines need it too, on a shared path")
-    parser.add_argument("--database", default="",
-                        help="PostgreSQL for the service's state, postgresql://USER[:PASSWORD]@HOST[:PORT]/NAME, "
-                             "for workers on other machines (./robotarium worker); default: SQLite in the data folder")
+    parser.add_argument("--database", default="", type=database_url,
+                        help="PostgreSQL for the service's state, postgresql://USER@HOST[:PORT]/NAME, for workers on "
+                             "other machines (./robotarium worker); its password from PGPASSWORD or a password file "
+                             "(PGPASSFILE, ~/.pgpass), never on the command line; default: SQLite in the data folder")
     parser.add_argument("--jobs", type=int, default=1,
                         help="verifications and runs at once on this machine (default 1 of each; 0: none here, "
                              "the workers run elsewhere)")
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1; 0.0.0.0: "
                         "every interface, then name the host the users type with --allowed-host)")
     parser.add_argument("--port", type=int, default=8000, help="port (default 8000; 0: any free one)")
+    parser.add_argument("--url", help="the address people reach the portal at, the base of every link in its mail "
+                        "(default: the address it listens on, e.g. http://127.0.0.1:8000)")
     parser.add_argument("--allowed-host", action="append", default=[],
                         help="a host name the portal answers to besides localhost (repeat for several)")
     parser.add_argument("--create-admin", metavar="EMAIL",
@@ -120,11 +124,12 @@ def main(argv=None):
     shown_host = args.allowed_host[0] if args.allowed_host else ("127.0.0.1" if args.host in ("0.0.0.0", "::")
                                                                  else args.host)
     url = "http://%s:%d/" % (shown_host, int(server.effective_port))
-    env = dict(os.environ, ROBOTARIUM_PORTAL_URL=url.rstrip("/"), ROBOTARIUM_PORTAL_HOSTS=",".join(hosts),
+    base_url = (args.url or url).rstrip("/")   # every mail link, here and in the workers
+    env = dict(os.environ, ROBOTARIUM_PORTAL_URL=base_url, ROBOTARIUM_PORTAL_HOSTS=",".join(hosts),
                PYTHONPATH=os.pathsep.join([str(REPOSITORY), os.environ.get("PYTHONPATH", "")]))
     os.environ.update({k: env[k] for k in ("ROBOTARIUM_PORTAL_URL", "ROBOTARIUM_PORTAL_HOSTS")})
     from django.conf import settings
-    settings.ALLOWED_HOSTS = hosts
+    settings.ALLOWED_HOSTS, settings.PORTAL_URL = hosts, base_url
     workers = Supervisor(data, ["verify", "runs"] if args.jobs else [], args.jobs, env, lock=lock,
                          domains={"verify": args.verify_domain, "runs": args.run_domain})
     workers.start()
@@ -148,9 +153,8 @@ def main(argv=None):
     stop_on_signals()
 
     def watch():
-        while True:
-            time.sleep(2.0)
-            if workers.dead():
+        while not workers.stopping.wait(2.0):   # a stop stops the workers: no error then
+            if workers.dead() and not workers.stopping.is_set():
                 print("[robotarium] error: the worker %s stopped (its log is in %s); stopping the service"
                       % (", ".join(workers.dead()), workers.logs), flush=True)
                 os.kill(os.getpid(), signal.SIGTERM)

@@ -5,7 +5,10 @@ in the repository): the SQLite database, the secret key, the experiments' files 
 outgoing mail (unless an SMTP server is configured). robotarium_portal.data_folder.prepare() makes
 the folder and its secret key; serve, the worker and the tests call it before Django starts."""
 import os
+from datetime import timedelta
 from pathlib import Path
+
+from django.utils.csp import CSP
 
 from robotarium_portal.data_folder import read_secret_key
 
@@ -16,8 +19,9 @@ MAIL_DIR = DATA_DIR / "mail"
 SECRET_KEY = read_secret_key(DATA_DIR)   # "" until prepare() made it: Django then refuses to sign anything
 DEBUG = os.environ.get("ROBOTARIUM_PORTAL_DEBUG") == "1"
 ALLOWED_HOSTS = [h for h in os.environ.get("ROBOTARIUM_PORTAL_HOSTS", "localhost,127.0.0.1,[::1]").split(",") if h]
-# The address the service is reached at, for links in mail sent by the worker (no request at hand there).
-PORTAL_URL = os.environ.get("ROBOTARIUM_PORTAL_URL", "http://localhost:8000").rstrip("/")
+# The one base URL of every link in mail (serve's --url; default the address serve listens on, which serve
+# sets for itself and its workers).
+PORTAL_URL = os.environ.get("ROBOTARIUM_PORTAL_URL", "http://127.0.0.1:8000").rstrip("/")
 
 INSTALLED_APPS = [
     "robotarium_portal.apps.PortalConfig",   # first: its registration/ templates over the admin's
@@ -28,6 +32,7 @@ INSTALLED_APPS = [
     "django.contrib.messages",
     "django.contrib.staticfiles",
     "django_q",
+    "axes",
 ]
 MIDDLEWARE = [
     "django.middleware.security.SecurityMiddleware",
@@ -37,7 +42,23 @@ MIDDLEWARE = [
     "django.contrib.auth.middleware.AuthenticationMiddleware",
     "django.contrib.messages.middleware.MessageMiddleware",
     "django.middleware.clickjacking.XFrameOptionsMiddleware",
+    "django.middleware.csp.ContentSecurityPolicyMiddleware",
+    "axes.middleware.AxesMiddleware",   # last: it answers a locked-out log-in
 ]
+# Django's own Content-Security-Policy: this site's scripts, styles, pictures and videos only (the page's
+# <style> and <script> carry the request's nonce); no plug-ins, no framing, forms post here only.
+SECURE_CSP = {
+    "default-src": [CSP.SELF],
+    "script-src": [CSP.SELF, CSP.NONCE],
+    "style-src": [CSP.SELF, CSP.NONCE],
+    "img-src": [CSP.SELF, "data:"],
+    "media-src": [CSP.SELF],
+    "connect-src": [CSP.SELF],
+    "object-src": [CSP.NONE],
+    "base-uri": [CSP.NONE],
+    "frame-ancestors": [CSP.NONE],
+    "form-action": [CSP.SELF],
+}
 ROOT_URLCONF = "robotarium_portal.urls"
 TEMPLATES = [{
     "BACKEND": "django.template.backends.django.DjangoTemplates",
@@ -47,6 +68,7 @@ TEMPLATES = [{
         "django.template.context_processors.request",
         "django.contrib.auth.context_processors.auth",
         "django.contrib.messages.context_processors.messages",
+        "django.template.context_processors.csp",
     ]},
 }]
 WSGI_APPLICATION = "robotarium_portal.wsgi.application"
@@ -83,6 +105,17 @@ AUTH_PASSWORD_VALIDATORS = [
     {"NAME": "django.contrib.auth.password_validation.CommonPasswordValidator"},
     {"NAME": "django.contrib.auth.password_validation.NumericPasswordValidator"},
 ]
+# Failed log-ins (django-axes): after AXES_FAILURE_LIMIT failures for one account, or from one address,
+# log-in is refused for AXES_COOLOFF_TIME with a page that says so; a success or a password reset clears
+# the count. The account is counted by its address as typed, lower case (as the log-in form reads it).
+AUTHENTICATION_BACKENDS = ["axes.backends.AxesStandaloneBackend", "django.contrib.auth.backends.ModelBackend"]
+AXES_FAILURE_LIMIT = 10
+AXES_COOLOFF_TIME = timedelta(minutes=15)
+AXES_LOCKOUT_PARAMETERS = ["username", "ip_address"]   # each on its own: per account, and per address
+AXES_USERNAME_CALLABLE = "robotarium_portal.views_accounts.login_name"
+AXES_LOCKOUT_TEMPLATE = "registration/locked_out.html"
+AXES_RESET_ON_SUCCESS = True
+AXES_VERBOSE = False
 LOGIN_URL = "login"
 LOGIN_REDIRECT_URL = "dashboard"
 LOGOUT_REDIRECT_URL = "login"

@@ -39,9 +39,10 @@ def stop_on_signals():
         signal.signal(sig, stop)
 
 
-def release(worker_pks):
-    """The slots stopped properly: their run goes back to the head of the queue (queued_at kept), their
-    verification is made again; the slots are marked stopped."""
+def release(worker_pks, stopped_at_last_beat=False):
+    """The slots stopped (properly, now; or, found dead at a start, at their last beat): their run goes back
+    to the head of the queue (queued_at kept), their verification is made again; the slots are marked
+    stopped."""
     from django.utils import timezone
 
     from robotarium_portal import jobs
@@ -49,7 +50,8 @@ def release(worker_pks):
     for experiment in Experiment.objects.filter(worker__in=worker_pks, state__in=(Experiment.RUNNING,
                                                                                   Experiment.VERIFYING)):
         running = experiment.state == Experiment.RUNNING
-        if experiment.requeue(experiment.worker_id, jobs.SERVICE_STOPPED):
+        when = experiment.worker.last_heartbeat if stopped_at_last_beat else None
+        if experiment.requeue(experiment.worker_id, jobs.SERVICE_STOPPED, when):
             jobs.enqueue_run() if running else jobs.enqueue_verification(experiment)
     Worker.objects.filter(pk__in=worker_pks, state=Worker.ALIVE).update(
         state=Worker.STOPPED, ended_at=timezone.now(), current_job="")
@@ -237,7 +239,7 @@ def forget_dead_local_workers():
     gone = [w.pk for w in Worker.objects.filter(state=Worker.ALIVE, host=socket.gethostname())
             if not _running(w.pid)]
     if gone:
-        release(gone)
+        release(gone, stopped_at_last_beat=True)
 
 
 def _running(pid):
@@ -248,6 +250,17 @@ def _running(pid):
     except PermissionError:
         return True
     return True
+
+
+def database_url(value):
+    """--database's value: a PostgreSQL URL without a password (a command line is every process's to read)."""
+    from urllib.parse import urlsplit
+    if urlsplit(value).password is not None:
+        raise argparse.ArgumentTypeError(
+            "no password on the command line, where any process on this machine may read it: give it in "
+            "PGPASSWORD, or in a password file (PGPASSFILE, default ~/.pgpass: HOST:PORT:NAME:USER:PASSWORD, "
+            "mode 0600), and --database postgresql://USER@HOST[:PORT]/NAME")
+    return value
 
 
 def parse(argv):
@@ -262,8 +275,9 @@ def parse(argv):
                "--data /srv/robotarium. Ctrl-C stops it: its running experiment goes back to the head of the "
                "queue. Killed outright (or its machine gone), the service notices within 5 heartbeats (10 s) and "
                "verifies its submission again or fails its run (\"the testbed was lost\").")
-    parser.add_argument("--database", default="",
-                        help="the service's database, postgresql://USER[:PASSWORD]@HOST[:PORT]/NAME (default: the "
+    parser.add_argument("--database", default="", type=database_url,
+                        help="the service's database, postgresql://USER@HOST[:PORT]/NAME, its password from "
+                             "PGPASSWORD or a password file (PGPASSFILE, ~/.pgpass) (default: the "
                              "SQLite database in the data folder, for workers beside serve on its machine)")
     parser.add_argument("--data", default=str(REPOSITORY / "service"),
                         help="the service's data folder, shared with the portal (default: service/ in the repository)")

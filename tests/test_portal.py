@@ -236,6 +236,7 @@ def test_the_whole_flow_in_a_real_browser_with_a_restart_mid_run(tmp_path):
             sign_up(page, base, "ada@example.org", "Ada Lovelace")
             confirmation = inbox.wait_for("ada@example.org", "confirm your email")
             link = re.search(r"(http://\S+/confirm/\S+/)", confirmation).group(1)
+            assert link.startswith(base), (link, base)   # serve's own address, on its own port
             goto(page, link)
             assert "Your email address is confirmed" in body_text(page)
 
@@ -245,6 +246,8 @@ def test_the_whole_flow_in_a_real_browser_with_a_restart_mid_run(tmp_path):
             with page.expect_navigation():
                 page.click('button[value="ada@example.org"]')
             assert "Approved Ada Lovelace" in body_text(page)
+            approved = inbox.wait_for("ada@example.org", "your account is approved")
+            assert re.findall(r"http://\S+", approved) == [base], approved   # not localhost:8000
             log_out(page)
 
             log_in(page, base, "ada@example.org")
@@ -274,6 +277,7 @@ def test_the_whole_flow_in_a_real_browser_with_a_restart_mid_run(tmp_path):
                 goto(page, base)
                 screenshot(page, os.path.join(shots, "portal_dashboard.png"))
             assert serve.stop() == 0, "\n".join(serve.lines)
+            assert not [line for line in serve.lines if "error" in line], serve.lines   # a clean stop says none
             # the truth: run 1 was cut short by the stop, and it waits at the head of the queue to run again
             state, attempts, detail = experiment_row(data, pk)
             assert (state, attempts) == ("queued", 1) and "The service stopped during run 1" in detail, detail

@@ -96,6 +96,15 @@ def test_a_stop_mid_run_requeues_it_once_at_the_head_of_the_queue_with_the_run_n
     assert not experiment.requeue(holder.pk, "The service stopped")   # once
 
 
+def test_a_requeue_at_a_restart_names_the_time_the_worker_stopped_not_the_restart():
+    from datetime import datetime, timezone
+    holder = worker("runs")
+    experiment = experiment_in(Experiment.RUNNING, held_by=holder)
+    stopped = datetime(2026, 11, 28, 9, 15, 30, tzinfo=timezone.utc)
+    assert experiment.requeue(holder.pk, "The service stopped", stopped)
+    assert "(at 2026-11-28 09:15:30 UTC)" in experiment.detail
+
+
 def test_a_cancelled_run_keeps_what_its_job_recorded_and_stays_cancelled():
     holder = worker("runs")
     experiment = experiment_in(Experiment.RUNNING, held_by=holder)
