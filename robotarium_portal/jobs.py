@@ -31,7 +31,8 @@ VERIFY_CLUSTER, RUN_CLUSTER = "verify", "runs"
 # ./robotarium verify's exit codes (its fixed interface)
 VERIFY_ACCEPTED, VERIFY_TESTBED, VERIFY_REJECTED = 0, 4, 6
 SERVICE_STOPPED = "The service stopped"   # the cause a requeue names when a worker was stopped properly
-VERIFY_TIMEOUT = 540      # s; under the verify cluster's job timeout (settings.Q_CLUSTER)
+TIME_RULE = "time"   # the portal's own rule beside the verifier's: its wall-time limit (verification_limit)
+BUSY_OWNER_PAUSE = 1.0   # s before a verification waiting for its owner's other one goes back in the queue
 RESULTS_GRACE = 600       # s after the time limit for the start, the end and the results' video
 STEP_LINE = re.compile(rb"\[robotarium\] step (\d+)")
 # What a user's script must not see of the service (the environment is passed on to its run).
@@ -141,12 +142,19 @@ def _tail(path, lines=15):
 
 
 def rejection_text(verdict):
-    """The rules the verifier found broken, one per line: the rule, the count against its limit, the first step."""
+    """The rules the verifier found broken, one per line: the rule, its count against its limit and the first
+    step where it has them, then what it says ("collisions: 168 times, limit 100 (first at step 37). ...")."""
     lines = []
     for rule in verdict.get("rules") or []:
-        where = " (first at step %s)" % rule["first_step"] if rule.get("first_step") is not None else ""
-        count = " %s times, limit %s" % (rule.get("count"), rule.get("limit")) if rule.get("limit") is not None else ""
-        lines.append("%s:%s%s. %s" % (rule.get("rule"), count, where, rule.get("message") or ""))
+        line = "%s:" % rule.get("rule")
+        if rule.get("limit") is not None:
+            line += " %s times, limit %s" % (rule.get("count"), rule.get("limit"))
+        if rule.get("first_step") is not None:
+            line += " (first at step %s)" % rule["first_step"]
+        message = " ".join((rule.get("message") or "").split())
+        if message:
+            line += (". " if line.endswith(")") or rule.get("limit") is not None else " ") + message
+        lines.append(line)
     return "\n".join(lines) or (verdict.get("report") or "rejected")
 
 
@@ -167,8 +175,22 @@ def verify_experiment(pk):
     """./robotarium verify on a copy of the experiment's files: accepted -> queued, else rejected or failed."""
     experiment = Experiment.objects.filter(pk=pk).first()
     if experiment is None or not database_retry(lambda: experiment.claim_verification(me()), "claiming a verification"):
+        if experiment is not None and Experiment.objects.filter(pk=pk, state=Experiment.SUBMITTED).exists():
+            # Its owner's other submission is being verified in another slot: one slot a person at a time, so
+            # the others' submissions go first; this one goes back in the queue.
+            time.sleep(BUSY_OWNER_PAUSE)
+            enqueue_verification(experiment)
+            return "experiment %d waits for its owner's other verification" % pk
         return "experiment %d is not waiting for verification" % pk
     return _working_on("verify #%d" % pk, lambda: _verify(experiment))
+
+
+def verification_limit(experiment):
+    """(s a verification may take, the sentence that says why): the verifier's 1.5 x the declared duration,
+    plus the start-up allowance."""
+    limit = 1.5 * experiment.estimated_duration + settings.VERIFY_STARTUP
+    return limit, ("%d s: 1.5 x its declared duration of %d s, plus %d s to start"
+                   % (limit, experiment.estimated_duration, settings.VERIFY_STARTUP))
 
 
 def _working_on(job, work):
@@ -198,8 +220,8 @@ def _verify(experiment):
                "--robots", str(experiment.number_of_robots), "--duration", str(experiment.estimated_duration),
                "--json", str(verdict_path), "--no-record", "--results-dir", str(experiment.folder / "verification")]
     began = time.monotonic()
-    code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_VERIFY_DOMAIN"), output, VERIFY_TIMEOUT,
-                       VERIFY_CLUSTER)
+    limit, rule = verification_limit(experiment)
+    code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_VERIFY_DOMAIN"), output, limit, VERIFY_CLUSTER)
     experiment.timings = {"verify_command": round(time.monotonic() - began, 3)}
     shutil.rmtree(work, ignore_errors=True)
     if stopping():
@@ -213,9 +235,14 @@ def _verify(experiment):
     if code == VERIFY_REJECTED and verdict:
         return _finish(experiment, Experiment.REJECTED, "Rejected by the verification:\n" + rejection_text(verdict)
                        + box_notes(output), verification=verdict, timings=experiment.timings)
-    if code is None:
-        why = "the verification did not end within %d s" % VERIFY_TIMEOUT
-    elif code == VERIFY_TESTBED:
+    if code is None:   # it ran past its limit: rejected, the rule named
+        verdict = {"verdict": "rejected", "rules": [{
+            "rule": TIME_RULE, "count": None, "limit": None, "first_step": None,
+            "message": "the verification did not end within its limit of %s; a script that spins or never ends "
+                       "is rejected (declare a longer duration if it needs one)" % rule}]}
+        return _finish(experiment, Experiment.REJECTED, "Rejected by the verification:\n" + rejection_text(verdict),
+                       verification=verdict, timings=experiment.timings)
+    if code == VERIFY_TESTBED:
         why = "the verification's testbed had a problem (exit code 4)"
     else:
         why = "the verification could not run (exit code %s)" % code

@@ -6,7 +6,7 @@ import secrets
 
 from django.conf import settings
 from django.db import models
-from django.db.models import F
+from django.db.models import F, Q
 from django.utils import timezone
 
 ANY = object()   # a transition that holds for whichever worker holds the experiment
@@ -163,10 +163,12 @@ class Experiment(models.Model):
     # (state X -> Y only where the row is still in X, and held by `worker` where one is named), so two
     # workers, a job handed out twice or an administrator's cancel never both win. True when it changed.
 
-    def _transition(self, sources, target, worker=ANY, **fields):
+    def _transition(self, sources, target, worker=ANY, unless=None, **fields):
         rows = Experiment.objects.filter(pk=self.pk, state__in=sources)
         if worker is not ANY:
             rows = rows.filter(worker=worker)
+        if unless is not None:
+            rows = rows.exclude(unless)
         fields = {k: without_nul(v) for k, v in fields.items()}
         if not rows.update(state=target, **fields):
             return False
@@ -179,8 +181,10 @@ class Experiment(models.Model):
                                 run_outcome="", verification=None, worker_id=None, finished_at=None)
 
     def claim_verification(self, worker):
-        """Submitted -> verifying, held by worker."""
-        return self._transition([self.SUBMITTED], self.VERIFYING, worker_id=worker)
+        """Submitted -> verifying, held by worker; not while another of its owner's is verified (one
+        verification slot a person at a time: one person's submissions never hold every slot)."""
+        return self._transition([self.SUBMITTED], self.VERIFYING, worker_id=worker,
+                                unless=Q(owner__experiments__state=self.VERIFYING))
 
     @classmethod
     def claim_next_run(cls, worker):

@@ -143,7 +143,8 @@ else:
 PORTAL_MAX_FILES = int(os.environ.get("ROBOTARIUM_PORTAL_MAX_FILES", "20"))
 PORTAL_MAX_FILE_BYTES = int(os.environ.get("ROBOTARIUM_PORTAL_MAX_FILE_BYTES", str(5 * 1024 * 1024)))
 PORTAL_MAX_PENDING = int(os.environ.get("ROBOTARIUM_PORTAL_MAX_PENDING", "3"))
-DATA_UPLOAD_MAX_NUMBER_FILES = PORTAL_MAX_FILES + 1   # the form says how many are too many, not Django's 400
+# The form says how many are too many (up to this many in one request); past it, the portal's 400 page says so.
+DATA_UPLOAD_MAX_NUMBER_FILES = 1000
 DATA_UPLOAD_MAX_MEMORY_SIZE = 2 * 1024 * 1024
 FILE_UPLOAD_MAX_MEMORY_SIZE = 2 * 1024 * 1024
 
@@ -164,8 +165,12 @@ Q_CLUSTER = {
     "poll": 0.5,
     "catch_up": False,
     "save_limit": 200,
-    "ALT_CLUSTERS": {"verify": {"timeout": 600, "retry": 720}},
+    "ALT_CLUSTERS": {"verify": {"timeout": 1500, "retry": 1800}},   # over the longest verification's limit
 }
+# A verification's wall-time limit: the verifier's own rule (1.5 x the declared duration) plus VERIFY_STARTUP s
+# for its testbed and the script's imports (900 s declared: 1410 s). A script that spins or never ends is
+# rejected at it, its rule named ("time"), and the next submission is verified.
+VERIFY_STARTUP = float(os.environ.get("ROBOTARIUM_PORTAL_VERIFY_STARTUP", "60"))
 # Each worker beats every WORKER_HEARTBEAT s; one that missed WORKER_LOST_AFTER s of beats, while the one
 # who watches saw the database all that time, is lost: its verification is handed out again, its run failed.
 WORKER_HEARTBEAT = float(os.environ.get("ROBOTARIUM_WORKER_HEARTBEAT", "2"))

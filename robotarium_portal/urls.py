@@ -34,3 +34,5 @@ urlpatterns = [
     # class's service behind one WSGI server; a large installation puts a web server in front.
     re_path(r"^static/(?P<path>.*)$", static_file, {"insecure": True}),
 ]
+
+handler400 = "robotarium_portal.views_experiments.bad_request"

@@ -1,6 +1,7 @@
 """The dashboard, the queue, Create Experiment, an experiment's page and results, and their files."""
 import json
 import os
+import re
 import shutil
 
 from django.conf import settings
@@ -9,11 +10,14 @@ from django.contrib.auth.decorators import login_required
 from django.db import transaction
 from django.http import Http404, HttpResponse
 from django.shortcuts import redirect, render
+from django.utils import timezone
 from django.views.decorators.http import require_POST
 
 from robotarium_portal import files, jobs
 from robotarium_portal.forms import ExperimentForm
-from robotarium_portal.models import Experiment, ExperimentFile, ReturnMessage
+from robotarium_portal.models import Experiment, ExperimentFile, ReturnMessage, Worker
+
+UNMEASURED_START = 30   # s a run takes beyond its declared duration, for the wait before any run was measured
 
 
 def visible_experiment(request, pk):
@@ -25,20 +29,73 @@ def visible_experiment(request, pk):
 
 
 def queue_summary():
-    """Total experiments in the queue (running included) and the wait for a new one: each may take up to
-    the time limit (15 minutes), first come, first served."""
-    waiting = Experiment.objects.filter(state__in=(Experiment.QUEUED, Experiment.RUNNING)).count()
-    return {"in_queue": waiting, "wait_minutes": round(waiting * jobs.time_limit() / 60)}
+    """Total experiments in the queue (running included) and an honest wait for one submitted now: each run
+    ahead takes what the last runs measured (their ./robotarium run, start to results), or, before any was
+    measured, its declared duration and a start; shared by the run slots that are alive."""
+    ahead = list(Experiment.objects.filter(state__in=(Experiment.QUEUED, Experiment.RUNNING)))
+    measured = [t for t in Experiment.objects.filter(state__in=(Experiment.COMPLETED, Experiment.FAILED))
+                .exclude(timings={}).order_by("-finished_at").values_list("timings__run_command", flat=True)[:20]
+                if isinstance(t, (int, float))]
+    typical = sum(measured) / len(measured) if measured else None
+    now = timezone.now()
+    total = 0.0
+    for e in ahead:
+        each = typical if typical is not None else min(e.estimated_duration, jobs.time_limit()) + UNMEASURED_START
+        if e.state == Experiment.RUNNING and e.started_at:
+            each = max(0.0, each - (now - e.started_at).total_seconds())
+        total += each
+    slots = max(1, Worker.objects.filter(state=Worker.ALIVE, kind=Worker.RUNS).count())
+    wait = total / slots
+    source = ("from the last %d runs (%s each on average)" % (len(measured), _duration(typical)) if measured
+              else "from the declared durations (no run measured yet)")
+    text = ("An experiment submitted now starts at once after its verification." if not ahead else
+            "An experiment submitted now starts in about %s, %s." % (_duration(wait), source))
+    return {"in_queue": len(ahead), "wait_seconds": round(wait), "estimate": text}
+
+
+def _duration(seconds):
+    if seconds < 90:
+        return "%d s" % round(seconds)
+    return "%d minutes" % round(seconds / 60)
 
 
 @login_required
 def dashboard(request):
+    """The guide's tabs: Pending = submitted and not finished (with its state and place), Completed =
+    finished (with its outcome), and the drafts (saved, never submitted) apart."""
     mine = Experiment.objects.filter(owner=request.user)
+    pending = list(mine.filter(state__in=Experiment.PENDING).order_by("submitted_at", "pk"))
+    completed = list(mine.filter(state__in=Experiment.DONE).order_by("-finished_at", "-pk"))
+    for e in pending:
+        e.place, e.step = e.place_in_queue(), running_step(e)
+    for e in completed:
+        e.outcome = outcome_line(e)
+    tab = request.GET.get("tab") if request.GET.get("tab") in ("completed", "drafts") else "pending"
     return render(request, "portal/dashboard.html", {
-        "tab": "completed" if request.GET.get("tab") == "completed" else "pending",
-        "pending": mine.exclude(state__in=Experiment.DONE),
-        "completed": mine.filter(state__in=Experiment.DONE),
+        "tab": tab, "pending": pending, "completed": completed, "drafts": mine.filter(state=Experiment.SAVED),
         **queue_summary()})
+
+
+def outcome_line(experiment):
+    """A finished experiment's outcome in a few words (its first line of detail)."""
+    first = shown_text(experiment.detail).strip().splitlines()
+    if experiment.state == Experiment.REJECTED:
+        return first[1] if len(first) > 1 else "rejected by the verification"
+    return first[0] if first else experiment.state
+
+
+def running_step(experiment):
+    return jobs.current_step(experiment) if experiment.state == Experiment.RUNNING else None
+
+
+def shown_text(text):
+    """A job's text as a person may read it: the service's own folders (the job's box, the data folder)
+    never shown, a file of the experiment named by its name. None stays None."""
+    if text is None:
+        return None
+    boxes = re.escape(str(settings.JOB_BOXES_DIR).rstrip("/"))
+    text = re.sub(boxes + r"/[^\s/'\"]+/(?:work/)?", "", text)
+    return text.replace(str(settings.DATA_DIR), "(the service's folder)")
 
 
 @login_required
@@ -47,23 +104,29 @@ def queue(request):
     return render(request, "portal/queue.html", {"rows": rows, **queue_summary()})
 
 
-def _save_form(request, form, experiment):
-    """The form's fields and files into the experiment (files only inside its own folder)."""
+def save_experiment(form, user):
+    """The valid form's fields and files into its experiment (files only inside its own folder)."""
     data = form.cleaned_data
-    experiment.main_file = data["main_file"]
-    experiment.save()
-    for name in data.get("remove") or []:
-        os.remove(files.inside(experiment.files_dir, name))
-        ExperimentFile.objects.filter(experiment=experiment, name=name).delete()
-    for upload in data.get("upload") or []:
-        files.save_upload(experiment.files_dir, upload)
-        ExperimentFile.objects.update_or_create(experiment=experiment, name=upload.name,
-                                                defaults={"size": upload.size})
+    with transaction.atomic():
+        experiment = form.save(commit=False)
+        if experiment.owner_id is None:
+            experiment.owner = user
+        experiment.main_file = data["main_file"]
+        experiment.save()
+        for name in data.get("remove") or []:
+            os.remove(files.inside(experiment.files_dir, name))
+            ExperimentFile.objects.filter(experiment=experiment, name=name).delete()
+        for upload in data.get("upload") or []:
+            files.save_upload(experiment.files_dir, upload)
+            ExperimentFile.objects.update_or_create(experiment=experiment, name=upload.name,
+                                                    defaults={"size": upload.size})
+    return experiment
 
 
-def _submit(request, experiment):
-    """Submit, unless the account may not or has too many pending; the verification job after the commit."""
-    profile = getattr(request.user, "profile", None)
+def submit(user, experiment):
+    """Submit, unless the account may not or has too many pending (then why, in words); the verification job
+    after the commit. The pages and the API both submit through here."""
+    profile = getattr(user, "profile", None)
     if profile is None or not profile.email_confirmed:
         return "Confirm your email address first (the link in the mail you got; Resend it from the log-in page)."
     if not profile.approved:
@@ -71,7 +134,7 @@ def _submit(request, experiment):
     if not experiment.main_file:
         return "Choose the main file (the script that is run)."
     with transaction.atomic():
-        pending = Experiment.objects.filter(owner=request.user, state__in=Experiment.PENDING).count()
+        pending = Experiment.objects.filter(owner=user, state__in=Experiment.PENDING).count()
         if pending >= settings.PORTAL_MAX_PENDING:
             return ("You have %d experiments pending, the most one may have; submit this one when one of them "
                     "has finished (it is saved)." % pending)
@@ -84,13 +147,9 @@ def _submit(request, experiment):
 def _edit(request, experiment):
     form = ExperimentForm(request.POST or None, request.FILES or None, instance=experiment)
     if request.method == "POST" and form.is_valid():
-        with transaction.atomic():
-            experiment = form.save(commit=False)
-            if experiment.owner_id is None:
-                experiment.owner = request.user
-            _save_form(request, form, experiment)
+        experiment = save_experiment(form, request.user)
         if request.POST.get("action") == "submit":
-            problem = _submit(request, experiment)
+            problem = submit(request.user, experiment)
             if problem:
                 messages.error(request, "Not submitted: " + problem)
             else:
@@ -126,14 +185,14 @@ def experiment_page(request, pk):
     names = {name for name, _ in listing}
     context = {
         "experiment": experiment, "form": form, "scripts": experiment.files.all(),
-        "step": jobs.current_step(experiment) if experiment.state == Experiment.RUNNING else None,
+        "step": running_step(experiment), "detail": shown_text(experiment.detail),
         "differs": experiment.differs_from_verification(),
-        "place": experiment.place_in_queue(), "slot_minutes": round(jobs.time_limit() / 60),
+        "place": experiment.place_in_queue(),
         "return_messages": experiment.return_messages.all(),
         "results": results_dir is not None,
         "video": next((n for n in ("run.mp4", "run.gif") if n in names), None),
         "plot": "trajectories.png" if "trajectories.png" in names else None,
-        "report": _read(results_dir, "report.txt"), "log": _read(results_dir, "log.txt"),
+        "report": shown_text(_read(results_dir, "report.txt")), "log": shown_text(_read(results_dir, "log.txt")),
         "data_files": files.listing(results_dir, "data") if results_dir else [],
         "log_files": [(n, s) for n, s in listing if n in ("log.txt", "report.txt", "run.json")],
         "recording": [(n, s) for n, s in listing if n.endswith(".mcap") or n == "metadata.yaml"],
@@ -173,7 +232,14 @@ def result_file(request, pk, name):
     experiment = visible_experiment(request, pk)
     if experiment.results_dir is None:
         raise Http404("no results")
-    return files.download(request, files.inside(experiment.results_dir, name), as_attachment="download" in request.GET)
+    return files.download(request, files.result_path(experiment.results_dir, name),
+                          as_attachment="download" in request.GET)
+
+
+def result_listing(experiment):
+    """[(name, size)] of the results folder's files and its data/ files ('data/NAME'); [] before results."""
+    folder = experiment.results_dir
+    return (files.listing(folder) + files.listing(folder, "data")) if folder else []
 
 
 @login_required
@@ -200,3 +266,9 @@ def delete(request, pk):
     experiment.delete()
     messages.success(request, "Deleted.")
     return redirect("dashboard")
+
+
+def bad_request(request, exception=None):
+    """Django's 400 (a request past its limits: too many files or fields at once), said in words."""
+    return render(request, "portal/bad_request.html", {"max_files": settings.PORTAL_MAX_FILES,
+                                                       "max_bytes": settings.PORTAL_MAX_FILE_BYTES}, status=400)

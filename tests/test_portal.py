@@ -253,9 +253,13 @@ def test_the_whole_flow_in_a_real_browser_with_a_restart_mid_run(tmp_path):
             log_in(page, base, "ada@example.org")
             goto(page, base + "experiments/new/")
             page.set_input_files("#id_upload", [str(tmp_path / name) for name in WALK_FILES])
+            # the main file is chosen among the files being added, on the create page itself
+            assert page.eval_on_selector_all("#id_main_file option", "o => o.map(x => x.value)") == ["helper.py",
+                                                                                                   "main.py"]
+            assert page.input_value("#id_main_file") == "main.py"
+            page.select_option("#id_main_file", "main.py")
             fill_and_click(page, {"id_title": "Turn <in> place", "id_description": "two robots turn",
-                                  "id_estimated_duration": "90", "id_number_of_robots": "2",
-                                  "id_main_file": "main.py"}, "button[value=submit]")
+                                  "id_estimated_duration": "90", "id_number_of_robots": "2"}, "button[value=submit]")
             assert "Submitted" in body_text(page), body_text(page)
             pk = int(re.search(r"/experiments/(\d+)/", page.url).group(1))
             assert text_of(page, "h1").startswith("Turn <in> place")   # the title is text

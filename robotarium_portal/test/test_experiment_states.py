@@ -134,3 +134,27 @@ def test_an_account_is_approved_once():
     assert not profile.approve(owner())
     profile.refresh_from_db()
     assert profile.approved_by == admin
+
+
+def test_one_person_holds_one_verification_slot_at_a_time():
+    first_slot, second_slot = worker(), worker()
+    person = owner()
+    mine = [Experiment.objects.create(owner=person, title="t", estimated_duration=10, number_of_robots=2,
+                                      main_file="main.py", state=Experiment.SUBMITTED) for _ in range(2)]
+    theirs = experiment_in(Experiment.SUBMITTED)
+    assert mine[0].claim_verification(first_slot.pk)
+    assert not mine[1].claim_verification(second_slot.pk)   # the same person's: it waits
+    assert theirs.claim_verification(second_slot.pk)           # another person's goes first
+    assert mine[0].queue(first_slot.pk, {}, {})
+    assert mine[1].claim_verification(first_slot.pk)           # its turn once the first is done
+
+
+def test_a_rejection_reads_rule_count_first_step_then_what_the_verifier_says():
+    from robotarium_portal.jobs import rejection_text
+    text = rejection_text({"rules": [
+        {"rule": "collisions", "count": 168, "limit": 100, "first_step": 37, "message": "robots touched"},
+        {"rule": "no_end", "count": None, "limit": None, "first_step": None,
+         "message": "the script never called\n r.call_at_scripts_end()"},
+        {"rule": "compile", "count": None, "limit": None, "first_step": None, "message": ""}]})
+    assert text.splitlines() == ["collisions: 168 times, limit 100 (first at step 37). robots touched",
+                                 "no_end: the script never called r.call_at_scripts_end()", "compile:"]
