@@ -36,6 +36,7 @@ SHARED_TMP = ("/tmp", "/var/tmp", "/dev/shm")
 PRIVATE_IN_REPOSITORY = ("bags", "log", "results", "service")
 WATCH_PERIOD = 0.5   # s between two looks at the script's processes
 NOTE = "[job box] "
+SPEC_VARIABLE = "ROBOTARIUM_JOB_BOX"   # the door's spec (JSON), in its environment only
 
 
 @dataclass(frozen=True)
@@ -308,7 +309,8 @@ class JobBox:
         return env
 
     def entry(self, command):
-        """The command behind the box's door: namespaces made, then the command run (enter())."""
+        """(the command behind the box's door: namespaces made, then the command run (enter()); the door's
+        spec, handed in its environment: a command line is every process's to read, the job's too)."""
         home = pwd.getpwuid(os.geteuid()).pw_dir
         repository = os.environ.get("ROBOTARIUM_ROOT") or str(Path(__file__).resolve().parent.parent)
         keep = {os.path.realpath(p) for p in (sys.base_prefix, sys.prefix, repository, self.root, *self.keep)}
@@ -316,14 +318,15 @@ class JobBox:
         private = [os.path.join(repository, p) for p in PRIVATE_IN_REPOSITORY if os.path.isdir(os.path.join(repository, p))]
         spec = {"user_namespace": not isolated(), "hide": hide, "private": private, "keep": sorted(keep),
                 "box": str(self.folder), "uid": self.uid, "gid": self.gid, "disk_bytes": self.limits.disk_bytes}
-        return [sys.executable, os.path.abspath(__file__), "enter", json.dumps(spec), "--", *command]
+        return [sys.executable, os.path.abspath(__file__), "enter", "--", *command], json.dumps(spec)
 
     def run(self, command, env, output_path, timeout, started=None):
         """Run command (in work/) in the box, its output in output_path; started(pid) once it runs.
         Returns an Outcome; the notes are also written at the end of the output, one '[job box]' line each."""
         notes, timed_out = [], False
         with open(output_path, "wb") as output:
-            process = subprocess.Popen(self.entry(command), cwd=self.work, env=self.environment(env),
+            entry, spec = self.entry(command)
+            process = subprocess.Popen(entry, cwd=self.work, env=dict(self.environment(env), **{SPEC_VARIABLE: spec}),
                                        stdout=output, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                        process_group=0)
             if started:
@@ -538,6 +541,7 @@ def _init(libc, command):
 
 
 if __name__ == "__main__":
-    if len(sys.argv) < 5 or sys.argv[1] != "enter" or sys.argv[3] != "--":
-        sys.exit("usage: python jobbox.py enter SPEC_JSON -- COMMAND... (the job box's door; see its docstring)")
-    enter(json.loads(sys.argv[2]), sys.argv[4:])
+    if len(sys.argv) < 4 or sys.argv[1:3] != ["enter", "--"] or SPEC_VARIABLE not in os.environ:
+        sys.exit("usage: %s=SPEC_JSON python jobbox.py enter -- COMMAND... (the job box's door; see its docstring)"
+                 % SPEC_VARIABLE)
+    enter(json.loads(os.environ.pop(SPEC_VARIABLE)), sys.argv[3:])   # the command gets no spec

@@ -11,6 +11,7 @@ import logging
 import os
 import re
 import shutil
+import sys
 import time
 
 from django.conf import settings
@@ -297,6 +298,11 @@ def run_folder(experiment, attempt=None):
     return experiment.folder / ("run-%d" % (attempt or experiment.attempts))
 
 
+def live_file(experiment):
+    """The running experiment's poses and drawing as they come (live_feed.py writes it, the page streams it)."""
+    return run_folder(experiment) / "live.jsonl"
+
+
 def current_step(experiment):
     """The last step the running experiment's progress lines named, or None."""
     try:
@@ -318,9 +324,12 @@ def run_experiment(experiment):
     copy_files(experiment.files_dir, work)
     results.mkdir(parents=True)
     limit = time_limit()
-    command = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--hardware", "--no-verdict",
-               "--time-limit", "%g" % limit, "--bags-dir", str(results), "--results-dir", str(results),
-               experiment.main_file]
+    run = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--hardware", "--no-verdict",
+           "--time-limit", "%g" % limit, "--bags-dir", str(results), "--results-dir", str(results),
+           experiment.main_file]
+    # The live view's feed beside the run, on its testbed (live_feed.py); the job's end ends it.
+    command = ["sh", "-c", '"$0" -m robotarium_portal.live_feed "$1" & shift; exec "$@"', sys.executable,
+               str(live_file(experiment)), *run]
     began = time.monotonic()
     code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_RUN_DOMAIN"), root / "output.txt",
                        limit + RESULTS_GRACE, RUN_CLUSTER)

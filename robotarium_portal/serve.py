@@ -46,6 +46,9 @@ def parse(argv):
     parser.add_argument("--create-admin", metavar="EMAIL",
                         help="create (or make) an administrator account with this email, asking for its password "
                              "(read from standard input when it is not a terminal), then exit")
+    parser.add_argument("--create-token", metavar="EMAIL",
+                        help="make an API token for this approved account (administrators included; for "
+                             "./robotarium submit), print it once, then exit")
     parser.add_argument("--run-domain", type=int, help="ROS_DOMAIN_ID of the runs' testbed (default: a free one)")
     parser.add_argument("--verify-domain", type=int,
                         help="ROS_DOMAIN_ID of the verification's testbed (default: a free one)")
@@ -83,12 +86,28 @@ def create_admin(email):
     print("[robotarium] %s is an administrator: log in at the portal; its admin pages are under /admin/" % email)
 
 
+def create_token(email):
+    """An API token for an approved account (an operator's way; a person makes theirs on the account page)."""
+    from django.contrib.auth import get_user_model
+
+    from robotarium_portal.models import ApiToken
+    user = get_user_model().objects.filter(username=email.strip().lower()).select_related("profile").first()
+    profile = getattr(user, "profile", None)
+    if user is None or not user.is_active or not (user.is_staff or (profile is not None and profile.may_submit)):
+        sys.exit("[robotarium] error: no approved account %s here (it signs up, confirms its address and is approved "
+                 "first; an administrator is approved already)" % email)
+    _, key = ApiToken.make(user)
+    print("[robotarium] an API token for %s (shown this once; ./robotarium submit reads it from --token or "
+          "ROBOTARIUM_TOKEN):\n%s" % (user.email, key))
+    return 0
+
+
 def main(argv=None):
     args = parse(argv)
     data = Path(args.data).resolve()
     data.mkdir(parents=True, exist_ok=True)
     lock = open(data / "serve.lock", "w")
-    if args.create_admin is None:
+    if args.create_admin is None and args.create_token is None:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -106,6 +125,8 @@ def main(argv=None):
                  % (args.database.split("@")[-1] or "in " + str(data), str(error).strip()))
     if args.create_admin is not None:
         return create_admin(args.create_admin)
+    if args.create_token is not None:
+        return create_token(args.create_token)
 
     import waitress
 
@@ -117,7 +138,7 @@ def main(argv=None):
     hosts = ["localhost", "127.0.0.1", "[::1]"] + args.allowed_host + (
         [args.host] if args.host not in ("0.0.0.0", "::") else [])
     try:
-        server = waitress.create_server(application, host=args.host, port=args.port, threads=8)
+        server = waitress.create_server(application, host=args.host, port=args.port, threads=24)   # live streams hold one each
     except OSError as error:
         sys.exit("[robotarium] error: cannot listen on %s:%d (%s); choose another with --port (0: any free one)"
                  % (args.host, args.port, error.strerror or error))

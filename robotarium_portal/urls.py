@@ -3,6 +3,7 @@ from django.contrib.auth import views as auth_views
 from django.contrib.staticfiles.views import serve as static_file
 from django.urls import path, re_path
 
+from robotarium_portal import api
 from robotarium_portal import views_accounts as accounts
 from robotarium_portal import views_experiments as experiments
 
@@ -16,6 +17,10 @@ urlpatterns = [
     path("experiments/<int:pk>/results/<path:name>", experiments.result_file, name="result_file"),
     path("experiments/<int:pk>/message/", experiments.return_message, name="return_message"),
     path("experiments/<int:pk>/delete/", experiments.delete, name="delete"),
+    path("experiments/<int:pk>/live/", experiments.live, name="live"),
+    path("api/experiments/", api.experiments, name="api_experiments"),
+    path("api/experiments/<int:pk>/", api.experiment, name="api_experiment"),
+    path("api/experiments/<int:pk>/results/<path:name>", api.result_file, name="api_result_file"),
     path("signup/", accounts.signup, name="signup"),
     path("confirm/resend/", accounts.resend, name="resend"),
     path("confirm/<str:uidb64>/<str:token>/", accounts.confirm, name="confirm"),

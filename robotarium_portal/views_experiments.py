@@ -1,22 +1,29 @@
 """The dashboard, the queue, Create Experiment, an experiment's page and results, and their files."""
+import functools
 import json
 import os
 import re
 import shutil
+import time
 
 from django.conf import settings
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
-from django.db import transaction
-from django.http import Http404, HttpResponse
+from django.db import close_old_connections, transaction
+from django.http import Http404, HttpResponse, StreamingHttpResponse
 from django.shortcuts import redirect, render
+from django.urls import reverse
 from django.utils import timezone
 from django.views.decorators.http import require_POST
 
+from robotarium_core.config import TestbedConfig
 from robotarium_portal import files, jobs
 from robotarium_portal.forms import ExperimentForm
 from robotarium_portal.models import Experiment, ExperimentFile, ReturnMessage, Worker
 
+LIVE_RATE = 20            # events a second at most from a live stream (the testbed's 30 Hz poses, thinned)
+LIVE_STATE_PERIOD = 1.0   # s between two looks at the experiment's state for a live stream
+LIVE_STREAM = 60          # s a live stream lasts before the browser opens the next (a server thread each)
 UNMEASURED_START = 30   # s a run takes beyond its declared duration, for the wait before any run was measured
 
 
@@ -26,6 +33,12 @@ def visible_experiment(request, pk):
     if experiment is None or (experiment.owner_id != request.user.pk and not request.user.is_staff):
         raise Http404("no such experiment")
     return experiment
+
+
+@functools.cache
+def testbed_config():
+    """The testbed configuration (the arena, the robots' size), read once."""
+    return TestbedConfig.load()
 
 
 def queue_summary():
@@ -46,7 +59,8 @@ def queue_summary():
         total += each
     slots = max(1, Worker.objects.filter(state=Worker.ALIVE, kind=Worker.RUNS).count())
     wait = total / slots
-    source = ("from the last %d runs (%s each on average)" % (len(measured), _duration(typical)) if measured
+    source = ("from the last %s (%s each on average)" % ("run" if len(measured) == 1 else "%d runs" % len(measured),
+                                                         _duration(typical)) if measured
               else "from the declared durations (no run measured yet)")
     text = ("An experiment submitted now starts at once after its verification." if not ahead else
             "An experiment submitted now starts in about %s, %s." % (_duration(wait), source))
@@ -186,6 +200,8 @@ def experiment_page(request, pk):
     context = {
         "experiment": experiment, "form": form, "scripts": experiment.files.all(),
         "step": running_step(experiment), "detail": shown_text(experiment.detail),
+        "live": experiment.state in Experiment.PENDING, "live_url": reverse("live", args=[experiment.pk]),
+        "arena_json": json.dumps(list(testbed_config().arena)), "robot_radius": testbed_config().robot_diameter / 2,
         "differs": experiment.differs_from_verification(),
         "place": experiment.place_in_queue(),
         "return_messages": experiment.return_messages.all(),
@@ -272,3 +288,68 @@ def bad_request(request, exception=None):
     """Django's 400 (a request past its limits: too many files or fields at once), said in words."""
     return render(request, "portal/bad_request.html", {"max_files": settings.PORTAL_MAX_FILES,
                                                        "max_bytes": settings.PORTAL_MAX_FILE_BYTES}, status=400)
+
+
+@login_required
+def live(request, pk):
+    """The experiment's page, live (server-sent events, no plug-in): its state as it changes and, while it
+    runs, the newest poses and drawing from its testbed (jobs.live_file) as they come, at most
+    LIVE_RATE a second. A stream lasts LIVE_STREAM s; the browser's EventSource then opens the next."""
+    experiment = visible_experiment(request, pk)
+    response = StreamingHttpResponse(_live_events(experiment), content_type="text/event-stream")
+    response["Cache-Control"] = "no-cache"
+    response["X-Accel-Buffering"] = "no"   # a proxy in front passes each event on at once
+    return response
+
+
+def _event(name, data):
+    return ("event: %s\ndata: %s\n\n" % (name, json.dumps(data))).encode()
+
+
+def _live_events(experiment):
+    yield b"retry: 1000\n\n"
+    last_state, tail, offset, ends = None, b"", None, time.monotonic() + LIVE_STREAM
+    looked = 0.0
+    while time.monotonic() < ends:
+        if time.monotonic() - looked >= LIVE_STATE_PERIOD:   # the state: from the database, once a second
+            looked = time.monotonic()
+            experiment.refresh_from_db()
+            close_old_connections()
+            state = {"state": experiment.state, "place": experiment.place_in_queue(),
+                     "step": running_step(experiment)}
+            if state != last_state:
+                yield _event("state", state)
+                last_state = state
+            if experiment.state in Experiment.DONE or experiment.state == Experiment.SAVED:
+                return
+        if experiment.state == Experiment.RUNNING:
+            poses, drawing, offset, tail = _new_lines(jobs.live_file(experiment), offset, tail)
+            if drawing:
+                yield _event("drawing", drawing)
+            if poses:
+                yield _event("poses", poses)
+        time.sleep(1.0 / LIVE_RATE)
+
+
+def _new_lines(path, offset, tail):
+    """(newest poses, newest drawing, new offset, an unfinished line) of what the feed appended since
+    offset; a first look starts at the newest drawing and poses already there."""
+    try:
+        with open(path, "rb") as f:
+            size = f.seek(0, os.SEEK_END)
+            if offset is None or offset > size:
+                offset = 0
+            f.seek(offset)
+            chunk = tail + f.read(size - offset)
+    except OSError:
+        return None, None, offset, tail
+    *lines, tail = chunk.split(b"\n")
+    poses = drawing = None
+    for line in reversed(lines):
+        if poses is None and line.startswith(b'{"t"') and b'"step"' in line:
+            poses = json.loads(line)
+        elif drawing is None and b'"drawing"' in line:
+            drawing = json.loads(line)
+        if poses is not None and drawing is not None:
+            break
+    return poses, drawing, size, tail
