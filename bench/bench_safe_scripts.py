@@ -16,7 +16,12 @@ changed here); actuator-limit iterations of the stack, 0.0.0+g and 0.0.0 (0.0.0 
 apart, so its paths and counts differ where a script exceeds the wheel limits: the thresholding, not
 the counting).
 Listings with fixed loops of thousands of steps run shortened loops (--full: as printed).
-Run: ./robotarium bench safe_scripts [--full] [PATTERN ...]
+
+--rps2: the 2.1.0 examples instead (examples/rps2/, shortened as tests/test_rps2_examples.py runs
+them): arrays changed, and the iterations of the stack and of the Robotarium simulator 2.1.0 (its
+source beside the repository, run in .venv-reference; both count the drive-on phase, which differs
+by design: docs/rps2.md), with 2.1.0's errors (too close / outside).
+Run: ./robotarium bench safe_scripts [--full] [--rps2] [PATTERN ...]
 """
 import argparse
 import glob
@@ -56,11 +61,73 @@ def run_stack(script, seed, settings, env, bags):
     return safe_scripts.recorded_trace(folder.group(1)), ""
 
 
+RPS2 = os.path.join(REPO, "examples", "rps2")
+REFERENCE_2 = os.path.join(os.path.dirname(REPO), "shared", "reference", "robotarium_python_simulator-2.1.0")
+
+
+def rps2_settings(script):
+    """The shortening tests/test_rps2_examples.py applies (run_seeded.py arguments)."""
+    sys.path.insert(0, os.path.join(REPO, "tests"))
+    import test_rps2_examples as examples
+    name = os.path.relpath(script, RPS2)
+    with open(script) as f:
+        long_loop = "\niterations = " in f.read()
+    args = ["--iterations", str(examples.SHORT_ITERATIONS)] if long_loop else []
+    args += [arg for setting in examples.SHORTER.get(name, []) for arg in ("--set", setting)]
+    return args, examples.SCRIPT_ARGS.get(name, [])
+
+
+def rps2_reference(script, seed, args, script_args):
+    """(iterations, too close, outside) from 2.1.0's debug() text, or None."""
+    from devtools.reference import REFERENCE_PYTHON
+    env = dict(os.environ, PYTHONPATH=REFERENCE_2, MPLBACKEND="Agg")
+    env.pop("AMENT_PREFIX_PATH", None)
+    out = subprocess.run([REFERENCE_PYTHON, RUN_SEEDED, *args, str(seed), script, *script_args], env=env,
+                         capture_output=True, text=True, cwd=os.path.dirname(script), timeout=1800)
+    text = out.stdout + out.stderr
+    took = re.search(r"took approximately ([0-9.]+) real seconds", text)
+    if took is None:
+        return None
+    close = re.search(r"(\d+) time steps where robots were too close", text)
+    outside = re.search(r"(\d+) time steps where robots were outside", text)
+    return (round(float(took.group(1)) / 0.033), int(close.group(1)) if close else 0,
+            int(outside.group(1)) if outside else 0)
+
+
+def main_rps2(args, env, bags):
+    scripts = sorted(p for p in glob.glob(os.path.join(RPS2, "**", "*.py"), recursive=True) if not p.endswith("uni_ekf.py"))
+    scripts = [s for s in scripts if not args.patterns or any(p in s for p in args.patterns)]
+    print("%-52s %7s %8s %13s %12s" % ("2.x example", "changed", "largest", "iterations", "2.1.0"))
+    print("%-52s %7s %8s %13s %12s" % ("", "arrays", "change", "stack/2.1.0", "close/out"))
+    unchanged = 0
+    for script in scripts:
+        run_args, script_args = rps2_settings(script)
+        out = subprocess.run([sys.executable, "-m", "robotarium_cli", "run", "--no-local-testbed", "--lockstep",
+                              "--no-video", "--no-verdict", "--bags-dir", bags, RUN_SEEDED, *run_args, str(args.seed),
+                              script, *script_args], env=env, capture_output=True, text=True,
+                             cwd=os.path.dirname(script), timeout=1800)
+        folder = re.search(r" recorded in (\S+)", out.stdout + out.stderr)
+        name = os.path.relpath(script, RPS2)[:52]
+        if folder is None:
+            print("%-52s no run: %s" % (name, (out.stdout + out.stderr).strip().splitlines()[-1:]), flush=True)
+            continue
+        stack = safe_scripts.recorded_trace(folder.group(1))
+        reference = rps2_reference(script, args.seed, run_args, script_args)
+        unchanged += stack.changed == 0
+        print("%-52s %7d %8.3g %13s %12s" % (
+            name, stack.changed, stack.largest_change,
+            "%d/%s" % (stack.iterations, reference[0] if reference else "-"),
+            "%d/%d" % reference[1:] if reference else "(no report)"), flush=True)
+    print("2.x examples with no array changed: %d of %d. Load average now %.1f." % (unchanged, len(scripts),
+                                                                                    os.getloadavg()[0]))
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("patterns", nargs="*", help="only scripts whose file name contains one of these")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--full", action="store_true", help="run the long listings as printed (minutes)")
+    parser.add_argument("--rps2", action="store_true", help="the 2.1.0 examples, beside 2.1.0")
     args = parser.parse_args()
     scripts = [s for s in SCRIPTS if not args.patterns or any(p in os.path.basename(s) for p in args.patterns)]
 
@@ -78,9 +145,11 @@ def main():
         os.environ.update(saved)
         print("safe scripts, %s, %s, %d cores, seed %d, lockstep, load average %.1f" % (
             time.strftime("%Y-%m-%d %H:%M"), platform.machine(), os.cpu_count(), args.seed, os.getloadavg()[0]))
-        print("%-46s %7s %8s %17s %10s %9s %13s" % ("script", "changed", "largest", "iterations", "position",
+        if args.rps2:
+            return main_rps2(args, env, bags)
+        print("%-52s %7s %8s %17s %10s %9s %13s" % ("script", "changed", "largest", "iterations", "position",
                                                    "0.0.0", "actuator"))
-        print("%-46s %7s %8s %17s %10s %9s %13s" % ("", "arrays", "change", "stack/+g/0.0.0", "diff (m)",
+        print("%-52s %7s %8s %17s %10s %9s %13s" % ("", "arrays", "change", "stack/+g/0.0.0", "diff (m)",
                                                    "col/out", "st/+g/0.0.0"))
         unchanged = 0
         for script in scripts:
@@ -89,12 +158,12 @@ def main():
             raw = safe_scripts.run_script(script, safe_scripts.reference_robotarium(), args.seed, settings)
             guide = safe_scripts.run_script(script, safe_scripts.reference_robotarium(guide_thresholding=True),
                                             args.seed, settings)
-            name = os.path.basename(script)[:46]
+            name = os.path.basename(script)[:52]
             if stack is None:
-                print("%-46s no run: %s" % (name, problem.strip().splitlines()[-1:]), flush=True)
+                print("%-52s no run: %s" % (name, problem.strip().splitlines()[-1:]), flush=True)
                 continue
             unchanged += stack.changed == 0
-            print("%-46s %7d %8.3g %17s %10.2g %4d/%-4d %13s" % (
+            print("%-52s %7d %8.3g %17s %10.2g %4d/%-4d %13s" % (
                 name, stack.changed, stack.largest_change, "%d/%d/%d" % (stack.iterations, guide.iterations,
                                                                          raw.iterations),
                 stack.difference(guide), raw.collisions, raw.boundary,

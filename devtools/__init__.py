@@ -12,4 +12,4 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # The ament_python packages, in dependency order; their sources are imported directly in tests
 # (never a stale install). ./robotarium's PACKAGES lists the same folders for colcon.
 PACKAGE_SOURCES = [os.path.join(REPO, p) for p in (
-    "robotarium_core", "robotarium_sim", "robotarium_safety", "robotarium_recording", "robotarium_client")]
+    "robotarium_core", "robotarium_sim", "robotarium_hardware", "robotarium_safety", "robotarium_recording", "robotarium_client")]

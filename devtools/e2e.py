@@ -70,16 +70,17 @@ def check_bag(folder):
 
 
 @contextlib.contextmanager
-def own_domain_testbed(tmp_path_factory):
+def own_domain_testbed(tmp_path_factory, domain=None, fleet_file=None):
     """A LocalTestbed on a domain of its own (localhost discovery), bags and logs in temporary
     folders, up before anything runs on it: yields (env for processes on it, bags folder, testbed);
-    stopped on leaving."""
-    domain = unique_domain_id()
+    stopped on leaving. fleet_file: the hardware arena of that fleet in the simulator's place (its robots run
+    on `domain`, which the caller then gives)."""
+    domain = domain or unique_domain_id()
     bags = tmp_path_factory.mktemp("bags")
     env = node_env(domain)
     saved = dict(os.environ)
     os.environ.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
-    tb = LocalTestbed(log_dir=str(tmp_path_factory.mktemp("logs")), bags_dir=str(bags)).start()
+    tb = LocalTestbed(log_dir=str(tmp_path_factory.mktemp("logs")), bags_dir=str(bags), fleet_file=fleet_file).start()
     try:
         try:
             # up before the first run, or `run` would start a second testbed of its own

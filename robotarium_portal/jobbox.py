@@ -257,7 +257,10 @@ def notes_in(output_path):
 class JobBox:
     """The box of one job slot (a worker runs one job a slot at a time): `<root>/<name>/`, its account."""
 
-    def __init__(self, root, name, limits, keep=()):
+    def __init__(self, root, name, limits, keep=(), own_network=True):
+        # own_network False: the machine's network (a worker that moves real robots: its testbed's hardware arena
+        # talks to them there); the box keeps its mount namespace, folder, account, limits and environment.
+        self.own_network = own_network
         self.root = Path(root).resolve()
         self.folder = self.root / name
         self.work, self.home, self.tmp = self.folder / "work", self.folder / "home", self.folder / "tmp"
@@ -301,9 +304,11 @@ class JobBox:
         if isolated():
             # Fast DDS's shared memory: the testbed's segments are the service's, the script's account may not
             # write them (localhost-only discovery adds that transport whatever FASTDDS_BUILTIN_TRANSPORTS says).
-            # So UDP only, and discovery on the "subnet": in the box's namespace that is its own loopback.
+            # So UDP only, and discovery on the "subnet": in the box's namespace that is its own loopback (on the
+            # machine's network, a robots' worker's, discovery stays as the job's environment says).
             env["FASTDDS_BUILTIN_TRANSPORTS"] = "UDPv4"
-            env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
+            if self.own_network:
+                env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
         env[script_box.VARIABLE] = script_box.describe(self.user, self.uid, self.gid, self.home,
                                                        self.limits.script_limits())
         return env
@@ -317,7 +322,8 @@ class JobBox:
         hide = [p for p in (home, *SHARED_TMP) if os.path.isdir(p) and os.path.realpath(p) != "/"]
         private = [os.path.join(repository, p) for p in PRIVATE_IN_REPOSITORY if os.path.isdir(os.path.join(repository, p))]
         spec = {"user_namespace": not isolated(), "hide": hide, "private": private, "keep": sorted(keep),
-                "box": str(self.folder), "uid": self.uid, "gid": self.gid, "disk_bytes": self.limits.disk_bytes}
+                "box": str(self.folder), "uid": self.uid, "gid": self.gid, "disk_bytes": self.limits.disk_bytes,
+                "own_network": self.own_network}
         return [sys.executable, os.path.abspath(__file__), "enter", "--", *command], json.dumps(spec)
 
     def run(self, command, env, output_path, timeout, started=None):
@@ -466,7 +472,9 @@ def _box_on_tmpfs(libc, spec):
 
 def enter(spec, command):
     uid, gid = os.geteuid(), os.getegid()
-    flags = os.CLONE_NEWNET | os.CLONE_NEWNS | os.CLONE_NEWPID | (os.CLONE_NEWUSER if spec["user_namespace"] else 0)
+    own_network = spec.get("own_network", True)
+    flags = ((os.CLONE_NEWNET if own_network else 0) | os.CLONE_NEWNS | os.CLONE_NEWPID
+             | (os.CLONE_NEWUSER if spec["user_namespace"] else 0))
     try:
         os.unshare(flags)
     except OSError as error:
@@ -482,7 +490,8 @@ def enter(spec, command):
             f.write("%d %d 1" % (gid, gid))
     libc = ctypes.CDLL(None, use_errno=True)
     _mount(libc, None, "/", None, MS_REC | MS_PRIVATE)   # nothing done here reaches the machine's mounts
-    loopback_up()
+    if own_network:
+        loopback_up()
     hidden = [os.path.realpath(p) for p in spec["hide"]]
     kept = [(p, os.open(p, os.O_PATH | os.O_DIRECTORY)) for p in spec["keep"] if os.path.isdir(p)]
     _box_on_tmpfs(libc, spec)

@@ -13,6 +13,7 @@ import re
 import shutil
 import sys
 import time
+from pathlib import Path
 
 from django.conf import settings
 from django.db import transaction
@@ -20,6 +21,7 @@ from django.db.models import F, Q
 from django_q.models import OrmQ
 from django_q.tasks import async_task
 
+from robotarium_core import run_record
 from robotarium_core.config import TestbedConfig
 from robotarium_portal import jobbox, mail
 from robotarium_portal.database import database_retry
@@ -100,7 +102,7 @@ def stopping():
     return (jobs_dir() / "stopping").exists()
 
 
-def run_command(command, cwd, env, output_path, timeout, job):
+def run_command(command, cwd, env, output_path, timeout, job, own_network=True):
     """Run command in the job's own box (jobbox: its namespaces, folder, account and limits; cwd's files are
     copied into the box's folder, where it runs), its output in a file. The box's process group is in
     jobs/<job>.pgid while it runs (serve stops it there). The exit code, or None when it ran past timeout
@@ -108,7 +110,7 @@ def run_command(command, cwd, env, output_path, timeout, job):
     pgid_file = jobs_dir() / ("%s.pgid" % job)
     # a box per worker slot: the slots on one machine differ in their ROS_DOMAIN_ID (a bounded set of accounts)
     box = jobbox.JobBox(settings.JOB_BOXES_DIR, "%s-%s" % (job, env.get("ROS_DOMAIN_ID", "0")),
-                        jobbox.Limits(**settings.JOB_LIMITS), keep=[settings.DATA_DIR])
+                        jobbox.Limits(**settings.JOB_LIMITS), keep=[settings.DATA_DIR], own_network=own_network)
     try:
         box.prepare(cwd)
         return box.run(command, env, output_path, timeout, started=lambda pid: pgid_file.write_text(str(pid))).code
@@ -315,6 +317,22 @@ def current_step(experiment):
     return int(steps[-1]) if steps else None
 
 
+# Set (to its fleet file) for the run slot of a worker that moves real robots (./robotarium worker --fleet).
+FLEET_VARIABLE = "ROBOTARIUM_PORTAL_FLEET"
+
+
+def bring_results(output_path, results):
+    """A run on the robots is recorded by the worker's own testbed, in its bags folder; the run folder that
+    ./robotarium run named ("results in FOLDER") moves into the experiment's results/."""
+    try:
+        lines = Path(output_path).read_text(errors="replace").splitlines()
+    except OSError:
+        return
+    named = [line.split("results in ", 1)[1].split(" (open ")[0].strip() for line in lines if "] results in " in line]
+    if named and Path(named[-1]).is_dir() and not Path(named[-1]).resolve().is_relative_to(Path(results).resolve()):
+        shutil.move(named[-1], Path(results) / Path(named[-1]).name)
+
+
 @failing_truthfully
 def run_experiment(experiment):
     """./robotarium run in real time, hardware-like, in the experiment's own working folder; then the results."""
@@ -324,27 +342,34 @@ def run_experiment(experiment):
     copy_files(experiment.files_dir, work)
     results.mkdir(parents=True)
     limit = time_limit()
-    run = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--hardware", "--no-verdict",
-           "--time-limit", "%g" % limit, "--bags-dir", str(results), "--results-dir", str(results),
-           experiment.main_file]
+    fleet = os.environ.get(FLEET_VARIABLE)
+    if fleet:   # a worker of robots (./robotarium worker --fleet): its hardware arena's testbed, on its run domain
+        run = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--no-local-testbed", "--no-verdict",
+               "--time-limit", "%g" % limit, "--results-dir", str(results), experiment.main_file]
+    else:
+        run = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--hardware", "--no-verdict",
+               "--time-limit", "%g" % limit, "--bags-dir", str(results), "--results-dir", str(results),
+               experiment.main_file]
     # The live view's feed beside the run, on its testbed (live_feed.py); the job's end ends it.
     command = ["sh", "-c", '"$0" -m robotarium_portal.live_feed "$1" & shift; exec "$@"', sys.executable,
                str(live_file(experiment)), *run]
     began = time.monotonic()
     code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_RUN_DOMAIN"), root / "output.txt",
-                       limit + RESULTS_GRACE, RUN_CLUSTER)
+                       limit + RESULTS_GRACE, RUN_CLUSTER, own_network=not fleet)
+    if fleet:
+        bring_results(root / "output.txt", results)
     experiment.timings = dict(experiment.timings or {}, run_command=round(time.monotonic() - began, 3))
     if stopping():
         return "the service stopped during the run of experiment %d" % experiment.pk
-    folders = sorted((p for p in results.iterdir() if (p / "run.json").exists()), key=lambda p: p.stat().st_mtime)
-    run = json.loads((folders[-1] / "run.json").read_text()) if folders else {}
-    outcome = run.get("outcome", "")
+    folders = sorted((p for p in results.iterdir() if (p / run_record.FILE).exists()), key=lambda p: p.stat().st_mtime)
+    run = (run_record.read(str(folders[-1])) if folders else None) or run_record.RunRecord()
+    outcome = run.outcome
     # What the page said before the run (not verified; an earlier run cut short by a stop) stays said.
     earlier = "\n\n" + experiment.detail if experiment.detail else ""
     experiment.results = str(folders[-1].relative_to(experiment.folder)) if folders else ""
     experiment.run_outcome = outcome
     if outcome in ("completed", "time_limit"):
-        detail = run.get("detail") or "Run completed."
+        detail = run.detail or "Run completed."
         differs = experiment.differs_from_verification()
         if differs is not None:
             mail.try_sending(mail.tell_administrators_of_a_difference, experiment, *differs)
@@ -352,8 +377,8 @@ def run_experiment(experiment):
                        run_outcome=outcome, timings=experiment.timings)
     if code is None:
         why = "the run did not end within %d s of its start" % (limit + RESULTS_GRACE)
-    elif run.get("detail"):
-        why = run["detail"]
+    elif run.detail:
+        why = run.detail
     else:
         why = "./robotarium run ended with exit code %s and no results:\n%s" % (code, _tail(root / "output.txt"))
     return _finish(experiment, Experiment.FAILED, "Failed: " + why + box_notes(root / "output.txt") + earlier,

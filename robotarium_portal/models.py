@@ -9,6 +9,8 @@ from django.db import models
 from django.db.models import F, Q
 from django.utils import timezone
 
+from robotarium_core import run_record
+
 ANY = object()   # a transition that holds for whichever worker holds the experiment
 
 
@@ -245,12 +247,10 @@ class Experiment(models.Model):
         and the second 0: a script that behaves differently on the robots than in verification (one
         that stays still while verified and drives robots head-on in the run). Else None."""
         counts = (self.verification or {}).get("counts") or {}
-        run_json = self.results_dir / "run.json" if self.results_dir else None
-        try:
-            run = json.loads(run_json.read_text()) if run_json else {}
-        except (OSError, ValueError):
+        run = run_record.read(str(self.results_dir)) if self.results_dir else None
+        if run is None:
             return None
-        in_run, verified = int(run.get("ideal_interventions") or 0), counts.get("safety_interventions")
+        in_run, verified = run.ideal_interventions, counts.get("safety_interventions")
         if in_run and verified == 0:
             return in_run, verified
         return None
@@ -292,7 +292,7 @@ class ReturnMessage(models.Model):
 class Worker(models.Model):
     """One job slot of a worker (./robotarium worker or serve's own): it verifies or runs one job at a time on a
     testbed of its own (ROS_DOMAIN_ID `domain` on `host`). Its supervisor beats for it every
-    settings.WORKER_HEARTBEAT s; one whose beats stopped is found lost (robotarium_portal.workers.sweep)."""
+    settings.WORKER_HEARTBEAT s; one whose beats stopped is found lost (robotarium_portal.supervisor.sweep)."""
     VERIFY, RUNS = "verify", "runs"
     ALIVE, STOPPED, LOST = "alive", "stopped", "lost"
     host = models.CharField(max_length=200)

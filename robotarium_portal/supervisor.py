@@ -120,15 +120,16 @@ class Supervisor:
     """The slots of one machine: a django-q2 cluster each (its own process group, its jobs' processes
     included), their beats, and the watch over every other worker of the service."""
 
-    def __init__(self, data, kinds, jobs, env, domains=None, lock=None):
+    def __init__(self, data, kinds, jobs, env, domains=None, lock=None, fleet_file=None):
         from robotarium_portal.models import Worker
         self.data, self.env, self.lock = Path(data), env, lock
+        self.fleet_file, self.fleet_testbed = fleet_file, None   # a worker of robots: one arena, one run at a time
         self.logs = self.data / "logs"
         self.logs.mkdir(exist_ok=True)
         self.host = socket.gethostname()
         self.slots = []   # (Worker, Popen or None)
         for kind in kinds:
-            for index in range(jobs):
+            for index in range(1 if kind == "runs" and fleet_file else jobs):
                 domain = (domains or {}).get(kind) if index == 0 else None
                 worker = Worker.objects.create(host=self.host, pid=os.getpid(), kind=kind,
                                                domain=domain if domain is not None else free_domain())
@@ -143,11 +144,16 @@ class Supervisor:
 
     def start(self):
         from robotarium_core import lifeline
+        from robotarium_portal import jobs
         for slot in self.slots:
             worker = slot[0]
             log = open(self.logs / ("worker-%s-%s-%d.txt" % (self.host, worker.kind, worker.pk)), "ab")
             env = dict(self.env, ROBOTARIUM_WORKER_ID=str(worker.pk), Q_CLUSTER_NAME=worker.kind,
                        ROBOTARIUM_PORTAL_RUN_DOMAIN=str(worker.domain), ROBOTARIUM_PORTAL_VERIFY_DOMAIN=str(worker.domain))
+            if self.fleet_file and worker.kind == "runs":
+                env[jobs.FLEET_VARIABLE] = self.fleet_file
+                self.fleet_testbed = start_fleet_testbed(self.fleet_file, worker.domain, self.data / "fleet-runs",
+                                                         self.logs / ("fleet-%s-%d" % (self.host, worker.pk)))
             env, pass_fds = lifeline.for_child(env)
             if self.lock is not None:
                 pass_fds = pass_fds + (self.lock.fileno(),)
@@ -226,10 +232,29 @@ class Supervisor:
             except ProcessLookupError:
                 pass
             process.wait()
+        if self.fleet_testbed is not None:
+            self.fleet_testbed.stop()   # every robot gets zeros
+            self.fleet_testbed = None
         if hand_back:
             database_retry(lambda: release(self.pks), "handing the jobs back")
         for pk in self.pks:
             shutil.rmtree(jobs.jobs_dir(pk), ignore_errors=True)
+
+
+def start_fleet_testbed(fleet_file, domain, bags, log_dir):
+    """The testbed of a worker of robots (./robotarium worker --fleet): the hardware arena of the fleet, the
+    safety node and the recorder (its runs into `bags`; each run's folder then moves into its experiment's
+    results), on the run slot's ROS_DOMAIN_ID, kept up while the worker runs."""
+    from robotarium_bringup.testbed import LocalTestbed
+    saved = os.environ.get("ROS_DOMAIN_ID")
+    os.environ["ROS_DOMAIN_ID"] = str(domain)
+    try:
+        return LocalTestbed(log_dir=str(log_dir), bags_dir=str(bags), fleet_file=fleet_file, looked=True).start()
+    finally:
+        if saved is None:
+            os.environ.pop("ROS_DOMAIN_ID", None)
+        else:
+            os.environ["ROS_DOMAIN_ID"] = saved
 
 
 def forget_dead_local_workers():
@@ -284,12 +309,25 @@ def parse(argv):
     only = parser.add_mutually_exclusive_group()
     only.add_argument("--verify-only", action="store_true", help="only verify submissions")
     only.add_argument("--run-only", action="store_true", help="only run experiments")
+    parser.add_argument("--fleet", metavar="FILE",
+                        help="run experiments on your own robots: this worker's one run slot moves the robots of the "
+                             "fleet file (the hardware arena, the safety node and a recorder, kept up while it runs; "
+                             "one run at a time); its verifications stay in simulation (docs/own-robots.md)")
     parser.add_argument("--jobs", type=int, default=1,
                         help="how many verifications and how many runs at once (default 1 of each), each on a "
                              "testbed (ROS_DOMAIN_ID) of its own")
     args = parser.parse_args(argv)
     if args.jobs < 1:
         parser.error("--jobs must be 1 or more")
+    if args.fleet and args.verify_only:
+        parser.error("--fleet runs experiments on robots: not with --verify-only")
+    if args.fleet:
+        from robotarium_hardware import fleet as fleets
+        try:
+            fleets.load(args.fleet)
+        except fleets.FleetError as error:
+            parser.error(str(error))
+        args.fleet = str(Path(args.fleet).resolve())
     return args
 
 
@@ -340,7 +378,7 @@ def main(argv=None):
     shown = args.database.split("@")[-1] if args.database else str(settings.DATABASES["default"]["NAME"])
     check_database(shown)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPOSITORY), os.environ.get("PYTHONPATH", "")]))
-    supervisor = Supervisor(data, kinds_of(args), args.jobs, env)
+    supervisor = Supervisor(data, kinds_of(args), args.jobs, env, fleet_file=args.fleet)
     supervisor.start()
     print("[robotarium] worker on %s: %s; database %s, data %s; heartbeat every %g s, found lost by the others "
           "after %g s without one; Ctrl-C stops it (its jobs are handed back)" % (

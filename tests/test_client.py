@@ -148,7 +148,7 @@ def test_report_and_counts_come_from_the_testbed(testbed, capsys):
     # counts as the script's (issue 36); the testbed counted them all the same
     assert out.startswith("##### DEBUG OUTPUT #####\nThe safety layer changed "), out
     assert "outside the boundaries" not in out and r._errors.get("boundary", 0) == 0
-    assert r._errors["actuator"] == 120 == r.run_info["actuator_limit_iterations"]
+    assert r._errors["actuator"] == 120 == r.run_info.actuator_limit_iterations
 
 
 def _age_of_newest_poses(r):
@@ -213,7 +213,7 @@ def test_hardware_like_lockstep_through_the_stack_is_repeatable(testbed, capsys,
             r.step()
         r.call_at_scripts_end()
         runs.append(np.array(trace))
-        assert r.run_info["hardware"] and r.run_info["hardware_seed"] == 5
+        assert r.run_info.hardware and r.run_info.hardware_seed == 5
     assert np.array_equal(runs[0], runs[1])
     out = capsys.readouterr().out
     assert out.count("This run simulated the real testbed's hardware") == 2 and "seed 5" in out
@@ -232,8 +232,8 @@ def test_hardware_like_in_real_time(testbed, capsys, monkeypatch):
     steps = r._last_step
     r.call_at_scripts_end()
     assert 0.05 < moved < 0.1 * steps * r.time_step, (moved, steps)
-    assert r.run_info["hardware"] and r.run_info["hardware_seed"] > 0
-    assert "seed %d" % r.run_info["hardware_seed"] in capsys.readouterr().out
+    assert r.run_info.hardware and r.run_info.hardware_seed > 0
+    assert "seed %d" % r.run_info.hardware_seed in capsys.readouterr().out
 
 
 def test_the_report_says_when_more_robots_than_the_real_testbed_has(testbed, capsys):

@@ -205,7 +205,7 @@ def test_commands_without_the_token_or_key_move_no_robot_and_are_counted(healthy
                                   and dropped(s, "cmd_requested", "foreign") == sent, 10)
         assert counted is not None, lab.last_status(r._run_id)
         r.call_at_scripts_end()
-        assert r.run_info["collisions"] == 0 and r.run_info["dropped"]["cmd_safe"]["foreign"] == sent
+        assert r.run_info.collisions == 0 and r.run_info.dropped["cmd_safe"]["foreign"] == sent
     finally:
         for pub in pubs.values():
             lab.probe.node.destroy_publisher(pub)
@@ -232,7 +232,7 @@ def test_fake_poses_never_steer_the_safety_node(healthy, tmp_path):
         r.call_at_scripts_end()
     finally:
         flood.close()
-    assert r.run_info["collisions"] == 0 and closest > DEFAULT.robot_diameter
+    assert r.run_info.collisions == 0 and closest > DEFAULT.robot_diameter
 
 
 def test_a_replay_into_a_live_run_moves_nothing(healthy, tmp_path):
@@ -260,7 +260,7 @@ def test_a_replay_into_a_live_run_moves_nothing(healthy, tmp_path):
         assert replay.alive(), replay.output()
         assert r._latest.run_id == r._run_id and r._latest.key == r._poses_key
         r.call_at_scripts_end()
-        assert r.run_info["collisions"] == 0 and r.run_info["dropped"]["cmd_safe"]["foreign"] > 0
+        assert r.run_info.collisions == 0 and r.run_info.dropped["cmd_safe"]["foreign"] > 0
     finally:
         replay.close()
 
@@ -335,7 +335,7 @@ def test_a_flood_on_both_command_topics_costs_the_experiment_nothing(healthy, tm
     assert counted.command_timeouts == 0
     assert sum(sent[NS + "/cmd_safe"].values()) >= 1000    # it was a flood: 1 kHz for 2 s on each topic
     r.call_at_scripts_end()
-    assert r.run_info["collisions"] == 0 and r.run_info["dropped"]["cmd_safe"]["malformed"] > 0
+    assert r.run_info.collisions == 0 and r.run_info.dropped["cmd_safe"]["malformed"] > 0
 
     # lockstep: the same run, quiet and flooded, step for step
     def lockstep_run():
@@ -356,7 +356,7 @@ def test_a_flood_on_both_command_topics_costs_the_experiment_nothing(healthy, tm
     finally:
         flooding.close()
     assert np.array_equal(quiet, flooded)
-    assert r.run_info["dropped"]["cmd_safe"]["foreign"] > 0 and r.run_info["dropped"]["cmd_requested"]["foreign"] > 0
+    assert r.run_info.dropped["cmd_safe"]["foreign"] > 0 and r.run_info.dropped["cmd_requested"]["foreign"] > 0
 
 
 def test_the_clients_own_oversized_and_huge_arrays(healthy):
@@ -387,7 +387,7 @@ def test_the_clients_own_oversized_and_huge_arrays(healthy):
         report = this_runs_step_1()[-1]
         assert report.status == SafetyReport.STATUS_SATURATED
         r.call_at_scripts_end()
-        assert r.run_info["actuator_limit_iterations"] == 1, r.run_info   # the script's command, as rps judges
+        assert r.run_info.actuator_limit_iterations == 1, r.run_info   # the script's command, as rps judges
     finally:
         lab.probe.node.destroy_publisher(pub)
 
@@ -420,15 +420,15 @@ def test_a_forger_with_the_copied_token_never_pushes_robots_out(healthy, tmp_pat
     finally:
         forger.close()
     assert sent["forged_next"] + sent["forged_step"] > 1000, sent
-    assert lab.probe.spin_until(lambda: any(p.run_id == r._run_id and p.step == r.run_info["steps"] for p in lab.poses), 10)
+    assert lab.probe.spin_until(lambda: any(p.run_id == r._run_id and p.step == r.run_info.steps for p in lab.poses), 10)
     mine = [p for p in lab.poses if p.run_id == r._run_id]
     x = np.array([p.x for p in mine])
     y = np.array([p.y for p in mine])
     assert x.max() > 1.35, "the forged arrays never moved the robots: the test proves nothing (%.3f)" % x.max()
     assert x.max() <= DEFAULT.arena[1] - DEFAULT.boundary_margin + 1e-9, "a robot reached x = %.3f" % x.max()
     assert np.all(np.abs(y) < DEFAULT.arena[3])
-    assert r.run_info["boundary_violations"] == 0 and r.run_info["collisions"] == 0, r.run_info
-    assert r.run_info["dropped"]["cmd_requested"]["stale"] > 0   # wrong-step arrays were dropped and counted
+    assert r.run_info.boundary_violations == 0 and r.run_info.collisions == 0, r.run_info
+    assert r.run_info.dropped["cmd_requested"]["stale"] > 0   # wrong-step arrays were dropped and counted
 
 
 def rss_mb(pid):
@@ -473,7 +473,7 @@ def test_a_flood_at_the_highest_rate_leaves_no_memory_behind(healthy, tmp_path):
     for name in nodes:
         assert after[name] - before[name] < 10, (name, before, after, sent)
     # (at the highest rate the bounded queue lets the oldest go when a node is behind: not every array sent is counted)
-    assert r.run_info["dropped"]["cmd_requested"]["oversized"] > 0 and r.run_info["dropped"]["cmd_safe"]["oversized"] > 0
+    assert r.run_info.dropped["cmd_requested"]["oversized"] > 0 and r.run_info.dropped["cmd_safe"]["oversized"] > 0
 
 
 # -- a lost client frees the testbed ----------------------------------------------------------------
@@ -605,7 +605,7 @@ def test_a_lost_recorder_is_reported_and_its_bag_recovered(healthy, capsys):
     out = capsys.readouterr()
     assert "recording stopped at step %d" % r._recorder_lost_at in out.err + out.out
     assert "Run %s: recording stopped at step" % r._run_id in out.out and "recorded in" not in out.out
-    bag_dir = r.run_info["recording"]
+    bag_dir = r.run_info.recording
     assert bag_dir and os.path.isdir(bag_dir)
     open(os.path.join(bag_dir, ".metadata.yaml.tmp"), "w").write("a kill while metadata.yaml was replaced")
     recover_bag(bag_dir)
@@ -665,10 +665,10 @@ def test_a_node_whose_shared_memory_port_was_deleted_restarts_and_the_next_clien
         for _ in range(20):
             drive(r, [0.05] * 3, [0.2] * 3)
         r.call_at_scripts_end()
-        assert r.run_info["steps"] == 20 and r.run_info["outcome"] == "completed", r.run_info
+        assert r.run_info.steps == 20 and r.run_info.outcome == "completed", r.run_info
         from robotarium_recording.bag import Bag
-        assert lab.probe.spin_until(lambda: Bag(r.run_info["recording"]).complete, 10)   # the recorder closed it
-        assert Bag(r.run_info["recording"]).topics[NS + "/cmd_requested"].count == 20
+        assert lab.probe.spin_until(lambda: Bag(r.run_info.recording).complete, 10)   # the recorder closed it
+        assert Bag(r.run_info.recording).topics[NS + "/cmd_requested"].count == 20
     finally:
         lab.nodes[name].close()   # the testbed's own settings again for the tests after this one
         lab.start(name)
@@ -698,7 +698,7 @@ def test_a_node_whose_fast_dds_event_thread_stops_starts_afresh_and_the_next_cli
     for _ in range(20):
         drive(r, [0.05] * 3, [0.2] * 3)
     r.call_at_scripts_end()
-    assert r.run_info["steps"] == 20 and r.run_info["outcome"] == "completed", r.run_info
+    assert r.run_info.steps == 20 and r.run_info.outcome == "completed", r.run_info
 
 
 def test_a_node_asked_with_sigusr1_writes_where_each_thread_stands_and_goes_on(healthy):

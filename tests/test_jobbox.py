@@ -323,3 +323,62 @@ def test_through_the_portal_a_hostile_run_fails_with_its_message_and_the_next_on
     assert fine.state == Experiment.COMPLETED, fine.detail
     assert (fine.folder / fine.results / "data" / "saved.npy").exists()
     assert not processes_on_domain(domain)
+
+
+ON_ROBOTS = """\
+import numpy as np
+import rps.robotarium as robotarium
+r = robotarium.Robotarium(number_of_robots=2, show_figure=False,
+                          initial_conditions=np.array([[-0.2, 0.2], [0.1, 0.1], [0.0, 0.0]]))
+for _ in range(30):
+    r.get_poses()
+    r.set_velocities(np.arange(2), np.array([[0.05, 0.05], [0.0, 0.0]]))
+    r.step()
+r.call_at_scripts_end()
+"""
+
+
+def test_through_the_portal_a_run_moves_a_fleet_of_robots(place, monkeypatch):
+    """A worker of robots (./robotarium worker --fleet): its run slot's testbed is the fleet's hardware arena
+    (supervisor.start_fleet_testbed), the job's box shares the machine's network with it, and the run's folder,
+    recorded by that testbed, ends up in the experiment's results."""
+    from devtools.service import django_for_tests
+    data = django_for_tests()
+    from django.contrib.auth import get_user_model
+    from django.test import override_settings
+
+    from devtools.rosutil import node_env
+    from robotarium_bringup.testbed import testbed_answers
+    from robotarium_hardware.sim_fleet import SimulatedFleet
+    from robotarium_portal import jobs, supervisor
+    from robotarium_portal.models import Experiment
+    root, made = place
+    domain = unique_domain_id()
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    fleet = SimulatedFleet(2, "mocap", str(root / "fleet.yaml"), env=node_env(domain), log_dir=str(root))
+    fleet.start(say=lambda line: None)
+    testbed = None
+    try:
+        assert fleet.wait_ready(), fleet.failed()
+        # where the worker's own testbed records (its data folder's fleet-runs/: the job's box sees that folder)
+        testbed = supervisor.start_fleet_testbed(fleet.fleet_file, domain, data / "fleet-runs", root / "fleet-logs")
+        monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
+        assert testbed_answers(timeout=60), testbed.failed()
+        owner = get_user_model().objects.create_user(username="robots-%s@example.org" % TAG, password="x")
+        experiment = Experiment.objects.create(owner=owner, title="on robots", estimated_duration=5, number_of_robots=2,
+                                               main_file="main.py", state=Experiment.QUEUED)
+        experiment.files_dir.mkdir(parents=True, exist_ok=True)
+        (experiment.files_dir / "main.py").write_text(ON_ROBOTS)
+        made.append(jobbox.account_name(jobs.RUN_CLUSTER))
+        monkeypatch.setenv("ROBOTARIUM_PORTAL_RUN_DOMAIN", str(domain))
+        monkeypatch.setenv(jobs.FLEET_VARIABLE, fleet.fleet_file)
+        with override_settings(JOB_BOXES_DIR=root / "portal-boxes", JOB_LIMITS=dict(LIMITS.__dict__, cpu_seconds=30)):
+            jobs.run_next()
+        experiment.refresh_from_db()
+        assert experiment.state == Experiment.COMPLETED, experiment.detail
+        results = experiment.folder / experiment.results
+        assert (results / "report.txt").exists() and list(results.glob("*.mcap")), list(results.iterdir())
+    finally:
+        if testbed is not None:
+            testbed.stop()
+        fleet.stop()

@@ -22,8 +22,9 @@ def test_every_participant_of_ours_starts_with_the_testbeds_dds_settings():
     first participant, so one plain rclpy.init first (a test, a tool) gave every later participant
     of that process Fast DDS's defaults: shared memory, and multicast discovery on the network."""
     found = []
-    for top in ("robotarium_core", "robotarium_sim", "robotarium_safety", "robotarium_recording", "robotarium_bringup",
-                "robotarium_client", "robotarium_cli", "robotarium_portal", "devtools", "tests", "bench", "scripts"):
+    for top in ("robotarium_core", "robotarium_sim", "robotarium_hardware", "robotarium_safety", "robotarium_recording",
+                "robotarium_bringup", "robotarium_client", "robotarium_cli",
+                "robotarium_portal", "devtools", "tests", "bench", "scripts"):
         for folder, _, files in os.walk(os.path.join(REPO, top)):
             for name in files:
                 path = os.path.join(folder, name)

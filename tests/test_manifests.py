@@ -25,6 +25,7 @@ PYTHON_DEPENDENCIES = {
     "foxglove": ("python3-foxglove-sdk-pip", "foxglove-sdk"),
     "pytest": ("python3-pytest", "pytest"),
     "hypothesis": ("python3-hypothesis", "hypothesis"),
+    "cv2": ("python3-opencv", "opencv-python-headless"),
 }
 # Declared without an import, and why.
 NOT_IMPORTED = {

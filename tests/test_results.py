@@ -13,6 +13,7 @@ from test_recorder import stack  # noqa: F401  (fixture: simulator + recorder on
 
 from devtools.rosutil import REPO
 from robotarium_core import model
+from robotarium_core.run_record import RunRecord
 from robotarium_recording import pictures, results
 from robotarium_recording.bag import Bag
 
@@ -142,7 +143,7 @@ def test_the_results_page_wraps_long_report_and_log_lines(tmp_path):
     long_path = "/very/long/" + "folder/" * 40 + "file.py"
     (tmp_path / "report.txt").write_text("Run did not complete: the script raised OSError at " + long_path + ".\n")
     (tmp_path / "log.txt").write_text("x = " + "1234567890" * 30 + "\n")
-    text = open(page.write_page(str(tmp_path), run={"outcome": "script_error"})).read()
+    text = open(page.write_page(str(tmp_path), run=RunRecord(outcome="script_error"))).read()
     style = text.split("<style>")[1].split("</style>")[0]
     rule = style.split("pre {")[1].split("}")[0]
     assert "white-space: pre-wrap" in rule and "overflow-wrap: anywhere" in rule, rule

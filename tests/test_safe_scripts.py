@@ -66,7 +66,7 @@ def test_a_safe_script_runs_step_for_step_as_on_the_robotarium(testbed, script):
     reference = reference_trace(script, settings)
     assert (reference.collisions, reference.boundary) == (0, 0), "0.0.0 itself counts errors: not a safe script"
     assert info["safety_interventions"] == 0, out
-    assert "The safety layer changed" not in out and "verdict" not in info, out
+    assert "The safety layer changed" not in out and info.get("verdict") is None, out
     assert info["steps"] == reference.iterations, (info["steps"], reference.iterations)
     poses = Bag(folder).poses()
     assert list(poses.steps) == list(range(info["steps"] + 1))

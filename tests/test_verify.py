@@ -6,6 +6,7 @@ The verification runs are real: `python -m robotarium_cli verify` starts its own
 ROS_DOMAIN_ID. The head-on script's collision count is compared with the Robotarium's own
 simulator (robotarium-python-simulator 0.0.0 in .venv-reference) running the same file.
 """
+import dataclasses
 import glob
 import json
 import os
@@ -21,6 +22,7 @@ from devtools.rosutil import REPO, node_env, unique_domain_id
 from robotarium_cli import verification as verify
 from robotarium_core import model, outcomes
 from robotarium_core.config import DEFAULT
+from robotarium_core.run_record import RunRecord
 
 DATA = os.path.join(REPO, "tests", "data")
 GUIDE = sorted(glob.glob(os.path.join(REPO, "examples", "guide", "*.py")))
@@ -76,10 +78,10 @@ def test_an_import_outside_the_list_is_rejected_but_the_scripts_own_modules_are_
 
 
 def test_the_rules_judge_the_counts_by_the_configured_limits():
-    clean = {"outcome": "completed", "steps": 300, "number_of_robots": 4, "collisions": 100,
-             "boundary_violations": 100, "first_collision_step": 7}
+    clean = RunRecord(outcome="completed", steps=300, number_of_robots=4, collisions=100, boundary_violations=100,
+                      first_collision_step=7)
     assert verify.judge(clean, DEFAULT, robots=4, duration=10) == []   # 100 is allowed, 300 x 0.033 <= 1.5 x 10
-    over = dict(clean, collisions=101, boundary_violations=250, first_boundary_step=61)
+    over = dataclasses.replace(clean, collisions=101, boundary_violations=250, first_boundary_step=61)
     rules = {r["rule"]: r for r in verify.judge(over, DEFAULT, robots=3, duration=6)}
     assert set(rules) == {"collisions", "boundary", "robots", "duration"}
     assert (rules["collisions"]["count"], rules["collisions"]["limit"], rules["collisions"]["first_step"]) == (101, 100, 7)
@@ -88,9 +90,9 @@ def test_the_rules_judge_the_counts_by_the_configured_limits():
     assert rules["duration"]["limit"] == int(1.5 * 6 / DEFAULT.time_step) == 272
     # undeclared robots and duration are not judged
     assert [r["rule"] for r in verify.judge(over, DEFAULT)] == ["collisions", "boundary"]
-    assert [r["rule"] for r in verify.judge({"outcome": "no_end", "steps": 5}, DEFAULT)] == ["no_end"]
-    failed = verify.judge({"outcome": "script_error", "detail": "the script raised KeyError: 'goal' at step 20",
-                           "step_calls": 20}, DEFAULT)
+    assert [r["rule"] for r in verify.judge(RunRecord(outcome="no_end", steps=5), DEFAULT)] == ["no_end"]
+    failed = verify.judge(RunRecord(outcome="script_error", detail="the script raised KeyError: 'goal' at step 20",
+                                    step_calls=20), DEFAULT)
     assert failed[0]["rule"] == "script_error" and failed[0]["first_step"] == 20
 
 

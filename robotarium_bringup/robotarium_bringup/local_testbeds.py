@@ -24,9 +24,11 @@ REGISTRY = os.path.join(tempfile.gettempdir(), "robotarium-testbeds-%d" % os.get
 
 # How a node shows in a process's command line: `-m MODULE`, or the installed console script.
 NODE_MODULES = {"robotarium_sim.simulator_node": "simulator", "robotarium_safety.safety_node": "safety",
-                "robotarium_recording.recorder_node": "recorder"}
+                "robotarium_recording.recorder_node": "recorder", "robotarium_hardware.arena_node": "arena",
+                "robotarium_hardware.tag_tracker_node": "tag_tracker"}
 NODE_EXECUTABLES = {("robotarium_sim", "simulator"): "simulator", ("robotarium_safety", "safety"): "safety",
-                    ("robotarium_sim", "recorder"): "recorder", ("robotarium_recording", "recorder"): "recorder"}
+                    ("robotarium_sim", "recorder"): "recorder", ("robotarium_recording", "recorder"): "recorder",
+                    ("robotarium_hardware", "arena"): "arena", ("robotarium_hardware", "tag_tracker"): "tag_tracker"}
 
 
 def domain_id(env=None):
@@ -228,7 +230,7 @@ def running_here(namespace, domain):
     for testbed in matching(find(), namespace, domain):
         if not testbed["nodes"]:
             continue
-        who = next((name for name in ("simulator", "safety", "recorder") if name in testbed["nodes"]),
+        who = next((name for name in ("simulator", "arena", "safety", "recorder") if name in testbed["nodes"]),
                    sorted(testbed["nodes"])[0])
         owner = testbed["owner"] or {}
         return {"who": who.split("-")[0], "host": socket.gethostname(), "pid": testbed["nodes"][who],

@@ -28,7 +28,25 @@ NODES = {
     "simulator": ("robotarium_sim.simulator_node", True),
     "safety": ("robotarium_safety.safety_node", True),
     "recorder": ("robotarium_recording.recorder_node", False),
+    # a lab's own robots (./robotarium up --fleet FILE): the hardware arena in the simulator's place, and the
+    # tag tracker where the fleet is tracked by a camera
+    "arena": ("robotarium_hardware.arena_node", True),
+    "tag_tracker": ("robotarium_hardware.tag_tracker_node", False),
 }
+
+
+# The nodes that stop real robots when one fails (the hardware arena; the tag tracker, whose poses say a tag is
+# gone) run at a higher scheduling priority where this process may give one (root): on a machine shared with
+# other work their reaction is what the 0.2 s to stop every robot is made of (docs/own-robots.md).
+REAL_TIME_NODES = ("arena", "tag_tracker")
+REAL_TIME_NICE = -10   # as the simulated fleet's processes: CFS gives it about nine times the share of a plain process
+
+
+def _real_time_priority():
+    try:
+        os.nice(REAL_TIME_NICE)
+    except OSError:
+        pass
 
 
 def repository_root():
@@ -96,7 +114,7 @@ class LocalTestbed:
     process by its lifeline."""
 
     def __init__(self, log_dir=None, record=True, ns=None, bags_dir=None, quiet=True, config_file=None,
-                 hardware=False, looked=False):
+                 hardware=False, looked=False, fleet_file=None):
         self.gate = None
         # The starter looked for a testbed in this namespace already (./robotarium up, run, verify's own
         # namespace): the nodes claim their place without waiting for an older one (robotarium_core.claim).
@@ -106,7 +124,12 @@ class LocalTestbed:
         self.config_file = config_file
         self.log_dir = log_dir   # None: log/testbed/<namespace>_<domain>_<pid>/, chosen at start
         self.hardware = hardware   # every experiment hardware-like (the simulator's `hardware` parameter)
-        self.names = ["simulator", "safety"] + (["recorder"] if record else [])
+        self.fleet_file = os.path.abspath(fleet_file) if fleet_file else None
+        arena = ["simulator"]
+        if self.fleet_file:   # the fleet's arena (and its tag tracker) in the simulator's place
+            from robotarium_hardware import fleet as fleets
+            arena = ["arena"] + (["tag_tracker"] if fleets.load(self.fleet_file).tracking == "camera" else [])
+        self.names = arena + ["safety"] + (["recorder"] if record else [])
         self.bags_dir = bags_dir
         self.quiet = quiet
         self.processes = {}
@@ -129,13 +152,16 @@ class LocalTestbed:
             env, pass_fds = self.gate.for_child(env, pass_fds)
         for name in self.names:
             extra = ["-p", "bags_dir:=%s" % self.bags_dir] if name == "recorder" and self.bags_dir else []
-            if name == "simulator":   # a run's first steps wait for the recorder's readers where it records
+            if name in ("simulator", "arena"):   # a run's first steps wait for the recorder's readers where it records
                 extra = (["-p", "hardware:=true"] if self.hardware else []) + (
                     ["-p", "wait_for_recorder:=true"] if "recorder" in self.names else [])
+            if name in ("arena", "tag_tracker"):
+                extra += ["-p", "fleet_file:=%s" % self.fleet_file]
             log = open(os.path.join(self.log_dir, name + ".log"), "wb") if self.quiet else None
             self.processes[name] = (subprocess.Popen(
                 node_command(name, self.ns, extra, self.config_file), stdout=log, stderr=subprocess.STDOUT if log else None,
-                env=env, pass_fds=pass_fds, start_new_session=True), log)
+                env=env, pass_fds=pass_fds, start_new_session=True,
+                preexec_fn=_real_time_priority if name in REAL_TIME_NODES else None), log)
         if self.gate is None:
             self.registry_entry = local_testbeds.register(self, owner_command())
         else:

@@ -1,6 +1,5 @@
 """Run folders: the checks before a run, the folder each run gets, the results made in it, and the
 folders of runs whose ./robotarium run was killed."""
-import json
 import os
 import shutil
 import sys
@@ -10,7 +9,7 @@ import time
 import robotarium_recording as recording
 from robotarium_cli.console import say
 from robotarium_client import session
-from robotarium_core import outcomes, script_box
+from robotarium_core import outcomes, run_record, script_box
 
 # Folders never searched for data files a script saved.
 SKIP_DIRS = {".git", ".venv", ".venv-reference", "build", "install", "log", "bags", "results", "__pycache__",
@@ -235,13 +234,14 @@ def modified_time(path):
 
 
 def write_unrecorded_results(run_dir, run, testbed_report=""):
-    """report.txt and index.html for a run with no recording here (it never started, or it was
-    recorded on another machine): how it ended, and the testbed's debug report if there is one."""
+    """report.txt and index.html for a run (a run_record.RunRecord) with no recording here (it never
+    started, or it was recorded on another machine): how it ended, and the testbed's debug report if
+    there is one."""
     from robotarium_core import outcomes
-    outcome = {name: value for value, name in outcomes.NAMES.items()}.get(run["outcome"], outcomes.UNFINISHED)
-    lines = [outcomes.first_line(outcome, run.get("detail", "")), ""]
+    outcome = {name: value for value, name in outcomes.NAMES.items()}.get(run.outcome, outcomes.UNFINISHED)
+    lines = [outcomes.first_line(outcome, run.detail), ""]
     if testbed_report:
-        verdict = (run.get("verdict") or {}).get("text", "")
+        verdict = (run.verdict or {}).get("text", "")
         lines += [testbed_report.rstrip("\n")] + ([verdict.strip("\n")] if verdict else []) + [
             "", "(the run was recorded on the testbed's machine, not here)"]
     else:
@@ -255,7 +255,8 @@ def write_unrecorded_results(run_dir, run, testbed_report=""):
 
 
 def finish_run_folder(run_dir, run, script, log_path, saved, cwd, data_limit=None):
-    """Copy the script, the log and the data files into the run folder and write run.json.
+    """Copy the script, the log and the data files into the run folder and keep `run` (a
+    run_record.RunRecord) in it.
 
     The data files are capped at `data_limit` bytes (default: the configuration's run_data_limit):
     the newest first, each that fits; the others are left out, each named in run.json's
@@ -280,21 +281,20 @@ def finish_run_folder(run_dir, run, script, log_path, saved, cwd, data_limit=Non
                 size = os.stat(path).st_size
                 if copied + size > limit:
                     left_out.append((name, size))
-                    run.setdefault("data_not_saved", {})[name] = (
+                    run.data_not_saved[name] = (
                         "left out: %s over the run folder's limit for data files (run_data_limit %s)"
                         % (_megabytes(size), _megabytes(limit)))
                     continue
                 shutil.copy2(path, os.path.join(data_dir, name))
                 copied += size
             except OSError as error:   # gone meanwhile (a job box removes what broke its disk quota) or unreadable
-                run.setdefault("data_not_saved", {})[name] = error.strerror or str(error)
+                run.data_not_saved[name] = error.strerror or str(error)
                 print("[robotarium] the data file %s was not saved: %s" % (name, error.strerror or error), flush=True)
         if left_out:
             print("[robotarium] %d data file(s) of %s left out of the run folder (run_data_limit %s, the newest kept): %s"
                   % (len(left_out), _megabytes(sum(size for _, size in left_out)), _megabytes(limit),
                      ", ".join(name for name, _ in left_out)), flush=True)
-    with open(os.path.join(run_dir, "run.json"), "w") as f:
-        json.dump(run, f, indent=2)
+    run_record.write(run, run_dir)
 
 
 def _megabytes(size):
@@ -306,22 +306,22 @@ def print_summary(run_dir, run, cwd):
     with open(os.path.join(run_dir, "report.txt"), encoding="utf-8") as f:
         first = f.readline().strip()
     say(first)
-    if "no testbed was started" in run.get("detail", ""):
+    if "no testbed was started" in run.detail:
         say("hint: fix the line named above and run it again (nothing ran)")
-    elif run["outcome"] == "interrupted" and outcomes.ENDED_BY_ITS_USER in run.get("detail", ""):
+    elif run.outcome == "interrupted" and outcomes.ENDED_BY_ITS_USER in run.detail:
         pass   # its user ended it: nothing to explain
-    elif run["outcome"] == "interrupted" and outcomes.ENDED_BY_TESTBED in run.get("detail", ""):
+    elif run.outcome == "interrupted" and outcomes.ENDED_BY_TESTBED in run.detail:
         say("hint: " + HINT_ENDED_BY_TESTBED)
-    elif run["outcome"] != "completed" and run["outcome"] in HINTS:
-        say("hint: " + HINTS[run["outcome"]])
+    elif run.outcome != "completed" and run.outcome in HINTS:
+        say("hint: " + HINTS[run.outcome])
     elif outcomes.recording_stopped(run):
         say("the experiment completed, but %s: its recording is incomplete (exit code %d)"
-            % (outcomes.recording_stopped(run), run["exit_code"]))
-    elif run.get("recording_lost_poses"):
+            % (outcomes.recording_stopped(run), run.exit_code))
+    elif run.recording_lost_poses:
         say("the experiment completed, but %s (exit code %d)" % (outcomes.lost_poses(
-            run["recording_lost_poses"], run["recording_first_lost_step"]), run["exit_code"]))
-    elif run["exit_code"]:   # completed, and then the script failed or was stopped
-        say("the experiment completed, %s (exit code %d)" % (run["detail"], run["exit_code"]))
+            run.recording_lost_poses, run.recording_first_lost_step), run.exit_code))
+    elif run.exit_code:   # completed, and then the script failed or was stopped
+        say("the experiment completed, %s (exit code %d)" % (run.detail, run.exit_code))
     relative = os.path.relpath(run_dir, cwd)
     shown = run_dir if relative.startswith("..") else relative
     say("files: " + ", ".join(sorted(os.listdir(run_dir))))

@@ -6,11 +6,9 @@ It sets robotarium_client.session.options (the run's choices, explicitly: no env
 variables) and runs SCRIPT as `python SCRIPT ARGS` would (as __main__, its folder first on
 sys.path). However the script ends - call_at_scripts_end(), an exception, Ctrl-C or a signal,
 a lost testbed, or simply its last line without call_at_scripts_end() - it ends every experiment
-still running, telling the testbed how the run ended (so the recording says it), and writes
-RUN_INFO_JSON for the command line to collect the results:
-
-    {"outcome": "script_error", "detail": "the script raised KeyError: 'goal' at step 12 (line 9 of go.py)",
-     "step_calls": 12, "exit_code": 1, "runs": [what each Robotarium's testbed said when it ended]}
+still running, telling the testbed how the run ended (so the recording says it), and keeps the run
+in RUN_INFO_JSON (a robotarium_core.run_record.RunRecord: outcome, detail, step calls, exit code and
+what each Robotarium's testbed said when it ended) for the command line to collect the results.
 
 Beside it, started.json says which experiment runs (run id, recording) from its start on, so that a
 script killed outright (SIGKILL: it writes nothing more) still leaves its run to be found; and once
@@ -27,7 +25,6 @@ same way (its Robotarium ends the experiment on a testbed that outlives `run`; o
 started ends it itself), and this process exits at the latest ORPHAN_EXIT seconds later.
 """
 import _thread
-import json
 import os
 import runpy
 import signal
@@ -37,7 +34,7 @@ import traceback
 
 from robotarium_client import session
 from robotarium_client.errors import EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete
-from robotarium_core import lifeline, outcomes
+from robotarium_core import lifeline, outcomes, run_record
 
 ORPHAN_EXIT = 1.5
 STARTED = "started.json"   # beside RUN_INFO_JSON: session.note_started's record of the running experiment
@@ -136,7 +133,7 @@ def run(script, script_args):
 
 
 def finish(outcome, detail, code):
-    """End every experiment still running, saying how; returns (outcome, detail, code, runs)."""
+    """End every experiment still running, saying how; returns (outcome, detail, code, experiments)."""
     step = session.robotaria[-1]._iterations if session.robotaria else 0
     if outcome is None:   # the script's code ran to its end (or sys.exit)
         if not session.robotaria:
@@ -144,8 +141,8 @@ def finish(outcome, detail, code):
         elif all(r.run_info is not None for r in session.robotaria):
             # ended by call_at_scripts_end() (completed), or at the time limit (TimeLimitReached)
             last = session.robotaria[-1].run_info
-            outcome = {name: value for value, name in outcomes.NAMES.items()}.get(last.get("outcome"), outcomes.COMPLETED)
-            detail = last.get("detail", "")
+            outcome = {name: value for value, name in outcomes.NAMES.items()}.get(last.outcome, outcomes.COMPLETED)
+            detail = last.detail
         elif code:
             outcome, detail = outcomes.SCRIPT_ERROR, "the script exited with status %s at step %d" % (code, step)
         else:
@@ -153,7 +150,7 @@ def finish(outcome, detail, code):
                                                 "(step %d)" % step)
         if outcome != outcomes.COMPLETED and not code:
             code = outcomes.EXIT_CODES[outcome]
-    elif session.robotaria and all(r.run_info is not None and r.run_info.get("outcome") == "completed"
+    elif session.robotaria and all(r.run_info is not None and r.run_info.outcome == "completed"
                                    for r in session.robotaria):
         # Its experiments had completed (call_at_scripts_end) when the script failed or was stopped.
         outcome, detail = outcomes.COMPLETED, "then %s" % detail
@@ -185,10 +182,9 @@ def main(argv):
     for signum in SIGNAL_EXIT:
         signal.signal(signum, signal.SIG_IGN)
     outcome, detail, code, runs = finish(outcome, detail, code)
-    with open(run_info_path, "w") as f:
-        json.dump({"outcome": outcomes.NAMES[outcome], "detail": detail,
-                   "step_calls": session.robotaria[-1]._iterations if session.robotaria else 0,
-                   "exit_code": code, "runs": runs}, f, indent=2)
+    run_record.write(run_record.RunRecord(
+        outcome=outcomes.NAMES[outcome], detail=detail, exit_code=code, experiments=runs,
+        step_calls=session.robotaria[-1]._iterations if session.robotaria else 0), run_info_path)
     return code
 
 

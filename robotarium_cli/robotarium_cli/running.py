@@ -1,5 +1,10 @@
-"""Running a script for `run`, `verify` and `demo`: a testbed found or started, the script in a
-process of its own (robotarium_cli.runner), its results collected into its run folder."""
+"""Running a script for `run`, `verify` and `demo`: a Run finds or starts a testbed, runs the script
+in a process of its own (robotarium_cli.runner), and collects the run folder from what that process
+kept (run.json: robotarium_core.run_record) and what the testbed recorded. Its scratch folder (the
+script's log and run.json, pending.json: what finishing the folder needs) lives in
+<results dir>/.unfinished/ until the folder is finished: should ./robotarium run be killed outright,
+the next run, status or report finishes it from there (finish_unfinished), as run would have.
+"""
 import dataclasses
 import json
 import os
@@ -12,6 +17,7 @@ import threading
 import time
 
 import robotarium_recording as recording
+from robotarium_bringup import local_testbeds
 from robotarium_bringup.testbed import (
     RECORDING_LOOKUP_WAIT,
     LocalTestbed,
@@ -20,6 +26,7 @@ from robotarium_bringup.testbed import (
     repository_root,
     testbed_answers,
 )
+from robotarium_cli import verification
 from robotarium_cli.console import Interruption, say, shown
 from robotarium_cli.folders import (
     check_run_folders,
@@ -33,109 +40,13 @@ from robotarium_cli.folders import (
     wait_until_recorded,
     write_unrecorded_results,
 )
+from robotarium_cli.runner import STARTED
 from robotarium_client import session
-from robotarium_core import lifeline, outcomes, script_box
+from robotarium_core import lifeline, outcomes, run_record, script_box
+from robotarium_core.config import DEFAULT, TestbedConfig
 from robotarium_core.topics import namespace_from_environment as namespace
 
-# -- runs whose ./robotarium run was killed -------------------------------------------------------------
-#
-# Each run keeps its scratch folder (the script's log as it runs, the runner's run.json and
-# started.json, pending.json: what this command would need to finish the run folder) in
-# <results dir>/.unfinished/ until its run folder is finished. Should ./robotarium run be killed
-# outright (SIGKILL, or killed while it made the results), the scratch folder stays behind and the
-# next ./robotarium run, status or report finishes that run's folder as run would have:
-# the script's process, orphaned, ends its experiment and writes how (runner.py), the testbed closes the
-# recording, and finish_unfinished makes the report, the video and the page from it.
-
 UNFINISHED = ".unfinished"
-
-
-def new_work_folder(results_dir):
-    """The scratch folder of one run: in results_dir/.unfinished/, or (the portal's job box, which
-    keeps its own books) a temporary folder."""
-    if script_box.VARIABLE in os.environ:
-        return tempfile.mkdtemp(prefix="robotarium-run-")
-    parent = os.path.join(results_dir, UNFINISHED)
-    os.makedirs(parent, exist_ok=True)
-    return tempfile.mkdtemp(prefix="run-", dir=parent)
-
-
-def local_testbeds_process(pid):
-    from robotarium_bringup import local_testbeds
-    return local_testbeds.process(pid)
-
-
-def runner_started_file():
-    from robotarium_cli.runner import STARTED
-    return STARTED
-
-
-def _read_json(path):
-    try:
-        with open(path, encoding="utf-8") as f:
-            return json.load(f)
-    except (OSError, ValueError):
-        return None
-
-
-def _write_pending(work, pending, name="pending.json"):
-    path = os.path.join(work, name)
-    with open(path + ".tmp", "w") as f:
-        json.dump(pending, f)
-    os.replace(path + ".tmp", path)
-
-
-def finish_unfinished(results_dir=None, quiet=False):
-    """Finish the run folder of every run in results_dir (default results/) whose ./robotarium run
-    was killed before it finished it; says so, one line each. Returns the folders finished."""
-    from robotarium_bringup import local_testbeds
-    results_dir = os.path.abspath(results_dir or os.path.join(repository_root(), "results"))
-    parent = os.path.join(results_dir, UNFINISHED)
-    try:
-        works = sorted(os.listdir(parent))
-    except OSError:
-        return []
-    finished = []
-    for entry in works:
-        work = os.path.join(parent, entry)
-        claimed = _read_json(os.path.join(work, "claimed.json"))
-        if claimed is not None and "by" in claimed and not local_testbeds.running(claimed["by"]):
-            # its finisher was killed in turn: hand the run back
-            os.replace(os.path.join(work, "claimed.json"), os.path.join(work, "pending.json"))
-        pending = _read_json(os.path.join(work, "pending.json"))
-        if pending is None:
-            if claimed is None and time.time() - modified_time(work) > 60:   # run was killed before it started the script
-                shutil.rmtree(work, ignore_errors=True)
-            continue
-        if local_testbeds.running(pending["run"]):
-            continue   # its ./robotarium run is still at work
-        try:   # claim it: only one command finishes a run
-            os.rename(os.path.join(work, "pending.json"), os.path.join(work, "claimed.json"))
-        except OSError:
-            continue
-        _write_pending(work, dict(pending, by=local_testbeds.process(os.getpid())), name="claimed.json")
-        # The orphaned script ends its experiment and exits within moments (runner.ORPHAN_EXIT).
-        deadline = time.monotonic() + 10.0
-        while local_testbeds.running(pending.get("runner")) and time.monotonic() < deadline:
-            time.sleep(0.1)
-        cwd = pending["cwd"] if os.path.isdir(pending["cwd"]) else os.getcwd()
-        try:
-            _, run, run_dir = _collect_run(
-                pending["script"], -signal.SIGKILL, None, None, work, os.path.join(work, "run.json"),
-                os.path.join(work, "log.txt"), pending["started"], pending["started_at"], pending["before"], cwd,
-                pending["bags_dir"], pending["results"], pending["results_dir"], pending["name"], pending["video"],
-                quiet=True)
-        except Exception as error:   # noqa: BLE001 - leave it for the next try, say why
-            os.replace(os.path.join(work, "claimed.json"), os.path.join(work, "pending.json"))
-            say("could not finish the folder of a run whose ./robotarium run was killed (%s); %s keeps what it left"
-                % (session.describe_exception(error), work))
-            continue
-        finished.append(run_dir)
-        if not quiet:
-            say("the run of %s (%s) lost its ./robotarium run (pid %d, killed); its folder is finished now: %s"
-                % (os.path.basename(pending["script"]), run.get("run_id") or "no experiment", pending["run"]["pid"],
-                   shown(run_dir)))
-    return finished
 
 
 @dataclasses.dataclass
@@ -157,8 +68,93 @@ class RunRequest:
     namespace: object = None     # the testbed's namespace; None: $ROBOTARIUM_NAMESPACE or /robotarium
     echo: bool = True            # show what the script prints and where the results are (log.txt has the prints)
     # Where the safety layer changed the script's commands, judge the script as the Robotarium's
-    # verification does (verification.verify_script) and keep the verdict with the run (run.json).
+    # verification does (verify_script) and keep the verdict with the run (run.json).
     judge: bool = False
+
+
+@dataclasses.dataclass
+class PendingRun:
+    """What finishing a run's folder needs, kept in its scratch folder while it goes on (pending.json;
+    claimed.json once a command finishes it for a ./robotarium run that was killed)."""
+    run: dict                    # ./robotarium run's process (local_testbeds.process)
+    script: str
+    cwd: str
+    started: float               # time.time() at the script's start
+    started_at: str
+    bags_dir: object
+    results: bool
+    results_dir: str
+    name: str
+    video: bool
+    before: dict                 # the working folder's files and their times before the run (snapshot_files)
+    namespace: str = ""
+    runner: dict | None = None   # the script's process, once started
+    by: dict | None = None       # the process finishing the folder (claimed.json)
+
+    PENDING, CLAIMED = "pending.json", "claimed.json"
+
+    def write(self, work, name=PENDING):
+        path = os.path.join(work, name)
+        with open(path + ".tmp", "w") as f:
+            json.dump(dataclasses.asdict(self), f)
+        os.replace(path + ".tmp", path)
+
+    @classmethod
+    def read(cls, path):
+        try:
+            with open(path, encoding="utf-8") as f:
+                values = json.load(f)
+            return cls(**{k: v for k, v in values.items() if k in {f.name for f in dataclasses.fields(cls)}})
+        except (OSError, ValueError, TypeError):
+            return None
+
+
+def finish_unfinished(results_dir=None, quiet=False):
+    """Finish the run folder of every run in results_dir (default results/) whose ./robotarium run
+    was killed before it finished it; says so, one line each. Returns the folders finished."""
+    results_dir = os.path.abspath(results_dir or os.path.join(repository_root(), "results"))
+    parent = os.path.join(results_dir, UNFINISHED)
+    try:
+        works = sorted(os.listdir(parent))
+    except OSError:
+        return []
+    finished = []
+    for entry in works:
+        work = os.path.join(parent, entry)
+        claimed = PendingRun.read(os.path.join(work, PendingRun.CLAIMED))
+        if claimed is not None and claimed.by and not local_testbeds.running(claimed.by):
+            # its finisher was killed in turn: hand the run back
+            os.replace(os.path.join(work, PendingRun.CLAIMED), os.path.join(work, PendingRun.PENDING))
+        pending = PendingRun.read(os.path.join(work, PendingRun.PENDING))
+        if pending is None:
+            if claimed is None and time.time() - modified_time(work) > 60:   # run was killed before it started the script
+                shutil.rmtree(work, ignore_errors=True)
+            continue
+        if local_testbeds.running(pending.run):
+            continue   # its ./robotarium run is still at work
+        try:   # claim it: only one command finishes a run
+            os.rename(os.path.join(work, PendingRun.PENDING), os.path.join(work, PendingRun.CLAIMED))
+        except OSError:
+            continue
+        pending.by = local_testbeds.process(os.getpid())
+        pending.write(work, PendingRun.CLAIMED)
+        # The orphaned script ends its experiment and exits within moments (runner.ORPHAN_EXIT).
+        deadline = time.monotonic() + 10.0
+        while local_testbeds.running(pending.runner) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        try:
+            _, record, run_dir = Run.resume(work, pending).collect()
+        except Exception as error:   # noqa: BLE001 - leave it for the next try, say why
+            os.replace(os.path.join(work, PendingRun.CLAIMED), os.path.join(work, PendingRun.PENDING))
+            say("could not finish the folder of a run whose ./robotarium run was killed (%s); %s keeps what it left"
+                % (session.describe_exception(error), work))
+            continue
+        finished.append(run_dir)
+        if not quiet:
+            say("the run of %s (%s) lost its ./robotarium run (pid %d, killed); its folder is finished now: %s"
+                % (os.path.basename(pending.script), record.run_id or "no experiment", pending.run["pid"],
+                   shown(run_dir)))
+    return finished
 
 
 def run_script(request):
@@ -169,47 +165,54 @@ def run_script(request):
     SIGTERM and SIGHUP stop the script and this testbed (Interruption); the results are then made as
     for any run that did not complete.
 
-    Returns (exit code, run.json dict or None, run folder or None).
+    Returns (exit code, its run_record.RunRecord or None, run folder or None).
     """
-    from robotarium_core import outcomes
     script = request.script = os.path.abspath(request.script)
     if not os.path.isfile(script):
         say("no such script: %s" % script)
         return outcomes.USAGE_ERROR, None, None
-    cwd = os.getcwd()
-    results_dir = request.results_dir = os.path.abspath(request.results_dir or os.path.join(repository_root(), "results"))
-    started_at = time.strftime("%Y-%m-%d %H:%M:%S")
-    folders = [results_dir]
+    request.results_dir = os.path.abspath(request.results_dir or os.path.join(repository_root(), "results"))
+    folders = [request.results_dir]
     if request.record and request.local_testbed:   # a testbed started here records into bags_dir
         folders.append(os.path.abspath(request.bags_dir or os.path.join(repository_root(), "bags")))
     problem = check_run_folders(folders, request.options.config_file)
     if problem is not None:
         return problem, None, None
-
     problem = check_script(script)
     if problem is not None:
-        detail, text = problem
-        print(text, end="", file=sys.stderr, flush=True)
-        run = {"run_id": "", "outcome": "script_error", "detail": "the script %s; no testbed was started" % detail,
-               "steps": 0, "step_calls": 0, "exit_code": outcomes.EXIT_CODES[outcomes.SCRIPT_ERROR], "runs": [],
-               "script": script,
-               "started": started_at, "wall_time": 0.0}
-        run_dir = new_run_folder(results_dir, session.experiment_name_of(script))
-        work = tempfile.mkdtemp(prefix="robotarium-run-")
+        return _refused_script(request, *problem)
+    interruption = Interruption()
+    run = Run(request, interruption)
+    try:
+        if not run.start():
+            return outcomes.EXIT_CODES[outcomes.TESTBED_LOST], None, None
+        run.wait()
+        interruption.restore()   # from here on (results, video) a signal acts as usual
+        return run.collect()   # the results are made as soon as the bag is closed, while the nodes exit
+    finally:
+        interruption.restore()
+        run.stop_testbed()
+
+
+def _refused_script(request, detail, text):
+    """A script that cannot be compiled or imported: its folder says why; no testbed was started."""
+    print(text, end="", file=sys.stderr, flush=True)
+    record = run_record.RunRecord(outcome=outcomes.NAMES[outcomes.SCRIPT_ERROR],
+                                  detail="the script %s; no testbed was started" % detail, step_calls=0,
+                                  exit_code=outcomes.EXIT_CODES[outcomes.SCRIPT_ERROR], script=request.script,
+                                  started=time.strftime("%Y-%m-%d %H:%M:%S"))
+    run_dir = new_run_folder(request.results_dir, session.experiment_name_of(request.script))
+    work = tempfile.mkdtemp(prefix="robotarium-run-")
+    try:
         log_path = os.path.join(work, "log.txt")
         with open(log_path, "w") as log:
             log.write(text)
-        finish_run_folder(run_dir, run, script, log_path, [], cwd)
-        shutil.rmtree(work, ignore_errors=True)
-        write_unrecorded_results(run_dir, run)
-        print_summary(run_dir, run, cwd)
-        return run["exit_code"], run, run_dir
-
-    interruption = Interruption()
-    try:
-        return _run_script(request, interruption, started_at)
+        finish_run_folder(run_dir, record, request.script, log_path, [], os.getcwd())
     finally:
-        interruption.restore()
+        shutil.rmtree(work, ignore_errors=True)
+    write_unrecorded_results(run_dir, record)
+    print_summary(run_dir, record, os.getcwd())
+    return record.exit_code, record, run_dir
 
 
 # Seconds a testbed elsewhere on the domain has to answer before `run` starts one here: discovery
@@ -232,13 +235,13 @@ def find_or_start_testbed(ns, record, bags_dir, config_file):
     """The testbed for a run: None when one answers in `ns` on the domain, else a LocalTestbed
     started here. Its nodes start at once behind a start gate (their imports overlap the search)
     and join DDS only once no testbed answered: never two testbeds in one namespace."""
-    from robotarium_bringup import local_testbeds
     here = local_testbeds.matching(local_testbeds.find(), ns, local_testbeds.domain_id())
-    running_here = any(any(name.startswith("simulator") for name in t["nodes"]) for t in here)
+    running_here = any(any(name.startswith(("simulator", "arena")) for name in t["nodes"]) for t in here)
     if running_here:   # ./robotarium up (or ros2 run) on this machine: it answers
         if testbed_answers(ns, timeout=LOCAL_PROBE_WAIT):
             return None
-    testbed = LocalTestbed(record=record, bags_dir=bags_dir, config_file=config_file, looked=True).start(gated=True)
+    testbed = LocalTestbed(record=record, ns=ns, bags_dir=bags_dir, config_file=config_file,
+                           looked=True).start(gated=True)
     try:
         if not running_here and not discovery_is_local() and testbed_answers(ns, timeout=PROBE_WAIT):
             testbed.cancel()
@@ -249,100 +252,308 @@ def find_or_start_testbed(ns, record, bags_dir, config_file):
     return testbed.open()
 
 
-def _run_script(request, interruption, started_at):
-    from robotarium_core import outcomes
-    script, record, bags_dir, results, video, results_dir = (
-        request.script, request.record, request.bags_dir, request.results, request.video, request.results_dir)
-    config_file = request.options.config_file
-    ns = request.namespace or namespace()
-    testbed = None
-    name = session.experiment_name_of(script)
-    # Without local_testbed a testbed is known to be up (or coming up): wait for it, never start one.
-    if request.own_testbed:
-        if interruption.signum is None:
-            testbed = LocalTestbed(record=record, ns=ns, bags_dir=bags_dir, config_file=config_file,
-                                   looked=True).start()
-    elif not request.local_testbed:
-        if testbed_answers(ns, timeout=60.0):
-            if request.options.wait:   # (--no-wait: its one line says what happened)
-                say("using the testbed that answers in %s" % ns)
-        else:
-            say("no testbed answers in %s on ROS_DOMAIN_ID %s (--no-local-testbed forbids starting one); "
-                "start it with ./robotarium up" % (ns, os.environ.get("ROS_DOMAIN_ID", "0")))
-            seen = nodes_seen()
-            say("the DDS graph of this domain shows %s" % (", ".join(seen) if seen else
-                                                          "no node at all: discovery does not reach this process"))
-            return outcomes.EXIT_CODES[outcomes.TESTBED_LOST], None, None
-    elif interruption.signum is None:
-        testbed = find_or_start_testbed(ns, record, bags_dir, config_file)
-        if testbed is None and request.options.wait:   # (--no-wait: its one line says what happened)
-            say("using the testbed that answers in %s" % ns)
-        else:
-            say("no testbed answers in %s: started one on this machine for this run (logs in %s)"
-                % (ns, shown(testbed.log_dir)))
-    work = new_work_folder(results_dir)
-    info_path = os.path.join(work, "run.json")
-    log_path = os.path.join(work, "log.txt")
-    # The testbed is up (found or started above): the script waits for it, never starts another.
-    options = dataclasses.replace(request.options, local_testbed=False, namespace=ns, experiment_name=name,
-                                  progress_interval=session.progress_from_environment(10.0),
-                                  config_file=os.path.abspath(config_file) if config_file else None)
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
-    if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
-        env.setdefault("MPLBACKEND", "Agg")
-    # The script's lifeline: should this command be killed outright, the script stops too.
-    env, pass_fds = lifeline.for_child(env)
-    # In the portal's job box only the script is demoted (its account, its limits); the testbed stays the service's.
-    box_options, env = script_box.popen_options(env, writable=[work])
-    command = [sys.executable, "-m", "robotarium_cli.runner", options.to_json(), info_path, script,
-               *request.script_args]
+def new_work_folder(results_dir):
+    """The scratch folder of one run: in results_dir/.unfinished/, or (the portal's job box, which
+    keeps its own books) a temporary folder."""
+    if script_box.VARIABLE in os.environ:
+        return tempfile.mkdtemp(prefix="robotarium-run-")
+    parent = os.path.join(results_dir, UNFINISHED)
+    os.makedirs(parent, exist_ok=True)
+    return tempfile.mkdtemp(prefix="run-", dir=parent)
 
-    cwd = os.getcwd()
-    before = snapshot_files(cwd)
-    started = time.time()
-    code = None
-    pending = {"run": local_testbeds_process(os.getpid()), "runner": None, "script": script, "cwd": cwd,
-               "started": started, "started_at": started_at, "bags_dir": bags_dir, "results": results,
-               "results_dir": results_dir, "name": name, "video": video, "before": before}
-    _write_pending(work, pending)
-    if results and record:   # made while the script runs: the results' imports
-        threading.Thread(target=recording.preload_results, args=(video,), daemon=True).start()
+
+class Run:
+    """One run of a script: its request, its testbed (found on the domain, started here, or its own),
+    its scratch folder and the interruption that may stop it. start() finds or starts the testbed and
+    keeps what finishing the folder needs; wait() runs the script's process to its end; collect()
+    makes the run folder and the results. resume() is the collect of a run whose ./robotarium run was
+    killed (finish_unfinished)."""
+
+    def __init__(self, request, interruption=None):
+        self.request = request
+        self.interruption = interruption   # None: finishing a run whose ./robotarium run was killed
+        self.ns = request.namespace or namespace()
+        self.testbed = None   # a LocalTestbed this run started (None: one that answered, or none yet)
+        self.work = None
+        self.pending = None
+        self.code = None      # the script's process's exit code (None: it never started)
+
+    @property
+    def record_path(self):
+        return os.path.join(self.work, run_record.FILE)
+
+    @property
+    def log_path(self):
+        return os.path.join(self.work, "log.txt")
+
+    @property
+    def quiet(self):
+        return self.interruption is None or not self.request.echo
+
+    # -- start ------------------------------------------------------------------------------------------
+
+    def start(self):
+        """Find or start the testbed and open the scratch folder. False when no testbed answers and
+        none may be started here (it says so)."""
+        request, interrupted = self.request, self.interruption.signum is not None
+        config_file = request.options.config_file
+        if request.own_testbed:
+            if not interrupted:
+                self.testbed = LocalTestbed(record=request.record, ns=self.ns, bags_dir=request.bags_dir,
+                                            config_file=config_file, looked=True).start()
+        elif not request.local_testbed:   # a testbed is known to be up (or coming up): wait for it, never start one
+            if not testbed_answers(self.ns, timeout=60.0):
+                say("no testbed answers in %s on ROS_DOMAIN_ID %s (--no-local-testbed forbids starting one); "
+                    "start it with ./robotarium up" % (self.ns, os.environ.get("ROS_DOMAIN_ID", "0")))
+                seen = nodes_seen()
+                say("the DDS graph of this domain shows %s" % (", ".join(seen) if seen else
+                                                              "no node at all: discovery does not reach this process"))
+                return False
+            if request.options.wait:   # (--no-wait: its one line says what happened)
+                say("using the testbed that answers in %s" % self.ns)
+        elif not interrupted:
+            self.testbed = find_or_start_testbed(self.ns, request.record, request.bags_dir, config_file)
+            if self.testbed is not None:
+                say("no testbed answers in %s: started one on this machine for this run (logs in %s)"
+                    % (self.ns, shown(self.testbed.log_dir)))
+            elif request.options.wait:   # (--no-wait: its one line says what happened)
+                say("using the testbed that answers in %s" % self.ns)
+        self.work = new_work_folder(request.results_dir)
+        cwd = os.getcwd()
+        self.pending = PendingRun(
+            run=local_testbeds.process(os.getpid()), script=request.script, cwd=cwd, started=time.time(),
+            started_at=time.strftime("%Y-%m-%d %H:%M:%S"), bags_dir=request.bags_dir, results=request.results,
+            results_dir=request.results_dir, name=session.experiment_name_of(request.script), video=request.video,
+            before=snapshot_files(cwd), namespace=self.ns)
+        self.pending.write(self.work)
+        return True
+
+    # -- wait -------------------------------------------------------------------------------------------
+
+    def wait(self):
+        """Run the script in its own process, its output to the log (and the console), until it ends;
+        then let the testbed this run started end its experiment and close the recording."""
+        request = self.request
+        if request.results and request.record:   # made while the script runs: the results' imports
+            threading.Thread(target=recording.preload_results, args=(request.video,), daemon=True).start()
+        try:
+            if self.interruption.signum is None:
+                command, env, pass_fds, box_options = self._script_process()
+                with open(self.log_path, "wb") as log:
+                    # A process group of its own: a terminal's Ctrl-C reaches only this command, which forwards
+                    # it once (a second SIGINT would cut short the script's exit handler ending its experiment).
+                    process = subprocess.Popen(command, cwd=self.pending.cwd, env=env, pass_fds=pass_fds,
+                                               process_group=0, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                               **box_options)
+                    self.interruption.watch(process)
+                    self.pending.runner = local_testbeds.process(process.pid)
+                    self.pending.write(self.work)
+                    # the log first: it never lags what was shown
+                    tee(process.stdout, [log, sys.stdout.buffer] if request.echo else [log])
+                    self.code = process.wait()
+        finally:
+            if self.testbed is not None:
+                self.testbed.begin_stop()  # the simulator ends an experiment still running; the recorder closes the bag
+
+    def _script_process(self):
+        """The runner's command line, environment, inherited descriptors and job-box options."""
+        request, config_file = self.request, self.request.options.config_file
+        # The testbed is up (found or started): the script waits for it, never starts another.
+        options = dataclasses.replace(request.options, local_testbed=False, namespace=self.ns,
+                                      experiment_name=self.pending.name,
+                                      progress_interval=session.progress_from_environment(10.0),
+                                      config_file=os.path.abspath(config_file) if config_file else None)
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+            env.setdefault("MPLBACKEND", "Agg")
+        # The script's lifeline: should this command be killed outright, the script stops too.
+        env, pass_fds = lifeline.for_child(env)
+        # In the portal's job box only the script is demoted (its account, its limits); the testbed stays the service's.
+        box_options, env = script_box.popen_options(env, writable=[self.work])
+        command = [sys.executable, "-m", "robotarium_cli.runner", options.to_json(), self.record_path,
+                   request.script, *request.script_args]
+        return command, env, pass_fds, box_options
+
+    def stop_testbed(self):
+        if self.testbed is not None:
+            self.testbed.stop()
+
+    # -- collect ----------------------------------------------------------------------------------------
+
+    @classmethod
+    def resume(cls, work, pending):
+        """The Run of a ./robotarium run that was killed outright, to collect its folder."""
+        request = RunRequest(pending.script, bags_dir=pending.bags_dir, results=pending.results, video=pending.video,
+                             results_dir=pending.results_dir, namespace=pending.namespace or None, echo=False)
+        run = cls(request)
+        run.work, run.pending, run.code = work, pending, -signal.SIGKILL
+        return run
+
+    def collect(self):
+        """The run folder and the results, from what the script's process kept and what the testbed
+        recorded. Returns (exit code, run_record.RunRecord or None, run folder or None)."""
+        pending, interruption = self.pending, self.interruption
+        if self.code is None:
+            say("interrupted (%s) before the script started%s" % (
+                interruption.name, "; the testbed this run started was stopped" if self.testbed is not None else ""))
+            shutil.rmtree(self.work, ignore_errors=True)
+            return interruption.exit_code, None, None
+        record, died = self._record()
+        if interruption is not None and interruption.signum is not None:
+            say("interrupted (%s): the script was stopped%s" % (
+                interruption.name, " and the testbed this run started was stopped" if self.testbed is not None else ""))
+        if record.outcome == outcomes.NAMES[outcomes.TESTBED_BUSY]:
+            # Nothing ran (--no-wait on a busy testbed): the script's process said so in one line, and a run
+            # that never ran gets no folder.
+            shutil.rmtree(self.work, ignore_errors=True)
+            return record.exit_code, record, None
+        saved = [p for p, mtime in snapshot_files(pending.cwd).items()
+                 if pending.before.get(p) != mtime and mtime / 1e9 >= pending.started - 1]
+        run_dir, bag_dir, stopped = self._run_folder(record)
+        if (self.request.judge and record.safety_interventions
+                and record.outcome == outcomes.NAMES[outcomes.COMPLETED]):
+            record.verdict = _judge(self.request, record)
+        finish_run_folder(run_dir, record, pending.script, self.log_path, saved, pending.cwd,
+                          _data_limit(self.request.options.config_file))
+        if bag_dir:
+            self._results(record, run_dir, bag_dir, stopped, died)
+        else:
+            write_unrecorded_results(run_dir, record, record.last.report if record.last else "")
+        shutil.rmtree(self.work, ignore_errors=True)   # last: a run whose folder is finished is no longer pending
+        if not self.quiet:
+            print_summary(run_dir, record, pending.cwd)
+        return record.exit_code, record, run_dir
+
+    def _record(self):
+        """(the run's record, how the script's process died or None): what it kept, or, killed outright,
+        what is known of it (started.json: the experiment it started)."""
+        record, died = run_record.read(self.record_path), None
+        if record is None:
+            interruption, code = self.interruption, self.code
+            if interruption is None:   # finishing the folder of a ./robotarium run that was killed
+                died, exit_code = "./robotarium run was killed", 128 + signal.SIGKILL
+            elif interruption.signum is not None:
+                died, exit_code = "interrupted by %s and killed" % interruption.name, interruption.exit_code
+            elif code < 0:
+                died, exit_code = "killed by %s" % signal.Signals(-code).name, 128 - code
+            else:
+                died, exit_code = "exit code %d" % code, code or 1
+            started = _read_json(os.path.join(self.work, STARTED))
+            record = run_record.RunRecord(
+                outcome="interrupted" if died.startswith(("./", "interrupted", "killed")) else "script_error",
+                detail=("%s, and the script's process ended before it could say how its run ended" % died
+                        if interruption is None else
+                        "the script's process ended (%s) before it could end its experiment" % died),
+                exit_code=exit_code, experiments=[run_record.Experiment.from_dict(started)] if started else [])
+        # The run is its (last) experiment: its fields at the top, how the script's run ended over them.
+        record.take_last_experiment()
+        record.script, record.started = self.pending.script, self.pending.started_at
+        record.wall_time = round(time.time() - self.pending.started, 3)
+        return record, died
+
+    def _run_folder(self, record):
+        """(run folder, its bag's folder or "", "recording stopped at step k: why" or ""): the bag's
+        folder where the recorder kept the run here, else results/<run id>/."""
+        pending, last = self.pending, record.last
+        run_dir = last.recording if last else ""
+        if record.run_id and not run_dir:
+            # A very short run can end before the recorder's announcement of its folder arrived.
+            guess = os.path.join(pending.bags_dir or os.path.join(repository_root(), "bags"), record.run_id)
+            run_dir = guess if os.path.isdir(guess) else ""
+            if not run_dir and pending.results and record.outcome != outcomes.NAMES[outcomes.COMPLETED]:
+                # Killed, or the testbed lost, before its client heard the announcement (a busy recorder
+                # opens the bag a few steps late, after the client's "running"): ask the recorder.
+                if not self.quiet:
+                    say("asking the testbed's recorder where run %s is recorded (up to %.0f s)"
+                        % (record.run_id, RECORDING_LOOKUP_WAIT))
+                run_dir = announced_recording(record.run_id, self.ns)
+        recorded = bool(run_dir) and os.path.isdir(run_dir) and pending.results
+        bag_dir = run_dir if recorded else ""
+        stopped = outcomes.recording_stopped(record)
+        if stopped and record.exit_code == 0:   # completed, but its recording is not: not a success (README)
+            record.exit_code = outcomes.EXIT_CODES[outcomes.TESTBED_LOST]
+        # The recorder could not write (a full disk): the bag's disk takes nothing more, so the run's
+        # folder is results/<run id>/, with the results of what the bag holds.
+        write_error = bool(stopped) and record.recording_stopped_because != outcomes.RECORDER_GONE
+        if recorded and stopped:
+            stopped = self._tidy_stopped_recording(record, bag_dir, write_error)
+        if not recorded or write_error:
+            # Not recorded here (another machine's testbed, no recorder, or no experiment at all):
+            # keep the local outputs in results/<run id>/.
+            run_dir = (os.path.join(pending.results_dir, record.run_id) if record.run_id
+                       else new_run_folder(pending.results_dir, pending.name))
+            os.makedirs(run_dir, exist_ok=True)
+        return run_dir, bag_dir, stopped
+
+    def _tidy_stopped_recording(self, record, bag_dir, write_error):
+        """Nothing will close the bag (its recorder is gone, or stopped writing it): make its metadata
+        agree with its file where its disk allows; the step it stopped at is the last it holds."""
+        if not write_error:   # (a recorder that could not write tidied the bag itself, as far as its disk let it)
+            self.stop_testbed()
+            try:
+                recording.recover_bag(bag_dir)
+            except OSError as error:
+                say("could not tidy the recording in %s (%s); readers scan it as it is" % (bag_dir, error.strerror))
+        try:
+            steps = recording.Bag(bag_dir).poses().steps
+        except Exception:   # noqa: BLE001 - nothing readable: the client's step stands
+            steps = ()
+        if len(steps):
+            record.recording_stopped_at_step = int(steps[-1])
+        stopped = outcomes.recording_stopped(record)
+        if not self.quiet:
+            say("%s: %s holds the run up to there" % (stopped, bag_dir))
+        return stopped
+
+    def _results(self, record, run_dir, bag_dir, stopped, died):
+        """Report, plot, video and page from the recording, once the bag is closed."""
+        if not stopped:
+            # A lost testbed may never close the bag: then take what is on disk after a short wait. A
+            # script killed outright has its experiment ended by the testbed (client_lease) or by
+            # this command's stopping of its own testbed.
+            timeout = 15.0 if record.ended or died or self.interruption is None else 3.0
+            if self.testbed is None:
+                wait_until_recorded(run_dir, timeout, quiet=self.quiet)
+            elif not wait_until_recorded(run_dir, timeout, quiet=True):
+                self.stop_testbed()   # its recorder closes the bag as it stops (or is gone)
+                wait_until_recorded(run_dir, timeout=1.0)
+        try:
+            if died:   # the testbed's steps, as the report counts them (a killed script could not say)
+                recorded_steps = recording.Bag(bag_dir).poses().steps
+                record.steps = int(recorded_steps[-1]) if len(recorded_steps) else 0
+                run_record.write(record, run_dir)
+            recording.write_results(bag_dir, progress=not self.quiet, video=self.pending.video, run=record,
+                                    out_dir=run_dir)
+        except Exception as error:   # noqa: BLE001 - say so, keep the folder
+            say("could not make the results from the recording (%s); see %s"
+                % (session.describe_exception(error), run_dir))
+            write_unrecorded_results(run_dir, record, record.last.report if record.last else "")
+
+
+def _read_json(path):
     try:
-        if interruption.signum is None:
-            with open(log_path, "wb") as log:
-                # A process group of its own: a terminal's Ctrl-C reaches only this command, which forwards it
-                # once (a second SIGINT would cut short the script's exit handler ending its experiment).
-                process = subprocess.Popen(command, cwd=cwd, env=env, pass_fds=pass_fds, process_group=0,
-                                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, **box_options)
-                interruption.watch(process)
-                _write_pending(work, dict(pending, runner=local_testbeds_process(process.pid)))
-                # the log first: it never lags what was shown
-                tee(process.stdout, [log, sys.stdout.buffer] if request.echo else [log])
-                code = process.wait()
-    finally:
-        if testbed is not None:
-            testbed.begin_stop()  # the simulator ends an experiment still running; the recorder closes the bag
-        interruption.restore()   # from here on (results, video) a signal acts as usual
-    try:   # the results are made as soon as the bag is closed, while the nodes exit
-        return _collect_run(script, code, testbed, interruption, work, info_path, log_path, started, started_at,
-                            before, cwd, bags_dir, results, results_dir, name, video, quiet=not request.echo,
-                            data_limit=_data_limit(config_file), ns=ns, judge=request if request.judge else None)
-    finally:
-        if testbed is not None:
-            testbed.stop()
+        with open(path, encoding="utf-8") as f:
+            return json.load(f)
+    except (OSError, ValueError):
+        return None
+
+
+def _data_limit(config_file):
+    """Bytes of data files a run folder takes: run_data_limit of the configuration given (--config),
+    else None (the packaged one's)."""
+    return TestbedConfig.load(config_file).run_data_limit * 1e6 if config_file else None
 
 
 def _judge(request, run):
     """The Robotarium's verdict on a run whose commands the safety layer changed: the script judged
     as ./robotarium verify judges it (lockstep, its own commands, a testbed of its own), printed
     and returned as verification.verdict's document (None: no verdict, and why was said)."""
-    from robotarium_cli import verification
     say("the safety layer changed %d of your script's command arrays, so this run's counts are not the "
         "Robotarium's: judging the script as its verification does (lockstep, the script's own commands, a testbed "
-        "of its own; ./robotarium verify)" % run["safety_interventions"])
+        "of its own; ./robotarium verify)" % run.safety_interventions)
     scratch = tempfile.mkdtemp(prefix="robotarium-judge-")
     try:
-        judged = verification.verify_script(request.script, request.script_args, request.options.config_file,
+        judged = verify_script(request.script, request.script_args, request.options.config_file,
                                             rps_api=request.options.rps_api, record=False, results_dir=scratch,
                                             echo=False)
     except verification.NoVerdict as error:
@@ -355,136 +566,31 @@ def _judge(request, run):
     return dict(judged.document(), text=text)
 
 
-def _data_limit(config_file):
-    """Bytes of data files a run folder takes: run_data_limit of the configuration given (--config),
-    else None (the packaged one's)."""
-    if not config_file:
-        return None
-    from robotarium_core.config import TestbedConfig
-    return TestbedConfig.load(config_file).run_data_limit * 1e6
-
-
-def _collect_run(script, code, testbed, interruption, work, info_path, log_path, started, started_at, before, cwd,
-                 bags_dir, results, results_dir, name, video, quiet=False, data_limit=None, ns=None, judge=None):
-    """What run_script does after the script's process ended: the run folder and the results.
-    interruption None: finishing the folder of a ./robotarium run that was killed (finish_unfinished).
-    judge: the RunRequest, where a run the safety layer changed gets the Robotarium's verdict."""
-    if code is None:
-        say("interrupted (%s) before the script started%s" % (
-            interruption.name, "; the testbed this run started was stopped" if testbed is not None else ""))
-        shutil.rmtree(work, ignore_errors=True)
-        return interruption.exit_code, None, None
-    wall_time = round(time.time() - started, 3)
-
-    died = None   # the script's process ended without saying how its run ended (killed outright)
-    try:
-        with open(info_path) as f:
-            run = json.load(f)
-    except (OSError, ValueError):
-        if interruption is None:   # finishing the folder of a ./robotarium run that was killed (finish_unfinished)
-            died, exit_code = "./robotarium run was killed", 128 + signal.SIGKILL
-        elif interruption.signum is not None:
-            died, exit_code = "interrupted by %s and killed" % interruption.name, interruption.exit_code
-        elif code < 0:
-            died, exit_code = "killed by %s" % signal.Signals(-code).name, 128 - code
-        else:
-            died, exit_code = "exit code %d" % code, code or 1
-        # What the script's Robotarium said when its experiment started: the run, its recording.
-        started_info = _read_json(os.path.join(work, runner_started_file()))
-        run = {"outcome": "interrupted" if died.startswith(("./", "interrupted", "killed")) else "script_error",
-               "detail": ("%s, and the script's process ended before it could say how its run ended" % died
-                          if interruption is None else
-                          "the script's process ended (%s) before it could end its experiment" % died),
-               "step_calls": None, "exit_code": exit_code, "runs": [started_info] if started_info else []}
-    if interruption is not None and interruption.signum is not None:
-        say("interrupted (%s): the script was stopped%s" % (
-            interruption.name, " and the testbed this run started was stopped" if testbed is not None else ""))
-    info = run["runs"][-1] if run["runs"] else {}
-    # The run is its (last) experiment: its keys at the top, how the script's run ended over them.
-    run = dict({k: v for k, v in info.items() if k != "report"}, **run)
-    run.update(run_id=info.get("run_id", ""), script=script, started=started_at, wall_time=wall_time)
-    run.setdefault("steps", 0)
-    if run.get("outcome") == outcomes.NAMES[outcomes.TESTBED_BUSY]:
-        # Nothing ran (--no-wait on a busy testbed): the script's process said so in one line, and a run
-        # that never ran gets no folder.
-        shutil.rmtree(work, ignore_errors=True)
-        return run["exit_code"], run, None
-    saved = [p for p, mtime in snapshot_files(cwd).items() if before.get(p) != mtime and mtime / 1e9 >= started - 1]
-
-    run_dir = info.get("recording") or ""
-    if info.get("run_id") and not run_dir:
-        # A very short run can end before the recorder's announcement of its folder arrived.
-        guess = os.path.join(bags_dir or os.path.join(repository_root(), "bags"), info["run_id"])
-        run_dir = guess if os.path.isdir(guess) else ""
-        if not run_dir and results and run.get("outcome") != outcomes.NAMES[outcomes.COMPLETED]:
-            # Killed, or the testbed lost, before its client heard the announcement (a busy recorder
-            # opens the bag a few steps late, after the client's "running"): ask the recorder.
-            if not quiet:
-                say("asking the testbed's recorder where run %s is recorded (up to %.0f s)"
-                    % (info["run_id"], RECORDING_LOOKUP_WAIT))
-            run_dir = announced_recording(info["run_id"], ns or namespace())
-    recorded = bool(run_dir) and os.path.isdir(run_dir) and results
-    bag_dir = run_dir if recorded else ""
-    stopped = outcomes.recording_stopped(run)
-    if stopped and run["exit_code"] == 0:   # completed, but its recording is not: not a success (README)
-        run["exit_code"] = outcomes.EXIT_CODES[outcomes.TESTBED_LOST]
-    # The recorder could not write (a full disk): the bag's disk takes nothing more, so the run's
-    # folder is results/<run id>/, with the results of what the bag holds.
-    write_error = stopped and info.get("recording_stopped_because") != outcomes.RECORDER_GONE
-    if recorded and stopped:
-        # Nothing will close the bag (its recorder is gone, or stopped writing it): make its metadata
-        # agree with its file where its disk allows; the step it stopped at is the last it holds.
-        if not write_error:   # (a recorder that could not write tidied the bag itself, as far as its disk let it)
-            if testbed is not None:
-                testbed.stop()
-            try:
-                recording.recover_bag(bag_dir)
-            except OSError as error:
-                say("could not tidy the recording in %s (%s); readers scan it as it is" % (bag_dir, error.strerror))
-        try:
-            steps = recording.Bag(bag_dir).poses().steps
-        except Exception:   # noqa: BLE001 - nothing readable: the client's step stands
-            steps = ()
-        if len(steps):
-            run["recording_stopped_at_step"] = int(steps[-1])
-            stopped = outcomes.recording_stopped(run)
-        if not quiet:
-            say("%s: %s holds the run up to there" % (stopped, bag_dir))
-    if not recorded or write_error:
-        # Not recorded here (another machine's testbed, no recorder, or no experiment at all):
-        # keep the local outputs in results/<run id>/.
-        run_dir = (os.path.join(results_dir, info["run_id"]) if info.get("run_id")
-                   else new_run_folder(results_dir, name))
-        os.makedirs(run_dir, exist_ok=True)
-    if judge is not None and run.get("safety_interventions") and run.get("outcome") == outcomes.NAMES[outcomes.COMPLETED]:
-        run["verdict"] = _judge(judge, run)
-    finish_run_folder(run_dir, run, script, log_path, saved, cwd, data_limit)
-
-    if recorded:
-        if not stopped:
-            # A lost testbed may never close the bag: then take what is on disk after a short wait. A
-            # script killed outright has its experiment ended by the testbed (client_lease) or by
-            # this command's stopping of its own testbed.
-            timeout = 15.0 if info.get("ended") or died or interruption is None else 3.0
-            if testbed is None:
-                wait_until_recorded(run_dir, timeout, quiet=quiet)
-            elif not wait_until_recorded(run_dir, timeout, quiet=True):
-                testbed.stop()   # its recorder closes the bag as it stops (or is gone)
-                wait_until_recorded(run_dir, timeout=1.0)
-        try:
-            if died:   # the testbed's steps, as the report counts them (a killed script could not say)
-                recorded_steps = recording.Bag(bag_dir).poses().steps
-                run["steps"] = int(recorded_steps[-1]) if len(recorded_steps) else 0
-                with open(os.path.join(run_dir, "run.json"), "w") as f:
-                    json.dump(run, f, indent=2)
-            recording.write_results(bag_dir, progress=not quiet, video=video, run=run, out_dir=run_dir)
-        except Exception as error:   # noqa: BLE001 - say so, keep the folder
-            say("could not make the results from the recording (%s); see %s"
-                % (session.describe_exception(error), run_dir))
-            write_unrecorded_results(run_dir, run, info.get("report", ""))
-    else:
-        write_unrecorded_results(run_dir, run, info.get("report", ""))
-    shutil.rmtree(work, ignore_errors=True)   # last: a run whose folder is finished is no longer pending
-    if not quiet:
-        print_summary(run_dir, run, cwd)
-    return run["exit_code"], run, run_dir
+def verify_script(script, script_args=(), config_file=None, robots=None, duration=None, rps_api=None, record=True,
+                  bags_dir=None, results_dir=None, echo=True):
+    """Judge `script` as the Robotarium's verification does: the static rules, then a lockstep run on
+    a testbed of its own (a namespace no other testbed uses) with the safety node auditing. Returns
+    a verification.Verdict; raises verification.NoVerdict where the run could not judge it."""
+    config = TestbedConfig.load(config_file) if config_file else DEFAULT
+    rules = verification.static_rules(script, config)
+    if rules:
+        return verification.Verdict(rules, None, "", None, config, robots, duration)
+    if echo:
+        say("verifying %s as the Robotarium does: lockstep, safety node auditing (the script's own commands go "
+            "through and every collision counts)" % shown(script))
+    options = session.RunOptions(real_time=False, config_file=config_file, audit=True,
+                                 rps_api=rps_api or session.rps_api_from_environment())
+    code, run, run_dir = run_script(RunRequest(
+        script, tuple(script_args), options, record=record, bags_dir=bags_dir, video=False, own_testbed=True,
+        results_dir=results_dir, namespace="/robotarium_verify_%d" % os.getpid(), echo=echo))
+    if run is None:
+        raise verification.NoVerdict("the run did not start (exit code %d)" % code,
+                                     code if code != outcomes.USAGE_ERROR else outcomes.TESTBED_PROBLEM)
+    if run.outcome == "interrupted":
+        raise verification.NoVerdict("the verification was interrupted", code or 130)
+    if run.outcome in ("testbed_lost", "client_lost", "unfinished", "testbed_incomplete"):
+        raise verification.NoVerdict("the testbed failed (%s); see the testbed's logs in log/testbed/ and run verify "
+                                     "again" % (run.detail or run.outcome), outcomes.TESTBED_PROBLEM)
+    report = run.last.report if run.last else ""
+    return verification.Verdict(verification.judge(run, config, robots, duration), run, report, run_dir, config,
+                                robots, duration)

@@ -25,8 +25,8 @@ testbed failed (no verdict), 128 + N interrupted by signal N. `--json FILE` writ
    "counts": {...}, "results": "the run's folder" | null}
 
 The rules themselves are plain functions (static_rules, judge) that tests drive without ROS;
-verify_script runs a script and judges it (./robotarium verify, and ./robotarium run where the
-safety layer changed the script's commands).
+robotarium_cli.running.verify_script runs a script and judges it (./robotarium verify, and
+./robotarium run where the safety layer changed the script's commands).
 """
 import ast
 import dataclasses
@@ -100,13 +100,13 @@ def static_rules(script, config):
 
 
 def judge(run, config, robots=None, duration=None):
-    """The broken rules of a verification run. `run`: run.json's dict of ./robotarium run (outcome,
-    detail, steps, step_calls, number_of_robots, collisions, boundary_violations, first_*_step); `robots`
-    and `duration` (s) as declared, None: that rule is not judged."""
+    """The broken rules of a verification run. `run`: its run_record.RunRecord (outcome, detail,
+    steps, step calls, robots, counts, first error steps); `robots` and `duration` (s) as declared,
+    None: that rule is not judged."""
     broken = []
-    outcome, detail = run.get("outcome"), run.get("detail", "")
-    iterations = int(run.get("steps") or 0)
-    step_of_end = int(run.get("step_calls") or iterations)
+    outcome, detail = run.outcome, run.detail
+    iterations = int(run.steps or 0)
+    step_of_end = int(run.step_calls or iterations)
     if outcome == "script_error" or (outcome == "completed" and str(detail).startswith("then the script raised")):
         broken.append(rule("script_error", "The script failed: %s." % str(detail).rstrip("."),
                            first_step=step_of_end))
@@ -117,21 +117,21 @@ def judge(run, config, robots=None, duration=None):
         limit = int(math.floor(config.time_limit / config.time_step + 1e-9))
         broken.append(rule("duration", "The script ran into the testbed's time limit of %g s (%d iterations) without "
                                        "ending." % (config.time_limit, limit), count=iterations, limit=limit))
-    collisions = int(run.get("collisions") or 0)
+    collisions = int(run.collisions or 0)
     if collisions > config.verify_max_collision_iterations:
-        first = run.get("first_collision_step")
+        first = run.first_collision_step
         broken.append(rule("collisions", "Robots collided in %d iterations, more than the %d the Robotarium allows%s."
                            % (collisions, config.verify_max_collision_iterations,
                               " (the first at step %d)" % first if first else ""),
                            count=collisions, limit=config.verify_max_collision_iterations, first_step=first or None))
-    outside = int(run.get("boundary_violations") or 0)
+    outside = int(run.boundary_violations or 0)
     if outside > config.verify_max_boundary_iterations:
-        first = run.get("first_boundary_step")
+        first = run.first_boundary_step
         broken.append(rule("boundary", "Robots were outside the arena in %d iterations, more than the %d the Robotarium "
                                        "allows%s." % (outside, config.verify_max_boundary_iterations,
                                                       " (the first at step %d)" % first if first else ""),
                            count=outside, limit=config.verify_max_boundary_iterations, first_step=first or None))
-    n = run.get("number_of_robots")
+    n = run.number_of_robots
     if robots is not None and n is not None and int(n) != robots:
         broken.append(rule("robots", "The script uses %d robots, but %d were declared (--robots)." % (n, robots),
                            count=int(n), limit=robots))
@@ -146,15 +146,14 @@ def judge(run, config, robots=None, duration=None):
 
 
 def verdict(rules, run=None, report="", results=None):
-    """The --json document."""
-    run = run or {}
+    """The --json document; `run` the verification run's run_record.RunRecord (None: it never ran)."""
+    counted = ("collisions", "boundary_violations", "actuator_limit_iterations", "first_collision_step",
+               "first_boundary_step", "safety_interventions")
     return {"verdict": "rejected" if rules else "accepted", "rules": rules,
-            "iterations": int(run.get("steps") or 0),
-            "number_of_robots": run.get("number_of_robots"), "outcome": run.get("outcome", "not_run"),
+            "iterations": int(run.steps or 0) if run else 0,
+            "number_of_robots": run.number_of_robots if run else None, "outcome": run.outcome if run else "not_run",
             "report": report,
-            "counts": {key: run.get(key) for key in ("collisions", "boundary_violations", "actuator_limit_iterations",
-                                                     "first_collision_step", "first_boundary_step",
-                                                     "safety_interventions")},
+            "counts": {key: getattr(run, key) if run else None for key in counted},
             "results": results}
 
 
@@ -163,12 +162,12 @@ def verdict_lines(rules, run, config, robots, duration):
     if rules:
         return ["Verification failed (%s): %s" % (r["rule"], r["message"]) for r in rules] + [
             "The Robotarium would reject this experiment."]
-    iterations = int(run.get("steps") or 0)
-    checked = ["%d collision iteration(s) (at most %d)" % (int(run.get("collisions") or 0),
+    iterations = int(run.steps or 0)
+    checked = ["%d collision iteration(s) (at most %d)" % (int(run.collisions or 0),
                                                           config.verify_max_collision_iterations),
-               "%d iteration(s) outside the arena (at most %d)" % (int(run.get("boundary_violations") or 0),
+               "%d iteration(s) outside the arena (at most %d)" % (int(run.boundary_violations or 0),
                                                                    config.verify_max_boundary_iterations)]
-    checked.append("%d robots%s" % (run.get("number_of_robots") or 0, " as declared" if robots is not None else ""))
+    checked.append("%d robots%s" % (run.number_of_robots or 0, " as declared" if robots is not None else ""))
     checked.append("%d iterations (%.1f s)%s" % (iterations, iterations * config.time_step,
                                                  " within %g x the declared %g s" % (config.verify_duration_factor,
                                                                                     duration)
@@ -199,9 +198,10 @@ class NoVerdict(Exception):
 @dataclasses.dataclass
 class Verdict:
     """A script judged by the Robotarium's rules: the rules it broke, the verification run's
-    run.json dict and debug report, where its results are, and what was declared."""
+    run_record.RunRecord (None: it never ran) and debug report, where its results are, and what was
+    declared."""
     rules: list
-    run: dict
+    run: object
     report: str
     results: object
     config: object
@@ -224,37 +224,3 @@ class Verdict:
             lines.append(self.report.rstrip("\n"))
         lines += verdict_lines(self.rules, self.run, self.config, self.robots, self.duration)
         return "\n".join(lines) + "\n"
-
-
-def verify_script(script, script_args=(), config_file=None, robots=None, duration=None, rps_api=None, record=True,
-                  bags_dir=None, results_dir=None, echo=True):
-    """Judge `script` as the Robotarium's verification does: the static rules, then a lockstep run on
-    a testbed of its own (a namespace no other testbed uses) with the safety node auditing. Returns
-    a Verdict; raises NoVerdict where the run could not judge it."""
-    from robotarium_cli.console import say, shown
-    from robotarium_cli.running import RunRequest, run_script
-    from robotarium_client import session
-    from robotarium_core import outcomes
-    from robotarium_core.config import DEFAULT, TestbedConfig
-    config = TestbedConfig.load(config_file) if config_file else DEFAULT
-    rules = static_rules(script, config)
-    if rules:
-        return Verdict(rules, {}, "", None, config, robots, duration)
-    if echo:
-        say("verifying %s as the Robotarium does: lockstep, safety node auditing (the script's own commands go "
-            "through and every collision counts)" % shown(script))
-    options = session.RunOptions(real_time=False, config_file=config_file, audit=True,
-                                 rps_api=rps_api or session.rps_api_from_environment())
-    code, run, run_dir = run_script(RunRequest(
-        script, tuple(script_args), options, record=record, bags_dir=bags_dir, video=False, own_testbed=True,
-        results_dir=results_dir, namespace="/robotarium_verify_%d" % os.getpid(), echo=echo))
-    if run is None:
-        raise NoVerdict("the run did not start (exit code %d)" % code,
-                        code if code != outcomes.USAGE_ERROR else outcomes.TESTBED_PROBLEM)
-    if run["outcome"] == "interrupted":
-        raise NoVerdict("the verification was interrupted", code or 130)
-    if run["outcome"] in ("testbed_lost", "client_lost", "unfinished", "testbed_incomplete"):
-        raise NoVerdict("the testbed failed (%s); see the testbed's logs in log/testbed/ and run verify again"
-                        % run.get("detail", run["outcome"]), outcomes.TESTBED_PROBLEM)
-    report = (run.get("runs") or [{}])[-1].get("report", "")
-    return Verdict(judge(run, config, robots, duration), run, report, run_dir, config, robots, duration)

@@ -56,7 +56,7 @@ from robotarium_client.errors import (  # noqa: F401 - also robotarium_client.ro
 )
 from robotarium_client.progress import StepProgress
 from robotarium_client.robotarium_abc import RobotariumABC
-from robotarium_core import cdr, model, outcomes
+from robotarium_core import cdr, model, outcomes, run_record
 from robotarium_core.config import DEFAULT, TestbedConfig
 from robotarium_core.model import RobotariumError
 
@@ -69,6 +69,9 @@ if TYPE_CHECKING:
 
 STARTUP_WAIT = 60.0   # s for a testbed started here to come up
 STEP_TIMEOUT = 10.0   # s without poses after a step() before we give up with an explanation
+# s a start may take: a hardware arena (robotarium_hardware) answers once its drive-on phase brought the robots to
+# the initial conditions, which took up to 30 s for the guide's listings on a loaded 2-core machine
+START_WAIT = 180.0
 CONFIG_WAIT = 2.0     # s for the testbed's latched configuration once its services answer
 GRAPH_POLL = 0.01     # s between looks at what only the DDS graph says (a reader matched) while waiting
 
@@ -112,7 +115,7 @@ class Robotarium(RobotariumABC):
         self._node = None
         self._local_testbed = None
         self._recording = ""   # the recorder's folder for this run, from its announcement
-        self.run_info = None   # set when the experiment ended: run id, recording, report, counters
+        self.run_info = None   # run_record.Experiment, once the experiment ended: run id, recording, report, counters
         self._progress = StepProgress(options.progress_interval, self.time_step,
                                       "real time" if self.sim_in_real_time else "lockstep")
         self._connect()
@@ -151,7 +154,7 @@ class Robotarium(RobotariumABC):
         self._ended = True
         self._record_drawing(self._iterations)
         self._report = note + "\n" + self._end(outcomes.TIME_LIMIT, note)
-        self.run_info["time_limit"] = {"limit": self._time_limit, "step": step, "sim_time": sim_time, "note": note}
+        self.run_info.time_limit = {"limit": self._time_limit, "step": step, "sim_time": sim_time, "note": note}
         print(self._report, end="")
         self._after_report()
         raise TimeLimitReached(note)
@@ -180,23 +183,18 @@ class Robotarium(RobotariumABC):
         report = response.report
         if self._recorder_lost_at is not None:   # no verdict on a run whose recording is incomplete
             report = report.replace(model.ACCEPTANCE_LIKELY, model.RECORDING_INCOMPLETE)
-        self.run_info = {"run_id": response.run_id,
-                         "recording": response.recording or self._announced_recording() or self._stopped_recording,
-                         "report": report, "outcome": outcomes.NAMES[outcome], "detail": detail, "ended": True,
-                         "steps": response.steps, "collisions": response.collisions,
-                         "boundary_violations": response.boundary_violations,
-                         "actuator_limit_iterations": response.actuator_limit_iterations,
-                         "command_timeouts": response.command_timeouts, "real_time": self.sim_in_real_time,
-                         "number_of_robots": self.number_of_robots,
-                         "end_reason": response.end_reason, "dropped": dropped,
-                         "recording_stopped_at_step": self._recorder_lost_at,
-                         "recording_stopped_because": self._recording_stopped_because,
-                         "stale_pose_stops": response.stale_pose_stops, "hardware": response.hardware,
-                         "hardware_seed": response.hardware_seed, "audit": response.audit,
-                         "first_collision_step": response.first_collision_step or None,
-                         "first_boundary_step": response.first_boundary_step or None,
-                         "safety_interventions": response.safety_interventions,
-                         "ideal_interventions": response.ideal_interventions}
+        self.run_info = run_record.Experiment(
+            run_id=response.run_id, report=report, outcome=outcomes.NAMES[outcome], detail=detail, ended=True,
+            recording=response.recording or self._announced_recording() or self._stopped_recording,
+            steps=response.steps, collisions=response.collisions, boundary_violations=response.boundary_violations,
+            actuator_limit_iterations=response.actuator_limit_iterations, command_timeouts=response.command_timeouts,
+            real_time=self.sim_in_real_time, number_of_robots=self.number_of_robots, end_reason=response.end_reason,
+            dropped=dropped, recording_stopped_at_step=self._recorder_lost_at,
+            recording_stopped_because=self._recording_stopped_because, stale_pose_stops=response.stale_pose_stops,
+            hardware=response.hardware, hardware_seed=response.hardware_seed, audit=response.audit,
+            first_collision_step=response.first_collision_step or None,
+            first_boundary_step=response.first_boundary_step or None,
+            safety_interventions=response.safety_interventions, ideal_interventions=response.ideal_interventions)
         self._errors = {k: v for k, v in (("boundary", response.boundary_violations), ("collision", response.collisions),
                                           ("actuator", response.actuator_limit_iterations)) if v}
         return report
@@ -217,33 +215,33 @@ class Robotarium(RobotariumABC):
         ok = self._run_id and os.path.basename(self._recording).startswith(self._run_id)
         return self._recording if ok else ""
 
-    def partial_run_info(self) -> dict[str, object]:
+    def partial_run_info(self) -> run_record.Experiment:
         """What is known of a run whose end the testbed never confirmed (a lost testbed)."""
-        info = {"run_id": self._run_id or "", "recording": self._announced_recording(), "report": "",
-                "steps": self._latest.step if self._latest is not None else 0,
-                "real_time": self.sim_in_real_time, "number_of_robots": self.number_of_robots, "ended": False}
+        info = run_record.Experiment(run_id=self._run_id or "", recording=self._announced_recording(),
+                                     steps=self._latest.step if self._latest is not None else 0,
+                                     real_time=self.sim_in_real_time, number_of_robots=self.number_of_robots)
         if getattr(self, "_unsent_end_at", None) is not None:
-            info.update(ended=True, ended_by_unsent_request_at_step=self._unsent_end_at)
+            info.ended, info.ended_by_unsent_request_at_step = True, self._unsent_end_at
         return info
 
     def _after_report(self) -> None:
         info = self.run_info
-        for name, counts in info["dropped"].items():
+        for name, counts in info.dropped.items():
             if any(counts.values()):
                 print("[robotarium] the testbed dropped command arrays on %s that were not this script's or not "
                       "valid: %s" % (name, ", ".join("%d %s" % (n, reason) for reason, n in counts.items() if n)),
                       file=sys.stderr)
-        if info["stale_pose_stops"]:
+        if info.stale_pose_stops:
             print("The safety node stopped the robots %d time(s) because the testbed's newest poses were older than "
-                  "its pose_timeout (an overloaded testbed machine?)." % info["stale_pose_stops"])
+                  "its pose_timeout (an overloaded testbed machine?)." % info.stale_pose_stops)
         if self._recorder_lost_at is not None:
             print("Run %s: recording stopped at step %d (%s)%s" % (
-                info["run_id"], self._recorder_lost_at, self._recording_stopped_because,
-                "; what it recorded until then is in %s" % info["recording"] if info["recording"] else ""))
-        elif info["recording"]:
-            print("Run %s recorded in %s" % (info["run_id"], info["recording"]))
+                info.run_id, self._recorder_lost_at, self._recording_stopped_because,
+                "; what it recorded until then is in %s" % info.recording if info.recording else ""))
+        elif info.recording:
+            print("Run %s recorded in %s" % (info.run_id, info.recording))
         else:
-            print("Run %s ended (no recorder was running, so it was not recorded)." % info["run_id"])
+            print("Run %s ended (no recorder was running, so it was not recorded)." % info.run_id)
         self._shutdown()
 
     # -- talking to the testbed ------------------------------------------------------------------
@@ -396,6 +394,13 @@ class Robotarium(RobotariumABC):
                 raise TestbedIncomplete(incomplete_testbed_message(self._ns))
             raise RobotariumError("The testbed refused to start the experiment: %s" % response.message)
         self._run_id = response.run_id
+        if response.real_time and not self.sim_in_real_time:
+            # An arena of real robots (robotarium_hardware) runs every experiment in real time, as the
+            # Robotarium does: sim_in_real_time=False is the simulator's speed-up only.
+            print("[robotarium] the testbed moves real robots: the experiment runs in real time (30 Hz), not in "
+                  "lockstep", file=sys.stderr)
+            self.sim_in_real_time = True
+            self._progress = StepProgress(self._options.progress_interval, self.time_step, "real time")
         self._token = response.token
         session.note_started(self.partial_run_info())
         self._poses_key = response.poses_key
@@ -430,7 +435,7 @@ class Robotarium(RobotariumABC):
         a ticket nobody asks with)."""
         said, said_at = None, 0.0
         while True:
-            response = self._call(self._start_client, request)
+            response = self._call(self._start_client, request, timeout=START_WAIT)
             if not response.busy:
                 if said is not None:   # it waited: say that its turn came, not only what it waited for
                     print("[robotarium] your turn: the testbed is free%s" % (

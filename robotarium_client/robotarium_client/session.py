@@ -91,15 +91,16 @@ robotaria = []
 run_files = None
 
 
-def note_started(info):
-    """Under ./robotarium run, keep what is known of the running experiment (run id, recording) in
-    the runner's started.json, so that its run is found even if this process is killed outright."""
+def note_started(experiment):
+    """Under ./robotarium run, keep what is known of the running experiment (a run_record.Experiment:
+    run id, recording) in the runner's started.json, so that its run is found even if this process
+    is killed outright."""
     path = run_files and run_files.get("started")
     if not path:
         return
     try:
         with open(path + ".tmp", "w") as f:
-            json.dump(info, f)
+            json.dump(experiment.to_dict(), f)
         os.replace(path + ".tmp", path)
     except OSError:
         pass   # only a help for the one who finishes the run folder

@@ -83,12 +83,12 @@ RECORDER_GONE = "the recorder is gone"   # why a recording stopped, when its rec
 
 
 def recording_stopped(run):
-    """"recording stopped at step k: why" when the recording of a run (run.json's dict) ended before
-    the run (the recorder gone, a full disk), else ""."""
-    step = (run or {}).get("recording_stopped_at_step")
+    """"recording stopped at step k: why" when the recording of a run (a run_record.RunRecord) ended
+    before the run (the recorder gone, a full disk), else ""."""
+    step = getattr(run, "recording_stopped_at_step", None)
     if step is None:
         return ""
-    return "recording stopped at step %d: %s" % (step, run.get("recording_stopped_because") or RECORDER_GONE)
+    return "recording stopped at step %d: %s" % (step, run.recording_stopped_because or RECORDER_GONE)
 
 
 def lost_poses(count, first_step):
@@ -99,11 +99,11 @@ def lost_poses(count, first_step):
 
 
 def run_notes(run):
-    """What the report adds about a run beyond its recording (run.json's dict): a recording that
-    stopped early, data files left out of the run folder."""
+    """What the report adds about a run beyond its recording (a run_record.RunRecord, or None): a
+    recording that stopped early, data files left out of the run folder."""
     notes = []
     if recording_stopped(run):
         notes.append("%s. The recording is incomplete, so there is no acceptance estimate." % recording_stopped(run))
-    for name, why in sorted(((run or {}).get("data_not_saved") or {}).items()):
+    for name, why in sorted((getattr(run, "data_not_saved", None) or {}).items()):
         notes.append("data file %s not saved in the run folder: %s" % (name, why))
     return notes

@@ -356,13 +356,15 @@ class DriveOn:
 
     controller: 2.x's hybrid pose controller, f(states, poses, approach) -> (dxu, approach); barrier:
     2.x's unicycle certificate f(dxu, x); rng: where detours are drawn (2.x: numpy's global
-    generator).
+    generator); waves: whether robots wait on their chargers (drive_on_waiting: the rule needs robots
+    that start on the arena's edges facing in; a hardware arena's robots start wherever they stand).
     """
     DEADLOCK_STEPS = 5 * 30   # steps without DEADLOCK_DISTANCE of progress before a robot takes a detour
     DEADLOCK_DISTANCE = 0.1   # m
     DETOUR = 0.25             # m, how far a detour waypoint may lie from where the robot is stuck
 
-    def __init__(self, goals, config, controller, barrier, rng=np.random):
+    def __init__(self, goals, config, controller, barrier, rng=np.random, waves=True):
+        self.waves = waves   # False: nobody waits (robots that start anywhere, not on chargers along the edges)
         self.goals, self.config = np.asarray(goals, dtype=float), config
         self.controller, self.barrier, self.rng = controller, barrier, rng
         self.number_of_robots = self.goals.shape[1]
@@ -400,7 +402,8 @@ class DriveOn:
             # would push its neighbours off their goals) and holds back no one (drive_on_waiting).
             near = np.hypot(*(x[:2] - goals[:2])) <= c.drive_on_position_error
             # Robots going deep leave first (drive_on_waiting): a crowd never walls itself in.
-            waiting = drive_on_waiting(x, start, goals, arrived | near, c.drive_on_wave_margin)
+            waiting = (drive_on_waiting(x, start, goals, arrived | near, c.drive_on_wave_margin) if self.waves
+                       else np.zeros(n, dtype=bool))
             timers[waiting | near] = self.steps
             detouring[near] = False
             last[:, near] = x[:, near]

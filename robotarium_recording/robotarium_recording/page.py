@@ -6,10 +6,11 @@ its data files, the recording). One static file with relative links and no scrip
 from the file system (file://) in any browser, and the folder can be moved or zipped as it is.
 """
 import html
-import json
 import os
 import time
 import urllib.parse
+
+from robotarium_core import run_record
 
 LOG_SHOWN = 200_000   # characters of log.txt shown inline (the whole file is linked)
 
@@ -59,21 +60,21 @@ def _files(run_dir):
 def _settings(run, numbers, bag):
     """(label, html) rows of the run's metadata."""
     rows = []
-    run = run or {}
-    info = (run.get("runs") or [{}])[-1] if run.get("runs") else {}
+    run = run or run_record.RunRecord()
+    last = run.last or run_record.Experiment(real_time=None)
     settings = numbers["settings"] if numbers else {}
     config = numbers["config"] if numbers else None
-    run_id = settings.get("run_id") or info.get("run_id") or run.get("run_id")
+    run_id = settings.get("run_id") or last.run_id or run.run_id
     rows.append(("run id", html.escape(run_id) if run_id else "none: no experiment ran on a testbed"))
-    if run.get("script"):
-        name = os.path.basename(run["script"])
-        rows.append(("script", _link(name) + " (run from %s)" % html.escape(run["script"])))
-    if run.get("started"):
-        rows.append(("started", html.escape(run["started"])))
-    mode = settings.get("mode") or {True: "realtime", False: "lockstep"}.get(info.get("real_time"))
+    if run.script:
+        name = os.path.basename(run.script)
+        rows.append(("script", _link(name) + " (run from %s)" % html.escape(run.script)))
+    if run.started:
+        rows.append(("started", html.escape(run.started)))
+    mode = settings.get("mode") or {True: "realtime", False: "lockstep"}.get(last.real_time)
     if mode:
         rows.append(("mode", html.escape(mode)))
-    robots = numbers["number_of_robots"] if numbers else info.get("number_of_robots")
+    robots = numbers["number_of_robots"] if numbers else last.number_of_robots
     if robots:
         rows.append(("robots", str(robots)))
     if numbers:
@@ -85,10 +86,9 @@ def _settings(run, numbers, bag):
         rows.append(("testbed", html.escape("arena %s m, time step %g s, robot diameter %g m, command timeout %g s"
                                             % (list(config.arena), config.time_step, config.robot_diameter,
                                                config.command_timeout))))
-    if run.get("wall_time") is not None:
-        rows.append(("wall time", "%.1f s" % run["wall_time"]))
-    if run.get("exit_code") is not None:
-        rows.append(("exit code", str(run["exit_code"])))
+    if run.script:   # a run of ./robotarium run (not a bag alone)
+        rows.append(("wall time", "%.1f s" % run.wall_time))
+        rows.append(("exit code", str(run.exit_code)))
     if bag is not None:
         rows.append(("recording", html.escape("%s (%d messages on %d topics)" % (
             bag.path, bag.message_count, len(bag.topics)))))
@@ -97,19 +97,16 @@ def _settings(run, numbers, bag):
 
 
 def write_page(run_dir, run=None, numbers=None, bag=None):
-    """Write <run_dir>/index.html from what the folder holds; returns its path. `run` is run.json's
-    dict (read from the folder when not given), `numbers` results.recompute()'s, `bag` the Bag."""
+    """Write <run_dir>/index.html from what the folder holds; returns its path. `run` is its
+    run_record.RunRecord (read from the folder when not given), `numbers` results.recompute()'s, `bag`
+    the Bag."""
     if run is None:
-        try:
-            with open(os.path.join(run_dir, "run.json")) as f:
-                run = json.load(f)
-        except (OSError, ValueError):
-            run = {}
+        run = run_record.read(run_dir) or run_record.RunRecord()
     files = _files(run_dir)
     report = _read(os.path.join(run_dir, "report.txt"))
     first_line = numbers["first_line"] if numbers else (report or "").split("\n", 1)[0]
-    completed = numbers["completed"] if numbers else run.get("outcome") == "completed"
-    title = (numbers and numbers["settings"]["run_id"]) or run.get("run_id") or os.path.basename(run_dir)
+    completed = numbers["completed"] if numbers else run.outcome == "completed"
+    title = (numbers and numbers["settings"]["run_id"]) or run.run_id or os.path.basename(run_dir)
     parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
              '<link rel="icon" href="data:,">',
              "<title>%s - Robotarium run</title>" % html.escape(title), "<style>%s</style></head><body>" % STYLE,

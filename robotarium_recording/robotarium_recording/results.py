@@ -24,13 +24,12 @@ cross-check then says so).
 Usage: ./robotarium report BAG [--out DIR] [--no-video]   (BAG: a run folder under bags/)
 """
 import argparse
-import json
 import os
 import sys
 
 import numpy as np
 
-from robotarium_core import model, outcomes, rps2
+from robotarium_core import model, outcomes, rps2, run_record
 from robotarium_recording.bag import Bag
 
 COUNTS_ONLY = 5             # SafetyReport.STATUS_COUNTS_ONLY: no array was filtered
@@ -183,8 +182,8 @@ def recompute(bag, run=None):
     boundary_violations, actuator_limit_iterations, report (the exact text rps prints for a
     completed run), outcome and first_line (how the run ended), safety_interventions (count,
     arrays, largest and mean change), settings, testbed (the status counters, or None),
-    mismatches (list of strings), notes. `run` (run.json) says how the run ended where the bag
-    cannot (a testbed lost mid-run)."""
+    mismatches (list of strings), notes. `run` (the run's run_record.RunRecord) says how the run
+    ended where the bag cannot (a testbed lost mid-run)."""
     if not isinstance(bag, Bag):
         bag = Bag(bag)
     settings = _run_settings(bag)
@@ -243,12 +242,12 @@ def recompute(bag, run=None):
 def _add_outcome(settings, run):
     """How the run ended, in `settings`: the testbed's word, else (a testbed lost mid-run) the
     client's (run.json). Returns whether it completed."""
-    if run is not None and settings["outcome"] == outcomes.UNFINISHED and run.get("outcome") in NAMES:
-        settings["outcome"], settings["detail"] = NAMES[run["outcome"]], run.get("detail", "")
-    elif (run or {}).get("ended_by_unsent_request_at_step") is not None:
+    if run is not None and settings["outcome"] == outcomes.UNFINISHED and run.outcome in NAMES:
+        settings["outcome"], settings["detail"] = NAMES[run.outcome], run.detail
+    elif run is not None and run.ended_by_unsent_request_at_step is not None:
         # The bag says the client ended it (the request carried its token); the client knows it sent none.
         settings["outcome"] = outcomes.ENDED_BY_UNSENT_REQUEST
-        settings["detail"] = outcomes.unsent_end(run["ended_by_unsent_request_at_step"])
+        settings["detail"] = outcomes.unsent_end(run.ended_by_unsent_request_at_step)
     return settings["outcome"] == outcomes.COMPLETED
 
 
@@ -350,7 +349,7 @@ def verdict_text(numbers, run):
     it. Empty for a run it did not change, and for a verification run."""
     if not numbers["safety"]["interventions"] or numbers["safety"]["audit"]:
         return ""
-    verdict = (run or {}).get("verdict")
+    verdict = run.verdict if run is not None else None
     if not verdict:
         return ("The Robotarium's verdict on your script's own commands is not known from this recording: "
                 "./robotarium verify SCRIPT judges the script as the Robotarium does.\n")
@@ -410,13 +409,6 @@ def report_text(bag, numbers):
 
 # -- entry points -----------------------------------------------------------------------------------
 
-def _run_json(bag_dir):
-    """run.json beside a bag (./robotarium run writes it: how the script's run ended), or {}."""
-    try:
-        with open(os.path.join(bag_dir, "run.json"), encoding="utf-8") as f:
-            return json.load(f)
-    except (OSError, ValueError):
-        return {}
 
 
 def preload(video=True):
@@ -439,15 +431,15 @@ def preload(video=True):
 
 def write_results(bag_dir, progress=True, *, out_dir=None, video=True, run=None):
     """Write report.txt, trajectories.png, run.mp4 (or run.gif) and index.html for the run in
-    `bag_dir` (into `out_dir`, default the bag folder); `run` (run.json's dict) says how the run
-    ended where the bag cannot and goes on the page. Returns {"report": path, "trajectories":
-    path, "video": path, "page": path} ("video" only when video=True and the bag has poses).
-    Prints nothing but progress (stderr)."""
+    `bag_dir` (into `out_dir`, default the bag folder); `run` (its run_record.RunRecord, default the
+    run.json beside the bag) says how the run ended where the bag cannot and goes on the page.
+    Returns {"report": path, "trajectories": path, "video": path, "page": path} ("video" only when
+    video=True and the bag has poses). Prints nothing but progress (stderr)."""
     from robotarium_recording import page, pictures
     bag = Bag(bag_dir)
     out_dir = os.path.abspath(out_dir or bag.path)
     os.makedirs(out_dir, exist_ok=True)
-    run = run if run is not None else (_run_json(bag.path) or None)
+    run = run if run is not None else run_record.read(bag.path)
     numbers = recompute(bag, run)
     stopped = outcomes.recording_stopped(run)
     if stopped:   # no verdict from a recording that stopped early (the report's notes say where)
@@ -459,14 +451,12 @@ def write_results(bag_dir, progress=True, *, out_dir=None, video=True, run=None)
         numbers["report"] = numbers["report"].replace(model.ACCEPTANCE_LIKELY, model.RECORDING_INCOMPLETE)
         numbers["first_line"] = "%s %s%s." % (numbers["first_line"], lost[0].upper(), lost[1:])
         if run is not None:
-            run.update(recording_lost_poses=numbers["recording_lost_poses"],
-                       recording_first_lost_step=numbers["recording_first_lost_step"])
-            if run.get("exit_code") == 0:   # completed, its recording not: not a success (README)
-                run["exit_code"] = outcomes.EXIT_CODES[outcomes.TESTBED_LOST]
-            run_json = os.path.join(out_dir, "run.json")
-            if os.path.isfile(run_json):
-                with open(run_json, "w", encoding="utf-8") as f:
-                    json.dump(run, f, indent=2)
+            run.recording_lost_poses = numbers["recording_lost_poses"]
+            run.recording_first_lost_step = numbers["recording_first_lost_step"]
+            if run.exit_code == 0:   # completed, its recording not: not a success (README)
+                run.exit_code = outcomes.EXIT_CODES[outcomes.TESTBED_LOST]
+            if os.path.isfile(os.path.join(out_dir, run_record.FILE)):
+                run_record.write(run, out_dir)
     numbers["verdict_text"] = verdict_text(numbers, run)
     paths = {"report": os.path.join(out_dir, "report.txt")}
     with open(paths["report"], "w", encoding="utf-8") as f:
@@ -509,7 +499,7 @@ def main(argv=None):
 def report(args):
     """Write the results of the bag `args` (add_report_arguments) name and print the report."""
     try:
-        run = _run_json(Bag(args.bag).path)
+        run = run_record.read(Bag(args.bag).path)
         paths = write_results(args.bag, progress=not args.quiet, out_dir=args.out, video=not args.no_video,
                               run=run)
     except (FileNotFoundError, KeyError) as error:
@@ -519,7 +509,7 @@ def report(args):
         print(f.read(), end="")
     print("\nresults:\n" + "\n".join("  %-13s %s" % (k, v) for k, v in paths.items()))
     # A recording that lost poses is incomplete: exit code 4, as ./robotarium run gives it (README).
-    return outcomes.EXIT_CODES[outcomes.TESTBED_LOST] if run.get("recording_lost_poses") else 0
+    return outcomes.EXIT_CODES[outcomes.TESTBED_LOST] if run is not None and run.recording_lost_poses else 0
 
 
 if __name__ == "__main__":

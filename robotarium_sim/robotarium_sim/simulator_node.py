@@ -246,7 +246,7 @@ class SimulatorNode(Node):
         self.line.leave(request.ticket)
         c = self.config
         try:
-            name, testbed = build_testbed(request, c)
+            name, testbed = self.build_testbed(request)
         except model.RobotariumError as error:
             response.message = str(error)
             return response
@@ -255,9 +255,11 @@ class SimulatorNode(Node):
                                  holder=request.holder)
         self._starting = True
         try:
-            armed = await self.arm_safety(ArmSafety.Request(
-                run_id=run.run_id, number_of_robots=n, real_time=run.real_time, token=run.token,
-                safety_key=run.safety_key, poses_key=run.poses_key, audit=run.audit, latency=testbed.latency))
+            armed = await self.before_arming(request, testbed, run)
+            if armed is None:
+                armed = await self.arm_safety(ArmSafety.Request(
+                    run_id=run.run_id, number_of_robots=n, real_time=run.real_time, token=run.token,
+                    safety_key=run.safety_key, poses_key=run.poses_key, audit=run.audit, latency=testbed.latency))
             if armed is True:
                 if isinstance(testbed, rps2.Testbed2):
                     self.standard_sensors.start(testbed)
@@ -280,6 +282,7 @@ class SimulatorNode(Node):
         rps2_io.publish_obstacles(self, self.obstacles_pub, self.testbed)
         response.success = True
         response.run_id = self.run.run_id
+        response.real_time = run.real_time
         response.token = run.token
         response.poses_key = run.poses_key
         response.client_alive_topic = self.client_watch.subscription.topic_name
@@ -291,6 +294,17 @@ class SimulatorNode(Node):
             ", audited for verification (the safety node lets the script's commands through)" if self.run.audit else "")
         self.get_logger().info(response.message)
         return response
+
+    def build_testbed(self, request):
+        """The model a start asks for and the experiment's name (experiment.build_testbed); an arena
+        of another kind (robotarium_hardware's) makes its own."""
+        return build_testbed(request, self.config)
+
+    async def before_arming(self, request, testbed, run):
+        """What an arena does before the safety node is armed for a new experiment `run` on `testbed`:
+        nothing here; robotarium_hardware's arena drives its robots to the initial conditions. None to
+        go on, or why the start is refused."""
+        return None
 
     async def arm_safety(self, request):
         """Hand the safety node the experiment to guard; True, or why it could not be done. The

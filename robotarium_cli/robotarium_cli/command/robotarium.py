@@ -40,6 +40,6 @@ def _verb_class(name):
         "add_arguments": add_arguments, "main": main})
 
 
-# The entry points of robotarium_cli.verb (setup.py) name these.
-UpVerb, RunVerb, VerifyVerb, StatusVerb, StopVerb, EndVerb, DemoVerb, ReplayVerb, ReportVerb, ViewVerb = (
-    _verb_class(name) for name in verbs.VERBS)
+# The entry points of robotarium_cli.verb (setup.py) name these: one class per verb of VERBS.
+for _name in verbs.VERBS:
+    globals()[_name.capitalize() + "Verb"] = _verb_class(_name)

@@ -6,7 +6,7 @@ main_argv(argv) instead of main(args), and add_arguments for `ros2 robotarium`."
 import importlib
 
 # In the order `robotarium --help` lists them.
-VERBS = ("up", "run", "verify", "status", "stop", "end", "demo", "replay", "report", "view")
+VERBS = ("up", "fleet", "run", "verify", "status", "stop", "end", "demo", "replay", "report", "view")
 
 
 def load(name):

@@ -74,6 +74,34 @@ def _describe_status(msg, safety=True):
     return text, info
 
 
+def fleet_roster(ns, timeout):
+    """The roster of a hardware arena in `ns` (its latched `fleet` topic) as lines, or "" (a simulator)."""
+    if timeout <= 0:
+        return ""
+    import json
+
+    from std_msgs.msg import String
+
+    from robotarium_bringup.testbed import probe_node
+    from robotarium_core.topics import LATCHED
+    heard = []
+    with probe_node("robotarium_fleet") as (node, executor):
+        node.create_subscription(String, "%s/fleet" % ns.rstrip("/"), lambda msg: heard.append(msg.data), LATCHED)
+        deadline = time.monotonic() + timeout
+        while not heard and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+    if not heard:
+        return ""
+    roster = json.loads(heard[-1])
+    lines = ["Robots of fleet %s (tracking: %s):" % (roster["fleet"], roster["tracking"])]
+    for r in roster["robots"]:
+        state = "present and tracked" if r["tracked"] and r["answering"] else ", ".join(
+            w for w, bad in (("not tracked", not r["tracked"]), ("not answering", not r["answering"])) if bad)
+        lines.append("  %s: %s%s%s" % (r["name"], state, "" if r["battery"] is None else ", battery %.0f %%" % r["battery"],
+                                       ", %d poses dropped" % r["dropped"] if r["dropped"] else ""))
+    return "\n".join(lines)
+
+
 def main(args):
     from robotarium_bringup import local_testbeds
     from robotarium_bringup.testbed import testbed_status
@@ -82,7 +110,7 @@ def main(args):
     here = (local_testbeds.domain_id(), namespace())
     # only where a simulator runs can a testbed answer (a probe that gets no answer waits the whole timeout)
     targets = [(t["domain"], t["namespace"], t.get("discovery_range")) for t in found
-               if t["domain"] != "?" and any(name.startswith("simulator") for name in t["nodes"])]
+               if t["domain"] != "?" and any(name.startswith(("simulator", "arena")) for name in t["nodes"])]
     # A safety node in this machine's process table is there; for the others its presence decides.
     safety = {(t["domain"], t["namespace"]): True for t in found if any(name.startswith("safety") for name in t["nodes"])}
     statuses = testbed_status(targets + [(here[0], here[1], None)], timeout=args.timeout, safety=safety)
@@ -115,9 +143,14 @@ def main(args):
         if t.get("log_dir"):
             print("      logs:  %s" % t["log_dir"])
         print("      %s" % (described((t["domain"], t["namespace"]))[0]
-                             if "simulator" in t["nodes"] else "no simulator: nothing can run here"))
+                             if "simulator" in t["nodes"] or "arena" in t["nodes"]
+                             else "no simulator: nothing can run here"))
         print("      stop it: ./robotarium stop --domain %s --namespace %s" % (t["domain"], t["namespace"]))
     local_here = local_testbeds.matching(found, here[1], here[0])
+    if statuses.get(here) is not None and any("arena" in t["nodes"] for t in local_here):
+        roster = fleet_roster(here[1], timeout=2.0)   # a hardware arena of this machine: its robots
+        if roster:
+            print(roster)
     print("On ROS_DOMAIN_ID %s, namespace %s (this shell's, where ./robotarium run goes): %s%s" % (
         here[0], here[1], described(here)[0],
         "" if local_here or statuses.get(here) is None else " (not started on this machine)"))

@@ -18,6 +18,10 @@ def add_arguments(parser):
     parser.add_argument("--hardware", action="store_true",
                         help="run every experiment hardware-like: tracking and command latency, pose noise, wheel "
                              "dynamics (the numbers: hardware section of testbed.yaml)")
+    parser.add_argument("--fleet", metavar="FILE",
+                        help="move your own robots: the hardware arena in the simulator's place, with the robots, "
+                             "topics, tracking and calibration of this fleet file (./robotarium fleet writes one for a "
+                             "simulated fleet; docs/own-robots.md)")
     parser.add_argument("--view", action="store_true",
                         help="also serve the testbed to Foxglove, as ./robotarium view does (--view-host, --view-port)")
     recording.add_view_arguments(parser, prefix="view-")
@@ -38,6 +42,16 @@ def main(args):
     if running is not None:
         say(claim.refusal(running, ns, domain))
         return claim.REFUSED
+    if args.fleet:
+        from robotarium_hardware import fleet as fleets
+        try:
+            fleet = fleets.load(args.fleet)
+        except fleets.FleetError as error:
+            say("error: %s" % error)
+            return 2
+        if args.hardware:
+            say("error: --hardware models the Robotarium's robots in simulation; with --fleet the robots are real")
+            return 2
     view = None
     if args.view:   # first: a port in use is said before any node starts
         view = recording.ViewProcess(ns, args.view_host, args.view_port)
@@ -47,12 +61,14 @@ def main(args):
             return 1
     interruption = Interruption()
     testbed = LocalTestbed(record=not args.no_record, quiet=False, bags_dir=args.bags_dir,
-                           config_file=args.config, hardware=args.hardware, looked=True).start()
+                           config_file=args.config, hardware=args.hardware, looked=True, fleet_file=args.fleet).start()
     code = 0
     try:
-        say("testbed up in namespace %s on ROS_DOMAIN_ID %s (simulator%s, safety%s%s). It runs as long as this "
+        arena = "hardware arena of fleet %s (%d robots, %s)" % (fleet.name, len(fleet.robots), fleet.tracking) \
+            if args.fleet else "simulator" + (" hardware-like" if args.hardware else "")
+        say("testbed up in namespace %s on ROS_DOMAIN_ID %s (%s, safety%s%s). It runs as long as this "
             "command does: Ctrl-C (or SIGTERM, SIGHUP) stops it." % (
-                ns, os.environ.get("ROS_DOMAIN_ID", "0"), " hardware-like" if args.hardware else "",
+                ns, os.environ.get("ROS_DOMAIN_ID", "0"), arena,
                 "" if args.no_record else ", recorder", ", Foxglove view" if view else ""))
         while interruption.signum is None:
             failed = testbed.failed()

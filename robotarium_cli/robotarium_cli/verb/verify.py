@@ -4,6 +4,7 @@ import os
 
 from robotarium_cli import verification
 from robotarium_cli.console import positive_int, say, seconds
+from robotarium_cli.running import verify_script
 from robotarium_client import session
 
 HELP = "judge a script as the Robotarium's verification does: accept or reject"
@@ -79,7 +80,7 @@ def main(args):
         say("no such script: %s" % script)
         return outcomes.USAGE_ERROR
     try:
-        judged = verification.verify_script(
+        judged = verify_script(
             script, args.script_args, args.config, args.robots, args.duration,
             rps_api={"1": "guide"}.get(args.rps, args.rps), record=not args.no_record, bags_dir=args.bags_dir,
             results_dir=args.results_dir)
