@@ -144,8 +144,8 @@ def node_lost(tb, name):
                 drive(r, [0.05] * 3, [0.5] * 3)
             except RuntimeError as error:
                 return time.monotonic() - killed, str(error).split(":")[0]
-            if name == "recorder" and r._recorder_lost_at is not None:
-                return time.monotonic() - killed, "recording stopped at step %d" % r._recorder_lost_at
+            if name == "recorder" and r._link.recorder_lost_at is not None:
+                return time.monotonic() - killed, "recording stopped at step %d" % r._link.recorder_lost_at
         return float("nan"), "not noticed"
     finally:
         r._end_quietly()

@@ -154,7 +154,7 @@ def test_report_and_counts_come_from_the_testbed(testbed, capsys):
 def _age_of_newest_poses(r):
     """Seconds since the simulator published the poses step() returned (same machine, same clock)."""
     import time
-    return time.time() - (r._latest.sec + r._latest.nanosec * 1e-9)   # the poses' header stamp
+    return time.time() - (r._link.latest.sec + r._link.latest.nanosec * 1e-9)   # the poses' header stamp
 
 
 def test_a_slow_real_time_loop_gets_fresh_poses(testbed):
@@ -311,7 +311,7 @@ def test_headless_figure_takes_the_guides_plotting_calls(testbed, tmp_path):
 def test_no_testbed_gives_a_clear_error(monkeypatch):
     monkeypatch.setenv("ROS_DOMAIN_ID", str(unique_domain_id()))
     monkeypatch.setattr("robotarium_client.session.options", RunOptions(local_testbed=False))
-    monkeypatch.setattr("robotarium_client.robotarium.STARTUP_WAIT", 1.0)
+    monkeypatch.setattr("robotarium_client.testbed_link.STARTUP_WAIT", 1.0)
     with pytest.raises(RuntimeError, match="No Robotarium testbed answers.*./robotarium up"):
         robotarium(number_of_robots=2)
 
@@ -322,7 +322,7 @@ def test_without_safety_node_nothing_moves(tmp_path, monkeypatch):
     sim = NodeProcess("robotarium_sim.simulator_node", domain, log_path=tmp_path / "sim.log")
     monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
     monkeypatch.setattr("robotarium_client.session.options", RunOptions(local_testbed=False))
-    monkeypatch.setattr("robotarium_client.robotarium.STEP_TIMEOUT", 2.0)
+    monkeypatch.setattr("robotarium_client.testbed_link.STEP_TIMEOUT", 2.0)
     try:
         from robotarium_bringup.testbed import testbed_answers
         assert testbed_answers(timeout=30)

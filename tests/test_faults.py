@@ -201,9 +201,9 @@ def test_commands_without_the_token_or_key_move_no_robot_and_are_counted(healthy
                 pub.publish(array([0, 1], [0.2, 0.2], [0.0, 0.0], step=k, token="" if k % 2 else "f" * 32))
             sent += 1
             assert np.array_equal(drive(r, [0, 0], [0, 0]), FACING), "a foreign array moved a robot at step %d" % k
-        counted = lab.wait_status(r._run_id, lambda s: dropped(s, "cmd_safe", "foreign") == sent
+        counted = lab.wait_status(r._link.run_id, lambda s: dropped(s, "cmd_safe", "foreign") == sent
                                   and dropped(s, "cmd_requested", "foreign") == sent, 10)
-        assert counted is not None, lab.last_status(r._run_id)
+        assert counted is not None, lab.last_status(r._link.run_id)
         r.call_at_scripts_end()
         assert r.run_info.collisions == 0 and r.run_info.dropped["cmd_safe"]["foreign"] == sent
     finally:
@@ -219,7 +219,7 @@ def test_fake_poses_never_steer_the_safety_node(healthy, tmp_path):
     r = client(HEAD_ON)
     # --poses=ID: under pytest-xdist the script name is "-c", so the run id starts with "-" and argparse took
     # it for an option (the flood exited at once). The flood outlasts the run; it is closed below.
-    flood = NodeProcess("devtools.flood", lab.domain, args=["--poses=" + r._run_id, "--rate", "100", "--seconds", "120",
+    flood = NodeProcess("devtools.flood", lab.domain, args=["--poses=" + r._link.run_id, "--rate", "100", "--seconds", "120",
                                                             "--robots", "2", "--huge-every", "0"],
                         log_path=tmp_path / "flood.log")
     try:
@@ -252,13 +252,13 @@ def test_a_replay_into_a_live_run_moves_nothing(healthy, tmp_path):
         return dropped(status, "cmd_safe", "foreign") > 0 and dropped(status, "cmd_requested", "foreign") > 0
     try:
         deadline = time.monotonic() + 30
-        while not (lab.last_status(r._run_id) and replayed_and_counted(lab.last_status(r._run_id))):
+        while not (lab.last_status(r._link.run_id) and replayed_and_counted(lab.last_status(r._link.run_id))):
             assert replay.alive() and time.monotonic() < deadline, replay.output()
             assert np.array_equal(drive(r, np.zeros(6), np.zeros(6)), start), "a replayed array moved a robot"
         for _ in range(100):   # and on, while it replays
             assert np.array_equal(drive(r, np.zeros(6), np.zeros(6)), start), "a replayed array moved a robot"
         assert replay.alive(), replay.output()
-        assert r._latest.run_id == r._run_id and r._latest.key == r._poses_key
+        assert r._link.latest.run_id == r._link.run_id and r._link.latest.key == r._link.poses_key
         r.call_at_scripts_end()
         assert r.run_info.collisions == 0 and r.run_info.dropped["cmd_safe"]["foreign"] > 0
     finally:
@@ -329,8 +329,8 @@ def test_a_flood_on_both_command_topics_costs_the_experiment_nothing(healthy, tm
                    and dropped(s, topic, "oversized") == sent[NS + "/" + topic]["huge"]
                    and dropped(s, topic, "malformed") == sent[NS + "/" + topic]["bad_encapsulation"]
                    + sent[NS + "/" + topic]["truncated"] for topic in ("cmd_requested", "cmd_safe"))
-    counted = lab.wait_status(r._run_id, all_counted, 10)
-    last = lab.last_status(r._run_id)
+    counted = lab.wait_status(r._link.run_id, all_counted, 10)
+    last = lab.last_status(r._link.run_id)
     assert counted is not None, (sent, "cmd_requested", last.dropped_cmd_requested, "cmd_safe", last.dropped_cmd_safe)
     assert counted.command_timeouts == 0
     assert sum(sent[NS + "/cmd_safe"].values()) >= 1000    # it was a flood: 1 kHz for 2 s on each topic
@@ -369,13 +369,13 @@ def test_the_clients_own_oversized_and_huge_arrays(healthy):
     # This run's reports only: the probe's reader may still hold earlier runs' (their step 1 included),
     # taken only when it spins next.
     lab.reports.clear()
-    huge = cdr.TWIST_ARRAY.build(frame_id="arena", token=r._token, step=1, ids=np.arange(100_000) % 2,
+    huge = cdr.TWIST_ARRAY.build(frame_id="arena", token=r._link.token, step=1, ids=np.arange(100_000) % 2,
                                  twists=cdr.twists(np.full(100_000, 0.2), np.zeros(100_000)))
     pub = lab.probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
     try:
         assert lab.probe.spin_until(lambda: pub.get_subscription_count() >= 1, 15)
         pub.publish(huge)
-        assert lab.wait_status(r._run_id, lambda s: s.dropped_cmd_requested.oversized == 1, 10)
+        assert lab.wait_status(r._link.run_id, lambda s: s.dropped_cmd_requested.oversized == 1, 10)
         p = drive(r, [1e308, -1e308], [0.0, 1e308])    # 0: straight on; 1: backwards on an arc, away
         assert p[0, 0] == FACING[0, 0] + DEFAULT.time_step * DEFAULT.max_linear_velocity   # full speed
         reach = model.threshold_keeping_arc(np.array([[1.0], [1.0]]))[0, 0]   # |v| = omega at the wheel limit
@@ -420,8 +420,8 @@ def test_a_forger_with_the_copied_token_never_pushes_robots_out(healthy, tmp_pat
     finally:
         forger.close()
     assert sent["forged_next"] + sent["forged_step"] > 1000, sent
-    assert lab.probe.spin_until(lambda: any(p.run_id == r._run_id and p.step == r.run_info.steps for p in lab.poses), 10)
-    mine = [p for p in lab.poses if p.run_id == r._run_id]
+    assert lab.probe.spin_until(lambda: any(p.run_id == r._link.run_id and p.step == r.run_info.steps for p in lab.poses), 10)
+    mine = [p for p in lab.poses if p.run_id == r._link.run_id]
     x = np.array([p.x for p in mine])
     y = np.array([p.y for p in mine])
     assert x.max() > 1.35, "the forged arrays never moved the robots: the test proves nothing (%.3f)" % x.max()
@@ -568,7 +568,7 @@ def test_a_lost_node_is_named_by_the_client_within_a_second(healthy, node, words
     assert took < DEFAULT.node_lease + SLACK, took
     if node == "safety":   # the robots stand still from then on (the simulator's poses say so)
         lab.probe.spin_for(DEFAULT.command_timeout)
-        mine = [p for p in lab.poses if p.run_id == r._run_id]
+        mine = [p for p in lab.poses if p.run_id == r._link.run_id]
         assert len(mine) > 5 and np.array_equal(mine[-1].x, mine[-5].x), "robots kept moving without the safety node"
     r._end_quietly()
 
@@ -589,22 +589,22 @@ def test_a_lost_recorder_is_reported_and_its_bag_recovered(healthy, capsys):
     first = None
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline:
-        files = glob.glob(os.path.join(r._announced_recording() or "/nonexistent", "*.mcap"))
+        files = glob.glob(os.path.join(r._link.announced_recording() or "/nonexistent", "*.mcap"))
         size = os.path.getsize(files[0]) if files else 0
         if first is not None and size > first:
             break
         first = size if first is None and size else first
         drive(r, [0.05] * 3, [0.5] * 3)
     killed = lab.kill("recorder")
-    while r._recorder_lost_at is None and time.monotonic() - killed < 10:
+    while r._link.recorder_lost_at is None and time.monotonic() - killed < 10:
         drive(r, [0.05] * 3, [0.5] * 3)
     took = time.monotonic() - killed
-    assert r._recorder_lost_at is not None and took < DEFAULT.node_lease + SLACK, took
+    assert r._link.recorder_lost_at is not None and took < DEFAULT.node_lease + SLACK, took
     drive(r, [0.05] * 3, [0.5] * 3)   # the experiment goes on
     r.call_at_scripts_end()
     out = capsys.readouterr()
-    assert "recording stopped at step %d" % r._recorder_lost_at in out.err + out.out
-    assert "Run %s: recording stopped at step" % r._run_id in out.out and "recorded in" not in out.out
+    assert "recording stopped at step %d" % r._link.recorder_lost_at in out.err + out.out
+    assert "Run %s: recording stopped at step" % r._link.run_id in out.out and "recorded in" not in out.out
     bag_dir = r.run_info.recording
     assert bag_dir and os.path.isdir(bag_dir)
     open(os.path.join(bag_dir, ".metadata.yaml.tmp"), "w").write("a kill while metadata.yaml was replaced")
@@ -661,7 +661,7 @@ def test_a_node_whose_shared_memory_port_was_deleted_restarts_and_the_next_clien
         r = client(LINE3)
         # (the client waits for the safety node's reader, not the recorder's: wait here until it knows it,
         # so that all 20 arrays must reach it; a recorder still deaf knows it too, but hears none of them)
-        assert lab.probe.spin_until(lambda: readers_matched(r._node, r._command_pub, "recorder"), 10)
+        assert lab.probe.spin_until(lambda: readers_matched(r._link.node, r._link.command_pub, "recorder"), 10)
         for _ in range(20):
             drive(r, [0.05] * 3, [0.2] * 3)
         r.call_at_scripts_end()

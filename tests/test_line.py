@@ -137,7 +137,7 @@ def test_a_student_who_ends_their_run_from_another_shell_reads_who_ended_it_once
     """./robotarium end from another shell of the same user on the same host (issue 36): the run's
     console and its report say it was ended by its user with ./robotarium end, once, and nothing of
     an operator or --force."""
-    from robotarium_client.robotarium import holder_of_this_process
+    from robotarium_client.testbed_link import holder_of_this_process
     env = testbed
     me = holder_of_this_process().split()[0]
     run = start_run(env, tmp_path, "--lockstep", os.path.join(DATA, "steps_forever.py"), "lockstep")

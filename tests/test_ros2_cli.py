@@ -243,6 +243,37 @@ def test_ros2_launch_starts_the_testbed_that_robotarium_run_uses(ros2, tmp_path)
         cli.close()
 
 
+def test_ros2_launch_with_a_fleet_moves_the_fleets_robots(ros2, tmp_path):
+    """`ros2 launch ... fleet:=FILE` (issue 38): the hardware arena stands in the simulator's place, and a
+    script run against it drives the simulated fleet's robots (a process each) and is recorded."""
+    from robotarium_hardware.sim_fleet import SimulatedFleet
+    domain = unique_domain_id()
+    cli = Cli(ros2, domain)
+    fleet = SimulatedFleet(2, "mocap", str(tmp_path / "fleet.yaml"), env=node_env(domain), log_dir=str(tmp_path),
+                           answer_timeout=1.0, lost_after=1.0, lost_behind=1.0)
+    fleet.start(say=lambda line: None)
+    try:
+        assert fleet.wait_ready(), fleet.failed()
+        bags = tmp_path / "bags"
+        launch = cli.start("launch", "robotarium_bringup", "testbed.launch.py", "fleet:=%s" % fleet.fleet_file,
+                           "bags_dir:=%s" % bags, log=tmp_path / "launch.log")
+        script = tmp_path / "on_robots.py"
+        script.write_text(SCRIPT)
+        run = subprocess.run([ros2, "robotarium", "run", "--no-local-testbed", "--no-video", "--no-verdict",
+                              str(script)], env=cli.env, cwd=tmp_path, stdout=subprocess.PIPE,
+                             stderr=subprocess.STDOUT, text=True, timeout=180)
+        log = (tmp_path / "launch.log").read_text()
+        assert run.returncode == 0, run.stdout + log
+        assert "the testbed moves real robots" in run.stdout, run.stdout   # the arena, not the simulator
+        assert re.search(r"\[arena-\d+\]: process started", log) and "[simulator" not in log, log
+        runs = list(bags.glob("on_robots_*"))
+        assert len(runs) == 1 and (runs[0] / "report.txt").is_file(), run.stdout
+        assert cli.stop(launch) == 0
+    finally:
+        cli.close()
+        fleet.stop()
+
+
 
 def test_ros2_topic_echo_once_shows_the_newest_status_and_no_old_stream_sample(ros2, tmp_path):
     """The status is the testbed's state (issue 23): after two runs, `ros2 topic echo --once` prints

@@ -202,7 +202,7 @@ def test_status_lists_local_testbeds_and_stop_and_end_get_rid_of_them(lab):
         assert "ended by an operator (end --force)" in end.stdout, end.stdout
 
         # our own (this user on this host): end ends it without --force, saying by whom
-        from robotarium_client.robotarium import holder_of_this_process
+        from robotarium_client.testbed_link import holder_of_this_process
         mine = probe.hold_client_presence(probe.call(
             StartExperiment, NAMESPACE + "/start_experiment",
             StartExperiment.Request(name="mine", number_of_robots=2, real_time=True,

@@ -1,7 +1,7 @@
 """The Robotarium testbed under `ros2 launch`: the nodes `./robotarium up` starts, on a ROS install.
 
     ros2 launch robotarium_bringup testbed.launch.py [namespace:=robotarium] [config:=FILE]
-                                                   [bags_dir:=DIR] [record:=true]
+                                                   [bags_dir:=DIR] [record:=true] [fleet:=FILE]
 
 Arguments (`ros2 launch robotarium_bringup testbed.launch.py --show-args` lists them):
   namespace  the testbed's namespace (default robotarium; clients: ROBOTARIUM_NAMESPACE=/<namespace>)
@@ -9,6 +9,8 @@ Arguments (`ros2 launch robotarium_bringup testbed.launch.py --show-args` lists 
              packaged share/robotarium_core/config/testbed.yaml; edit a copy to change a value)
   bags_dir   where the recorder records each run (default: $ROBOTARIUM_ROOT/bags, else ./bags)
   record     start the recorder (default true)
+  fleet      a lab's own robots: their fleet file (docs/own-robots.md); the hardware arena (and, for a
+             fleet tracked by a camera, the tag tracker) stands in the simulator's place
 
 Real time or lockstep is no launch argument: each experiment chooses it when it starts
 (StartExperiment.real_time, a script's sim_in_real_time, ./robotarium run --lockstep/--real-time).
@@ -23,7 +25,7 @@ import os
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, RegisterEventHandler
+from launch.actions import DeclareLaunchArgument, OpaqueFunction, RegisterEventHandler
 from launch.conditions import IfCondition
 from launch.event_handlers import OnProcessExit
 from launch.substitutions import LaunchConfiguration
@@ -42,21 +44,42 @@ def generate_launch_description():
                               description="where runs are recorded (empty: $ROBOTARIUM_ROOT/bags, else ./bags)"),
         DeclareLaunchArgument("record", default_value="true", choices=["true", "false"],
                               description="start the recorder"),
+        DeclareLaunchArgument("fleet", default_value="",
+                              description="a fleet file (your own robots): the hardware arena moves them in the "
+                                          "simulator's place"),
     ]
+    return LaunchDescription(arguments + [OpaqueFunction(function=_nodes),
+                                          RegisterEventHandler(OnProcessExit(on_exit=_refused))])
+
+
+def _nodes(context):
+    """The testbed's nodes: the simulator, or a fleet's hardware arena (with its tag tracker where a camera
+    tracks it), the safety node, the recorder. Chosen here, as the launch starts: the fleet file says."""
     namespace = LaunchConfiguration("namespace")
     parameters = [LaunchConfiguration("config")]
-    nodes = [
-        # with a recorder, a run's first steps wait for its readers (the streams are volatile)
-        Node(package="robotarium_sim", executable="simulator", namespace=namespace,
-             parameters=parameters + [{"wait_for_recorder": LaunchConfiguration("record")}],
-             output="screen", emulate_tty=True),
+    record = LaunchConfiguration("record").perform(context)
+    fleet_file = LaunchConfiguration("fleet").perform(context)
+    # with a recorder, a run's first steps wait for its readers (the streams are volatile)
+    world = {"wait_for_recorder": record == "true"}
+    if fleet_file:
+        from robotarium_hardware import fleet as fleets  # (only a launch of robots needs it)
+        fleet_file = os.path.abspath(fleet_file)
+        fleet = {"fleet_file": fleet_file}
+        nodes = [Node(package="robotarium_hardware", executable="arena", namespace=namespace,
+                      parameters=parameters + [dict(world, **fleet)], output="screen", emulate_tty=True)]
+        if fleets.load(fleet_file).tracking == "camera":
+            nodes.append(Node(package="robotarium_hardware", executable="tag_tracker", namespace=namespace,
+                              parameters=[fleet], output="screen", emulate_tty=True))
+    else:
+        nodes = [Node(package="robotarium_sim", executable="simulator", namespace=namespace,
+                      parameters=parameters + [world], output="screen", emulate_tty=True)]
+    return nodes + [
         Node(package="robotarium_safety", executable="safety", namespace=namespace, parameters=parameters,
              output="screen", emulate_tty=True),
         Node(package="robotarium_recording", executable="recorder", namespace=namespace,
              parameters=[{"bags_dir": LaunchConfiguration("bags_dir")}], output="screen", emulate_tty=True,
              condition=IfCondition(LaunchConfiguration("record"))),
     ]
-    return LaunchDescription(arguments + nodes + [RegisterEventHandler(OnProcessExit(on_exit=_refused))])
 
 
 REFUSED = 4   # robotarium_core.claim.REFUSED: an older node of this kind runs in the namespace and domain

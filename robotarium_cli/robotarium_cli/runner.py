@@ -177,7 +177,12 @@ def main(argv):
     lifeline.watch(_orphaned)
     session.options = session.RunOptions.from_json(options_json)
     script = os.path.abspath(script)
+    pid = os.getpid()
     outcome, detail, code = run(script, script_args)
+    if os.getpid() != pid:
+        # A process the script forked, whose copy of the script ended: the run and its experiment are the
+        # script's own process's to end and record, not each fork's (a fork bomb's hundreds raced on run.json).
+        os._exit(code)
     # Ending the experiment must not be cut short by a second Ctrl-C or signal.
     for signum in SIGNAL_EXIT:
         signal.signal(signum, signal.SIG_IGN)

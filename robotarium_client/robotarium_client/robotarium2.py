@@ -30,6 +30,7 @@ it applies to the same poses the client sees.
 import numpy as np
 
 from robotarium_client import robotarium as backend
+from robotarium_client import testbed_link
 from robotarium_core import rps2
 from robotarium_core.config import DEFAULT
 from robotarium_core.model import RobotariumError
@@ -182,7 +183,7 @@ class Robotarium(backend.Robotarium):
         super()._connect()
         from robotarium_core.topics import SENSORS, TESTBED_QOS
         from robotarium_msgs.msg import SensorReadings
-        self._node.create_subscription(SensorReadings, SENSORS, self._on_sensors, TESTBED_QOS)
+        self._link.node.create_subscription(SensorReadings, SENSORS, self._on_sensors, TESTBED_QOS)
 
     def _on_sensors(self, msg):
         self._readings_by_step[(msg.run_id, msg.step)] = msg
@@ -202,10 +203,10 @@ class Robotarium(backend.Robotarium):
 
     def _reading(self, field, shape, dtype=float):
         if self._readings is None:
-            key = (self._run_id, self._last_step)
-            if not self._spin_until(lambda: key in self._readings_by_step, backend.STEP_TIMEOUT):
+            key = (self._link.run_id, self._last_step)
+            if not self._link.spin_until(lambda: key in self._readings_by_step, testbed_link.STEP_TIMEOUT):
                 raise RuntimeError("The testbed sent no sensor readings for step %d within %.0f s."
-                                   % (self._last_step, backend.STEP_TIMEOUT))
+                                   % (self._last_step, testbed_link.STEP_TIMEOUT))
             self._readings = self._readings_by_step[key]
         return np.array(getattr(self._readings, field), dtype=dtype).reshape(shape)
 

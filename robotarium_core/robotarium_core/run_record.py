@@ -119,7 +119,8 @@ def write(record: RunRecord, folder_or_file: str) -> str:
     """Keep `record` as run.json (in a folder, or at a path ending in .json), atomically: a reader sees
     the old file or the new one. Returns the path."""
     path = folder_or_file if folder_or_file.endswith(".json") else os.path.join(folder_or_file, FILE)
-    with open(path + ".tmp", "w", encoding="utf-8") as f:
+    scratch = "%s.%d.tmp" % (path, os.getpid())   # a writer's own: two writers never take each other's
+    with open(scratch, "w", encoding="utf-8") as f:
         json.dump(record.to_dict(), f, indent=2)
-    os.replace(path + ".tmp", path)
+    os.replace(scratch, path)
     return path

@@ -9,7 +9,7 @@ import rps.robotarium as robotarium
 
 r = robotarium.Robotarium(number_of_robots=3, show_figure=False, sim_in_real_time="lockstep" not in sys.argv[1:],
                           initial_conditions=np.array([[-0.8, 0.0, 0.8], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]))
-print("run %s" % r._run_id, flush=True)   # which experiment is this script's (for the tests)
+print("run %s" % r._link.run_id, flush=True)   # which experiment is this script's (for the tests)
 step = 0
 while True:
     r.get_poses()

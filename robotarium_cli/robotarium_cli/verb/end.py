@@ -30,11 +30,11 @@ def _holder_parts(holder):
 
 def main(args):
     """Ends your own experiment: the one whose client runs as this user on this host (its holder,
-    robotarium_client.robotarium.holder_of_this_process). Another's is refused here, naming whose it is,
+    robotarium_client.testbed_link.holder_of_this_process). Another's is refused here, naming whose it is,
     unless --force (the operator's override). The check is a courtesy, not a lock: the testbed
     itself refuses only requests without the client's token and without force."""
     from robotarium_bringup.testbed import end_experiment, testbed_status
-    from robotarium_client.robotarium import holder_of_this_process
+    from robotarium_client.testbed_link import holder_of_this_process
     from robotarium_core import outcomes
     from robotarium_msgs.msg import TestbedStatus
     ns = namespace()
