@@ -64,14 +64,17 @@ from django.contrib.auth import get_user_model
 from django.utils import timezone
 from robotarium_portal import jobs
 from robotarium_portal.models import Experiment, ExperimentFile, Profile
-user, made = get_user_model().objects.get_or_create(username="ada@example.org", email="ada@example.org")
-if made:
-    user.set_password(os.environ["PASSWORD"])
-    user.save()
-Profile.objects.get_or_create(user=user, defaults=dict(name="Ada", email_confirmed=True, approved=True))
+def person(email):
+    user, made = get_user_model().objects.get_or_create(username=email, email=email)
+    if made:
+        user.set_password(os.environ["PASSWORD"])
+        user.save()
+    Profile.objects.get_or_create(user=user, defaults=dict(name=email.split("@")[0], email_confirmed=True,
+                                                           approved=True))
+    return user
 pks = []
 for item in json.loads(sys.stdin.read()):
-    e = Experiment.objects.create(owner=user, title=item["title"], estimated_duration=60,
+    e = Experiment.objects.create(owner=person(item.get("owner", "ada@example.org")), title=item["title"], estimated_duration=60,
                                   number_of_robots=item["robots"], main_file="main.py")
     e.files_dir.mkdir(parents=True, exist_ok=True)
     (e.files_dir / "main.py").write_text(item["script"])
@@ -253,12 +256,14 @@ class Service:
         import urllib.parse
         import urllib.request
         base = re.search(r"portal is at (http://\S+)", self.portal.output()).group(1)
+        owner = self.query("SELECT u.username FROM robotarium_portal_experiment e JOIN auth_user u "
+                           "ON u.id = e.owner_id WHERE e.id = %s", pk)[0][0]   # (its owner sees it)
         jar = http.cookiejar.CookieJar()
         opener = urllib.request.build_opener(urllib.request.HTTPCookieProcessor(jar))
         form = opener.open(base + "login/", timeout=60).read().decode()
         token = re.search(r'name="csrfmiddlewaretoken" value="([^"]+)"', form).group(1)
         opener.open(urllib.request.Request(base + "login/", data=urllib.parse.urlencode(
-            {"csrfmiddlewaretoken": token, "username": "ada@example.org", "password": PASSWORD}).encode(),
+            {"csrfmiddlewaretoken": token, "username": owner, "password": PASSWORD}).encode(),
             headers={"Referer": base + "login/"}), timeout=60).read()
         return opener.open(base + "experiments/%d/" % pk, timeout=60).read().decode()
 

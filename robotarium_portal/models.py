@@ -1,7 +1,6 @@
 """What the service keeps: who may use it (Profile beside Django's User, ApiToken), the experiments and
 their state machine (Experiment's transitions), the workers' job slots (Worker)."""
 import hashlib
-import json
 import secrets
 
 from django.conf import settings

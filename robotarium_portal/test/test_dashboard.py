@@ -64,6 +64,7 @@ def test_the_queue_estimate_comes_from_measured_run_times():
     owner, client = person()
     Experiment.objects.filter(state__in=(Experiment.QUEUED, Experiment.RUNNING)).update(state=Experiment.SAVED)
     Worker.objects.filter(state=Worker.ALIVE).update(state=Worker.STOPPED)
+    Experiment.objects.update(timings={})   # other tests' runs in this database measured nothing here
     Worker.objects.create(host="h", pid=1, kind=Worker.RUNS, domain=3)
     for k in range(5):   # the last runs took 29 s each, start to results, whatever their 900 s limit
         experiment(owner, Experiment.COMPLETED, "done %d" % k, timings={"run_command": 29.0},
