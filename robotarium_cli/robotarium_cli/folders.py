@@ -17,7 +17,7 @@ import yaml
 import robotarium_recording as recording
 from robotarium_cli.console import say
 from robotarium_cli.verification import COMPILE_ERRORS, compile_script
-from robotarium_client import session
+from robotarium_client import progress, session
 from robotarium_core import outcomes, run_record, script_box
 from robotarium_core.config import DEFAULT, ConfigError, TestbedConfig
 
@@ -40,10 +40,17 @@ def snapshot_files(directory):
     return seen
 
 
-def tee(stream, sinks):
-    sinks = list(sinks)
+PROGRESS = progress.LINE_START.encode()
+
+
+def tee(stream, log, console=None):
+    """Each line of `stream` into the log and onto the console; the testbed's progress lines onto the
+    console only (log.txt holds what the script printed and what ended it, not how far it got)."""
+    sinks = [log] + ([console] if console is not None else [])
     for line in iter(stream.readline, b""):
         for sink in list(sinks):
+            if sink is log and line.startswith(PROGRESS):
+                continue
             try:
                 sink.write(line)
                 sink.flush()
