@@ -43,8 +43,10 @@ NOT_IMPORTED = {
     ("robotarium_recording", "sensor_msgs"): "the recorder imports the class of each recorded topic by name",
 }
 SKIP = {"setuptools"}   # setup.py's own
-# The sets of .venv (./robotarium installs the first for running, the second for serve and worker, all for test).
-RUNNING, PORTAL, EVERYTHING = "requirements.txt", "requirements-portal.txt", "requirements-dev.txt"
+# The sets of .venv, each including the one before: ./robotarium installs the first two for running (the build's
+# first), the third too for serve and worker, all for test.
+BUILD, RUNNING, PORTAL, EVERYTHING = ("requirements-build.txt", "requirements.txt", "requirements-portal.txt",
+                                      "requirements-dev.txt")
 # Modules a ROS 2 install brings and the PyPI wheels do not, imported only on the ROS route (never by a
 # ./robotarium command): no requirements file can bring them.
 ROS_INSTALL_ONLY = {
@@ -210,10 +212,12 @@ def test_the_portal_needs_only_the_portal_set():
 
 
 def test_each_set_adds_to_the_one_before():
-    """requirements-portal.txt includes requirements.txt, requirements-dev.txt the portal's, and no
-    distribution is pinned twice (one version each, in the first set that needs it)."""
-    names = {name: [canonicalize_name(r.name) for r in requirements(name)] for name in (RUNNING, PORTAL, EVERYTHING)}
-    assert set(names[RUNNING]) < set(names[PORTAL]) < set(names[EVERYTHING])
+    """requirements.txt includes requirements-build.txt, requirements-portal.txt requirements.txt,
+    requirements-dev.txt the portal's, and no distribution is pinned twice (one version each, in the first
+    set that needs it)."""
+    names = {name: [canonicalize_name(r.name) for r in requirements(name)]
+             for name in (BUILD, RUNNING, PORTAL, EVERYTHING)}
+    assert set(names[BUILD]) < set(names[RUNNING]) < set(names[PORTAL]) < set(names[EVERYTHING])
     assert len(names[EVERYTHING]) == len(set(names[EVERYTHING])), names[EVERYTHING]
 
 
