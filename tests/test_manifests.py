@@ -198,8 +198,11 @@ def test_what_running_needs_comes_with_requirements_txt():
 
 def test_the_portal_needs_only_the_portal_set():
     """./robotarium serve and worker install requirements-portal.txt (running's set and the portal's stack):
-    the portal's modules, and those of devtools/ they import, import nothing beyond it (no test tool)."""
-    paths = glob.glob(os.path.join(REPO, "robotarium_portal", "**", "*.py"), recursive=True)
+    the portal's modules outside its tests, and those of devtools/ they import, import nothing beyond it (no
+    test tool)."""
+    portal = os.path.join(REPO, "robotarium_portal")
+    paths = [p for p in glob.glob(os.path.join(portal, "**", "*.py"), recursive=True)
+             if not p.startswith(os.path.join(portal, "test") + os.sep)]
     modules = imported_by_files(paths)
     assert "django" in modules
     for path in paths:   # devtools.X: devtools/X.py runs in the portal's process too
@@ -208,6 +211,15 @@ def test_the_portal_needs_only_the_portal_set():
         for module in imported_by_files([os.path.join(REPO, "devtools", m + ".py") for m in paths_of_devtools]).items():
             modules.setdefault(module[0], []).extend(module[1])
     problems = not_brought(modules, PORTAL, first_party())
+    assert not problems, "\n".join(problems)
+
+
+def test_submit_needs_only_what_running_needs():
+    """`./robotarium submit` is a student's command: it installs requirements.txt alone, so
+    robotarium_portal/submit.py (and the package's __init__) import nothing of the portal's stack."""
+    portal = os.path.join(REPO, "robotarium_portal")
+    modules = imported_by_files([os.path.join(portal, "__init__.py"), os.path.join(portal, "submit.py")])
+    problems = not_brought(modules, RUNNING, first_party())
     assert not problems, "\n".join(problems)
 
 
