@@ -54,8 +54,8 @@ def main(argv=None):
                         help="the node faults to take in turn (default: kill and freeze in turn, the node at random): "
                              + ", ".join(soak.NODE_FAULTS))
     parser.add_argument("--no-disk", action="store_true", help="no full disk")
-    parser.add_argument("--time-limit", type=int, default=90,
-                        help="each run's time limit, s of testbed time (90): a goal loop that never converges stops there")
+    parser.add_argument("--time-limit", type=int, default=150,
+                        help="each run's time limit, s of testbed time (150): a goal loop that never converges stops there")
     parser.add_argument("--video", action="store_true", help="make each run's video (default: --no-video)")
     parser.add_argument("--work", help="the soak's folder (default: a new temporary one)")
     parser.add_argument("--keep", action="store_true", help="keep every run's folder")
