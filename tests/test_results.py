@@ -96,6 +96,25 @@ def test_report_of_a_torn_recording_counts_what_is_there(tmp_path):
     assert numbers["testbed"] is not None and numbers["testbed"]["iterations"] >= numbers["iterations"] - 1
 
 
+def test_a_client_that_lost_the_testbed_and_then_left_is_told_first():
+    """A node frozen for a few seconds (the soak, issue 41): the client names it and leaves without waiting
+    for the testbed, which then ends the run for the client's leaving. The report names the node first, then
+    the testbed's end; never the client's leaving alone."""
+    from robotarium_core import outcomes
+    client = ("the testbed was lost at step 111 (line 57 of x.py): The safety node is gone (no sign of it for "
+              "1.5 s) at step 102: the experiment cannot go on, and the simulator stopped every robot")
+    testbed = "the testbed ended it at step 143: its client was gone for 2 s (its last command came at step 81)"
+    settings = {"outcome": outcomes.CLIENT_LOST, "detail": testbed}
+    assert not results._add_outcome(settings, RunRecord(outcome="testbed_lost", detail=client))
+    assert outcomes.first_line(settings["outcome"], settings["detail"]) == (
+        "Run did not complete: %s; then %s." % (client, testbed))
+    # The testbed's word stands where the client had nothing else to say (killed: "interrupted"), or no record.
+    for run in (RunRecord(outcome="interrupted", detail="the script's process ended (killed by SIGKILL)"), None):
+        settings = {"outcome": outcomes.CLIENT_LOST, "detail": testbed}
+        results._add_outcome(settings, run)
+        assert settings == {"outcome": outcomes.CLIENT_LOST, "detail": testbed}
+
+
 @pytest.mark.parametrize("mode", ["lockstep", "realtime"])
 def test_actuator_limits_are_counted_from_the_commands_in_force(mode):
     from robotarium_recording.bag import Command

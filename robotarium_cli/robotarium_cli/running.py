@@ -469,6 +469,14 @@ class Run:
                 run_dir = announced_recording(record.run_id, self.ns)
         recorded = bool(run_dir) and os.path.isdir(run_dir) and pending.results
         bag_dir = run_dir if recorded else ""
+        if recorded and record.recording_stopped_because == outcomes.RECORDER_GONE and _recorded_whole(record, bag_dir):
+            # The client lost sight of the recorder (frozen, or starved on a busy machine, for longer than it
+            # waits to confirm a loss) and the recorder came back: it closed the bag, which holds the whole run.
+            if not self.quiet:
+                say("the recorder came back after the script lost sight of it at step %d: it recorded the whole run"
+                    % record.recording_stopped_at_step)
+            for each in [record] + record.experiments[-1:]:
+                each.recording_stopped_at_step = each.recording_stopped_because = None
         stopped = outcomes.recording_stopped(record)
         if stopped and record.exit_code == 0:   # completed, but its recording is not: not a success (README)
             record.exit_code = outcomes.EXIT_CODES[outcomes.TESTBED_LOST]
@@ -528,6 +536,26 @@ class Run:
             say("could not make the results from the recording (%s); see %s"
                 % (session.describe_exception(error), run_dir))
             write_unrecorded_results(run_dir, record, record.last.report if record.last else "")
+
+
+# s to wait for a recorder the client lost sight of to close the run's bag after all (it closes a bag half a
+# second after the run's end; seconds on a loaded machine). A recorder that is really gone costs this once.
+RECORDER_BACK_WAIT = 5.0
+
+
+def _recorded_whole(record, bag_dir):
+    """Whether the recorder closed the run's bag (its own metadata says so: a recovered bag's does not) and
+    the bag holds the run whole: the poses of every step from 0 to the testbed's last and the status that
+    closed the run."""
+    if not wait_until_recorded(bag_dir, RECORDER_BACK_WAIT, quiet=True):
+        return False
+    try:
+        bag = recording.Bag(bag_dir)
+        steps = [int(k) for k in bag.poses().steps]
+        closed = any(s.run_id == record.run_id and s.state == 0 for s in bag.statuses())
+    except Exception:   # noqa: BLE001 - unreadable: not whole
+        return False
+    return closed and bool(steps) and steps == list(range(steps[-1] + 1)) and steps[-1] >= record.steps
 
 
 def _read_json(path):

@@ -229,9 +229,17 @@ def recompute(bag, run=None):
 
 def _add_outcome(settings, run):
     """How the run ended, in `settings`: the testbed's word, else (a testbed lost mid-run) the
-    client's (run.json). Returns whether it completed."""
+    client's (run.json); both, the client's first, where the client lost the testbed and the testbed then
+    lost the client. Returns whether it completed."""
     if run is not None and settings["outcome"] == outcomes.UNFINISHED and run.outcome in NAMES:
         settings["outcome"], settings["detail"] = NAMES[run.outcome], run.detail
+    elif (run is not None and settings["outcome"] == outcomes.CLIENT_LOST
+          and run.outcome == outcomes.NAMES[outcomes.TESTBED_LOST] and run.detail):
+        # The client lost a node (frozen, or cut off), said so and left without waiting for the testbed; the
+        # testbed then ended the run for the client's leaving. The client's cause came first: both are told.
+        settings["outcome"] = outcomes.TESTBED_LOST
+        settings["detail"] = "%s; then %s" % (run.detail.rstrip("."), settings["detail"] or outcomes.PHRASES[
+            outcomes.CLIENT_LOST])
     elif run is not None and run.ended_by_unsent_request_at_step is not None:
         # The bag says the client ended it (the request carried its token); the client knows it sent none.
         settings["outcome"] = outcomes.ENDED_BY_UNSENT_REQUEST
