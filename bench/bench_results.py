@@ -7,8 +7,8 @@
    and ./robotarium report use. Printed: seconds, frames per second, and the ratio to the run's
    own time (5,000 steps x 0.033 s = 165 s of experiment time, its wall time in real time).
 2. Capture: the client's per-step cost of watching the script's drawing
-   (drawing.DrawingWatcher.changes) for the same drawing on the live figure, in microseconds per
-   step, and as a share of a lockstep step through the stack (docs/benchmarks.md, the stack benchmark:
+   (robotarium_client.drawing.DrawingWatcher.changes) for the same drawing on the live figure, in
+   microseconds per step, and as a share of a lockstep step through the stack (docs/benchmarks.md, the stack benchmark:
    170 steps/s at N = 20, so 5.9 ms a step).
 Run: ./robotarium bench results [--steps 5000] [--robots 6 20 50]
 """
@@ -40,8 +40,8 @@ def synthetic_run(n, steps):
 
 def live_drawing(n, track):
     """The guide's plotting pattern on a live figure: goal squares, labels, a marker per robot."""
+    from robotarium_client.drawing import DrawingWatcher
     from robotarium_recording.arena_figure import ArenaFigure, pyplot
-    from robotarium_recording.drawing import DrawingWatcher
     plt = pyplot()
     figure = ArenaFigure.live(DEFAULT.arena, DEFAULT.robot_radius, np.vstack((track.x[0], track.y[0], track.theta[0])),
                               plt=plt)

@@ -9,12 +9,10 @@
 - `SafetyStandIn` plays the safety node's part on a probe, for tests of the simulator alone.
 """
 import ctypes
-import fcntl
 import os
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 
 import rclpy
@@ -23,40 +21,10 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from devtools import PACKAGE_SOURCES, REPO
-from robotarium_core.node_tools import init_context, wait_for_quiet_discovery
+from robotarium_bringup.domains import unique_domain_id  # noqa: F401 - the tests' own domains, from here
+from robotarium_core.dds_settings import init_context
+from robotarium_core.discovery import wait_for_quiet_discovery
 from robotarium_core.topics import CMD_SAFE, SAFETY_ARM, SAFETY_REPORT, SAFETY_REPORT_QOS, TESTBED_QOS
-
-# Domain ids 1..101 only: DDS derives its UDP ports from the domain (7400 + 250 x domain + ...), and
-# above 101 they fall in Linux's ephemeral port range (32768-60999), where any process's outgoing
-# socket may hold a port a participant needs, and fewer participants fit below 65535 (ROS 2's
-# "About Domain ID"; its own test helper, domain_coordinator, uses 1..100). Each one handed out is
-# held with an exclusive lock
-# on a file until this process exits, so no two processes on this machine (two pytest runs, a
-# benchmark, another checkout's tests) ever share a domain, and no test of this process gets a
-# domain an earlier test used (a module's testbed may still be running on it).
-_DOMAIN_LOCKS = os.path.join(tempfile.gettempdir(), "robotarium-domains")
-_MAX_DOMAIN_ID = 101
-_held = []        # lock file descriptors, closed (released) when the process exits
-_cursor = [None]  # where the next search starts: after the last domain handed out
-
-
-def unique_domain_id():
-    """A ROS_DOMAIN_ID that no other process on this machine holds, locked for this process."""
-    os.makedirs(_DOMAIN_LOCKS, exist_ok=True)
-    if _cursor[0] is None:
-        _cursor[0] = os.getpid() % _MAX_DOMAIN_ID   # spread concurrent processes
-    for k in range(_MAX_DOMAIN_ID):
-        candidate = 1 + (_cursor[0] + k) % _MAX_DOMAIN_ID
-        fd = os.open(os.path.join(_DOMAIN_LOCKS, "%d.lock" % candidate), os.O_CREAT | os.O_RDWR, 0o666)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:   # held by another process, or by this one already
-            os.close(fd)
-            continue
-        _held.append(fd)
-        _cursor[0] = candidate   # 1 + candidate % N is the next one tried
-        return candidate
-    raise RuntimeError("every ROS_DOMAIN_ID 1..%d is held by a process on this machine" % _MAX_DOMAIN_ID)
 
 
 def node_env(domain_id, **extra):
@@ -116,7 +84,7 @@ class NodeProcess:
             return f.read().decode(errors="replace")
 
     def stacks(self, wait=0.5):
-        """Every thread's Python stack of a node started by node_tools.run_node (SIGUSR1 makes it
+        """Every thread's Python stack of a node started by node_main.run_node (SIGUSR1 makes it
         write them to its log), as its log has them; for the message of a test that found it stuck."""
         if not self.alive() or not self.log_path:
             return ""
@@ -375,7 +343,7 @@ class SafetyStandIn:
         SafetyReport (without `report`, the test sends it: publish_report)."""
         msg.token = self.armed.safety_key
         if self.armed.real_time and msg.step == 0:
-            from robotarium_core.node_tools import take_waiting
+            from robotarium_core.subscriptions import take_waiting
             for data in take_waiting(self.poses):
                 self._on_poses(data)
             if self.poses_step < 0 and not self.probe.spin_until(lambda: self.poses_step >= 0, 10):

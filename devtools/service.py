@@ -62,26 +62,57 @@ import django
 django.setup()
 from django.contrib.auth import get_user_model
 from django.utils import timezone
-from robotarium_portal import tasks
+from robotarium_portal import jobs
 from robotarium_portal.models import Experiment, ExperimentFile, Profile
-user, made = get_user_model().objects.get_or_create(username="ada@example.org", email="ada@example.org")
-if made:
-    user.set_password(os.environ["PASSWORD"])
-    user.save()
-Profile.objects.get_or_create(user=user, defaults=dict(name="Ada", email_confirmed=True, approved=True))
+def person(email):
+    user, made = get_user_model().objects.get_or_create(username=email, email=email)
+    if made:
+        user.set_password(os.environ["PASSWORD"])
+        user.save()
+    Profile.objects.get_or_create(user=user, defaults=dict(name=email.split("@")[0], email_confirmed=True,
+                                                           approved=True))
+    return user
 pks = []
 for item in json.loads(sys.stdin.read()):
-    e = Experiment.objects.create(owner=user, title=item["title"], estimated_duration=60,
+    e = Experiment.objects.create(owner=person(item.get("owner", "ada@example.org")), title=item["title"], estimated_duration=60,
                                   number_of_robots=item["robots"], main_file="main.py")
     e.files_dir.mkdir(parents=True, exist_ok=True)
     (e.files_dir / "main.py").write_text(item["script"])
     ExperimentFile.objects.create(experiment=e, name="main.py", size=len(item["script"]))
     e.state, e.submitted_at = Experiment.SUBMITTED, timezone.now()
     e.save()
-    tasks.enqueue_verification(e)
+    jobs.enqueue_verification(e)
     pks.append(e.pk)
 print(json.dumps(pks))
 """
+
+
+def django_for_tests():
+    """Django in this test process, on a data folder of its own (made once per process, removed at its exit),
+    its tables made, mail into Django's test outbox and a fast password hasher (Django's advice for tests;
+    the service keeps PBKDF2). Returns the data folder. Both the portal's own tests and tests/ use it."""
+    from django.conf import settings
+    if settings.configured:
+        return settings.DATA_DIR
+    import atexit
+    import shutil
+    import tempfile
+
+    import django
+    from django.core.management import call_command
+    from django.test.utils import setup_test_environment
+
+    from robotarium_portal.data_folder import prepare
+    data = prepare(tempfile.mkdtemp(prefix="robotarium-portal-test-"))
+    atexit.register(shutil.rmtree, data, ignore_errors=True)
+    os.environ["ROBOTARIUM_PORTAL_DATA"] = str(data)
+    os.environ["ROBOTARIUM_PORTAL_HOSTS"] = "testserver,localhost,127.0.0.1"
+    os.environ["DJANGO_SETTINGS_MODULE"] = "robotarium_portal.settings"
+    django.setup()
+    setup_test_environment()   # mail into django.core.mail.outbox
+    settings.PASSWORD_HASHERS = ["django.contrib.auth.hashers.MD5PasswordHasher"]
+    call_command("migrate", interactive=False, verbosity=0)
+    return data
 
 
 def run_quietly(*command):
@@ -225,12 +256,14 @@ class Service:
         import urllib.parse
         import urllib.request
         base = re.search(r"portal is at (http://\S+)", self.portal.output()).group(1)
+        owner = self.query("SELECT u.username FROM robotarium_portal_experiment e JOIN auth_user u "
+                           "ON u.id = e.owner_id WHERE e.id = %s", pk)[0][0]   # (its owner sees it)
         jar = http.cookiejar.CookieJar()
         opener = urllib.request.build_opener(urllib.request.HTTPCookieProcessor(jar))
         form = opener.open(base + "login/", timeout=60).read().decode()
         token = re.search(r'name="csrfmiddlewaretoken" value="([^"]+)"', form).group(1)
         opener.open(urllib.request.Request(base + "login/", data=urllib.parse.urlencode(
-            {"csrfmiddlewaretoken": token, "username": "ada@example.org", "password": PASSWORD}).encode(),
+            {"csrfmiddlewaretoken": token, "username": owner, "password": PASSWORD}).encode(),
             headers={"Referer": base + "login/"}), timeout=60).read()
         return opener.open(base + "experiments/%d/" % pk, timeout=60).read().decode()
 

@@ -1,7 +1,6 @@
 from django.contrib import admin, messages
-from django.utils import timezone
 
-from robotarium_portal import mail, workers
+from robotarium_portal import mail
 from robotarium_portal.models import Experiment, ExperimentFile, Profile, ReturnMessage, Worker
 
 
@@ -14,9 +13,8 @@ class ProfileAdmin(admin.ModelAdmin):
     @admin.action(description="Approve the selected accounts")
     def approve(self, request, queryset):
         for profile in queryset.filter(approved=False).select_related("user"):
-            profile.approved, profile.approved_at, profile.approved_by = True, timezone.now(), request.user
-            profile.save(update_fields=["approved", "approved_at", "approved_by"])
-            mail.try_sending(mail.send_approved, profile.user)
+            if profile.approve(request.user):
+                mail.try_sending(mail.send_approved, profile.user)
 
 
 class FileInline(admin.TabularInline):
@@ -41,9 +39,8 @@ class ExperimentAdmin(admin.ModelAdmin):
 
     @admin.action(description="Cancel the selected experiments (queued or running)")
     def cancel(self, request, queryset):
-        done = [e for e in queryset if workers.cancel(e, request.user.email or request.user.username)]
+        done = [e for e in queryset if e.cancel(request.user.email or request.user.username)]
         for experiment in done:
-            experiment.refresh_from_db()
             mail.try_sending(mail.send_issues_found, experiment)
         if done:
             self.message_user(request, "Cancelled %s." % ", ".join("#%d" % e.pk for e in done))

@@ -1,4 +1,4 @@
-"""Writing to the service's database through a restart of it (robotarium_portal.tasks and .workers)."""
+"""Writing to the service's database through a restart of it (robotarium_portal.jobs and .supervisor)."""
 import logging
 import time
 

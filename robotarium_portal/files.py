@@ -29,6 +29,21 @@ def inside(folder, name):
     return path
 
 
+def result_path(folder, name):
+    """folder/name for a file of a run's results: `name` one of the plain files the folder lists, or
+    data/<one the data/ folder lists> (whatever its characters: a script names its own files). Http404
+    for anything else, so no name leaves the folder."""
+    parts = name.split("/")
+    where = folder if len(parts) == 1 else os.path.join(folder, "data") if len(parts) == 2 and parts[0] == "data" else None
+    try:
+        entries = os.listdir(where) if where else []
+    except OSError:
+        entries = []
+    if parts[-1] not in entries or not os.path.isfile(os.path.join(where, parts[-1])):
+        raise Http404("no such file")
+    return os.path.join(where, parts[-1])
+
+
 def _is_results_path(name):
     """data/<file>: the run folder's saved data files are one level down."""
     parts = name.split("/")

@@ -17,10 +17,11 @@ class SignUpForm(forms.Form):
     institute = forms.CharField(max_length=200)
     reason = forms.CharField(label="Why do you want to use the Robotarium?", max_length=2000, widget=forms.Textarea)
 
+    existing_user = None   # an account with this address exists: the page answers as for a new one (no enumeration)
+
     def clean_email(self):
         email = self.cleaned_data["email"].strip().lower()
-        if get_user_model().objects.filter(username=email).exists():
-            raise forms.ValidationError("An account with this email exists already: log in, or reset its password.")
+        self.existing_user = get_user_model().objects.filter(username=email).first()
         return email
 
     def clean(self):

@@ -1,28 +1,12 @@
 """Each job in its own box: one verification or run, isolated from the service and from other jobs.
 
-Plain Python (no Django): the portal's run_command uses it; tests use it alone.
-
-What a box is, when the service runs as root:
-- **Its own network namespace** with only its loopback up: the job's testbed (localhost-only DDS
-  discovery, a ROS_DOMAIN_ID of its own as well) and its script see each other and nothing else;
-  no other job on this machine or LAN sees them; the script reaches no network, database or mail
-  server. (A Unix socket on the file system, e.g. PostgreSQL's, is not a network: the account's
-  lack of a database role refuses it.)
-- **Its own mount namespace**: the service's home and /tmp, /var/tmp, /dev/shm are empty tmpfs
-  of its own (the size of its disk quota), with only what the job needs bound back (the Python
-  installation, the repository, the data and box folders).
-- **Its own folder** `<boxes>/<name>/` (work/, home/, tmp/), 0700, owned by its own account
-  `robotarium-job-<name>` (made with useradd when missing), inside a boxes folder 0711 of the service's.
-- **The user's script alone is demoted** (robotarium_core.script_box, honoured by
-  `./robotarium run`/`verify` where they start the script): that account, resource limits on CPU
-  time, address space, file size, processes and open files; the testbed's nodes stay the service's.
-- **An environment of named variables only** (ENVIRONMENT): no database URL, secret key or mail password.
-- **A watch** while it runs: the box folder's size against the disk quota, the wall-time limit,
-  and processes the script leaves behind (a fork bomb's children) are stopped.
-
-A service that is not root cannot make accounts or namespaces: it says so (isolation()), tries a user
-namespace for the network (where the kernel allows unprivileged ones), and runs the script as
-itself with its resource limits (no process limit) and the scrubbed environment; nothing else.
+Plain Python (no Django): the portal's jobs use it; tests use it alone. As root, a box is its own
+network namespace (its loopback only), PID namespace (its /proc shows the job's processes only) and
+mount namespace (its folder an exact-size tmpfs, the disk quota, which also holds its /tmp, /var/tmp,
+/dev/shm and the service's home; the repository's recordings and logs hidden); its folder is its
+own account's; the user's script alone runs as that account with resource limits
+(robotarium_core.script_box); the environment keeps named variables only. A service that is not
+root says what of this holds (isolation()). docs/portal.md has the isolation table.
 """
 import ctypes
 import fcntl
@@ -48,8 +32,11 @@ ENVIRONMENT = ("PATH", "HOME", "LANG", "LC_ALL", "LC_CTYPE", "TZ", "TERM", "PYTH
                "MPLBACKEND", "ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS",
                "ROBOTARIUM_ROOT", "ROBOTARIUM_PROGRESS", "ROBOTARIUM_RPS", "ROBOTARIUM_PYTHON")
 SHARED_TMP = ("/tmp", "/var/tmp", "/dev/shm")
-WATCH_PERIOD = 0.5   # s between two looks at the folder's size and the script's processes
+# The repository's folders of runs and logs (other people's `./robotarium run` on this machine): empty in a box.
+PRIVATE_IN_REPOSITORY = ("bags", "log", "results", "service")
+WATCH_PERIOD = 0.5   # s between two looks at the script's processes
 NOTE = "[job box] "
+SPEC_VARIABLE = "ROBOTARIUM_JOB_BOX"   # the door's spec (JSON), in its environment only
 
 
 @dataclass(frozen=True)
@@ -60,7 +47,7 @@ class Limits:
     file_bytes: int     # the largest file the script may write (RLIMIT_FSIZE)
     processes: int      # processes and threads of the job's account (RLIMIT_NPROC)
     open_files: int     # (RLIMIT_NOFILE)
-    disk_bytes: int     # the box folder's size (watched), and each private tmpfs's
+    disk_bytes: int     # everything the job writes in its box: the size of its folder's tmpfs
 
     def script_limits(self):
         return {k: v for k, v in asdict(self).items() if k != "disk_bytes"}
@@ -83,11 +70,12 @@ def isolated():
 def isolation():
     """One line on what this service's boxes hold (the worker says it on start)."""
     if isolated():
-        return ("job boxes: each job in its own network and mount namespace, its script as an account of its own "
-                "with resource limits, a scrubbed environment")
+        return ("job boxes: each job in its own network, PID and mount namespace (an exact disk quota), its script "
+                "as an account of its own with resource limits, a scrubbed environment")
     return ("job boxes: the service is not root (uid %d): no accounts, so each job's script runs AS THE SERVICE "
             "(it can read what the service can); resource limits (no process limit) and a scrubbed environment "
-            "hold; a network namespace only where the kernel lets a user namespace make one" % os.geteuid())
+            "hold; the namespaces (network, PID, the disk quota) only where the kernel lets a user namespace make "
+            "them" % os.geteuid())
 
 
 def account_name(name):
@@ -223,17 +211,6 @@ def kill_namespace(netns):
     return before
 
 
-def folder_bytes(path):
-    total = 0
-    for root, dirs, files in os.walk(path):
-        for name in files + dirs:
-            try:
-                total += os.lstat(os.path.join(root, name)).st_blocks * 512
-            except OSError:
-                pass
-    return total
-
-
 # -- what stopped the script: its limits as the log shows them ------------------------------------------
 
 def explain(log, limits, network):
@@ -249,6 +226,8 @@ def explain(log, limits, network):
         (r"BlockingIOError: \[Errno 11\]|Resource temporarily unavailable|can't start new thread",
          "the script made more processes than the job's limit (%d processes and threads); the next were refused"
          % limits.processes),
+        (r"No space left on device|Disk quota exceeded", "the script filled the job's disk quota (%s); the write "
+         "was refused" % _mb(limits.disk_bytes)),
         (r"Too many open files", "the script opened more files than the job's limit (%d); the next were refused"
          % limits.open_files),
         (r"PermissionError|Permission denied", "the script tried to read or write outside its own folder; "
@@ -335,22 +314,25 @@ class JobBox:
         return env
 
     def entry(self, command):
-        """The command behind the box's door: namespaces made, then the command exec'd (enter())."""
+        """(the command behind the box's door: namespaces made, then the command run (enter()); the door's
+        spec, handed in its environment: a command line is every process's to read, the job's too)."""
         home = pwd.getpwuid(os.geteuid()).pw_dir
         repository = os.environ.get("ROBOTARIUM_ROOT") or str(Path(__file__).resolve().parent.parent)
         keep = {os.path.realpath(p) for p in (sys.base_prefix, sys.prefix, repository, self.root, *self.keep)}
         hide = [p for p in (home, *SHARED_TMP) if os.path.isdir(p) and os.path.realpath(p) != "/"]
-        spec = {"user_namespace": not isolated(), "hide": hide, "keep": sorted(keep),
-                "tmpfs_bytes": self.limits.disk_bytes, "own_network": self.own_network}
-        return [sys.executable, os.path.abspath(__file__), "enter", json.dumps(spec), "--", *command]
+        private = [os.path.join(repository, p) for p in PRIVATE_IN_REPOSITORY if os.path.isdir(os.path.join(repository, p))]
+        spec = {"user_namespace": not isolated(), "hide": hide, "private": private, "keep": sorted(keep),
+                "box": str(self.folder), "uid": self.uid, "gid": self.gid, "disk_bytes": self.limits.disk_bytes,
+                "own_network": self.own_network}
+        return [sys.executable, os.path.abspath(__file__), "enter", "--", *command], json.dumps(spec)
 
     def run(self, command, env, output_path, timeout, started=None):
         """Run command (in work/) in the box, its output in output_path; started(pid) once it runs.
         Returns an Outcome; the notes are also written at the end of the output, one '[job box]' line each."""
-        notes, timed_out, over_quota = [], False, False
-        given = {p for p in self.work.rglob("*")}   # the experiment's own files
+        notes, timed_out = [], False
         with open(output_path, "wb") as output:
-            process = subprocess.Popen(self.entry(command), cwd=self.work, env=self.environment(env),
+            entry, spec = self.entry(command)
+            process = subprocess.Popen(entry, cwd=self.work, env=dict(self.environment(env), **{SPEC_VARIABLE: spec}),
                                        stdout=output, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                        process_group=0)
             if started:
@@ -364,7 +346,7 @@ class JobBox:
                         break
                     except subprocess.TimeoutExpired:
                         pass
-                    if netns is None:   # the door has made the job's namespace (then exec'd the command)
+                    if netns is None:   # the door has made the job's namespace (then started the command)
                         netns, pin = pin_namespace(process.pid, own_netns)
                     if time.monotonic() > deadline:
                         notes.append("the job did not end within its %d s; it was stopped" % timeout)
@@ -372,25 +354,6 @@ class JobBox:
                         stop_group(process.pid)
                         code = process.wait()
                         break
-                    if not over_quota and folder_bytes(self.folder) > self.limits.disk_bytes:
-                        over_quota = True
-                        # Frozen first, its files removed, then stopped: had it ended first, `run` (its parent)
-                        # could copy them into the results before they were gone.
-                        for pid in processes_of(self.uid):
-                            try:
-                                os.kill(pid, signal.SIGSTOP)
-                            except OSError:
-                                continue
-                        # What the script wrote goes (it would be copied to the results otherwise).
-                        for path in sorted(set(self.folder.rglob("*")) - given, reverse=True):
-                            try:
-                                if path.lstat().st_uid == self.uid and not path.is_dir():
-                                    path.unlink()
-                            except OSError:
-                                continue
-                        self._stop_script()
-                        notes.append("the script's folder grew past the job's disk quota (%s); the script was stopped "
-                                     "and the files it wrote were removed" % _mb(self.limits.disk_bytes))
                     stopped = self._leftovers(process.pid)
                     if stopped:
                         notes.append(stopped)
@@ -468,8 +431,9 @@ def stop_group(pgid, grace=30.0):
 
 # -- the door: run as `python jobbox.py enter SPEC -- COMMAND...` (a fresh process, one thread) ----------
 
-MS_NOSUID, MS_NODEV, MS_BIND, MS_REC, MS_PRIVATE = 0x2, 0x4, 0x1000, 0x4000, 0x40000
+MS_RDONLY, MS_NOSUID, MS_NODEV, MS_NOEXEC, MS_BIND, MS_REC, MS_PRIVATE = 0x1, 0x2, 0x4, 0x8, 0x1000, 0x4000, 0x40000
 SIOCGIFFLAGS, SIOCSIFFLAGS, IFF_UP = 0x8913, 0x8914, 0x1
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 def _mount(libc, source, target, fstype, flags, data=None):
@@ -486,15 +450,36 @@ def loopback_up():
         fcntl.ioctl(s, SIOCSIFFLAGS, struct.pack("16sH14x", b"lo", flags | IFF_UP))
 
 
+def _box_on_tmpfs(libc, spec):
+    """The box folder becomes a tmpfs of exactly the disk quota (the kernel refuses a write past it: ENOSPC),
+    with the prepared work/ copied in; its tmp/, shm/ and service-home/ stand for /tmp, /var/tmp, /dev/shm
+    and the service's home, so everything the job writes counts against the one quota."""
+    box, uid, gid, service = spec["box"], spec["uid"], spec["gid"], os.geteuid()
+    prepared = os.open(box, os.O_PATH | os.O_DIRECTORY)
+    _mount(libc, "tmpfs", box, "tmpfs", MS_NOSUID | MS_NODEV, "size=%d,mode=0700" % spec["disk_bytes"])
+    os.chown(box, uid, gid)
+    shutil.copytree("/proc/self/fd/%d/work" % prepared, os.path.join(box, "work"), symlinks=True)
+    os.close(prepared)
+    for name, mode, owner in (("work", 0o700, uid), ("home", 0o700, uid), ("tmp", 0o1777, service),
+                              ("shm", 0o1777, service), ("service-home", 0o711, service)):
+        path = os.path.join(box, name)
+        os.makedirs(path, exist_ok=True)
+        os.chmod(path, mode)
+        for root, dirs, files in os.walk(path):
+            for entry in [".", *dirs, *files]:
+                os.lchown(os.path.join(root, entry), owner, gid if owner == uid else os.getegid())
+
+
 def enter(spec, command):
     uid, gid = os.geteuid(), os.getegid()
     own_network = spec.get("own_network", True)
-    flags = (os.CLONE_NEWNET if own_network else 0) | os.CLONE_NEWNS | (os.CLONE_NEWUSER if spec["user_namespace"] else 0)
+    flags = ((os.CLONE_NEWNET if own_network else 0) | os.CLONE_NEWNS | os.CLONE_NEWPID
+             | (os.CLONE_NEWUSER if spec["user_namespace"] else 0))
     try:
         os.unshare(flags)
     except OSError as error:
-        print(NOTE + "no namespaces for this job (%s): it shares this machine's network and files; the kernel "
-              "refuses unprivileged user namespaces, or the service lacks the right" % error, flush=True)
+        print(NOTE + "no namespaces for this job (%s): it shares this machine's network, processes and files; the "
+              "kernel refuses unprivileged user namespaces, or the service lacks the right" % error, flush=True)
         os.execvp(command[0], command)
     if spec["user_namespace"]:   # the same uid inside: the script keeps the service's identity, no more
         with open("/proc/self/setgroups", "w") as f:
@@ -508,22 +493,64 @@ def enter(spec, command):
     if own_network:
         loopback_up()
     hidden = [os.path.realpath(p) for p in spec["hide"]]
-    keep = [p for p in spec["keep"] if any(p.startswith(h + "/") for h in hidden) and os.path.isdir(p)]
-    kept = [(p, os.open(p, os.O_PATH | os.O_DIRECTORY)) for p in keep]   # reachable after the tmpfs covers them
+    kept = [(p, os.open(p, os.O_PATH | os.O_DIRECTORY)) for p in spec["keep"] if os.path.isdir(p)]
+    _box_on_tmpfs(libc, spec)
+    box = os.open(spec["box"], os.O_PATH | os.O_DIRECTORY)   # the box's tmpfs, wherever its path is covered
+
+    def bind_back(covering):
+        """The kept folders that lie in `covering` (now covered) bound back where they were."""
+        bound = []
+        for path, fd in kept:
+            if any(path == c or path.startswith(c + "/") for c in covering) and not any(
+                    path.startswith(b + "/") for b in bound):   # not inside a folder already bound back
+                os.makedirs(path, mode=0o711, exist_ok=True)
+                _mount(libc, "/proc/self/fd/%d" % fd, path, None, MS_BIND | MS_REC)
+                bound.append(path)
+
+    for path in spec["private"]:   # other runs' recordings and logs: an empty folder of the box's own
+        _mount(libc, "tmpfs", path, "tmpfs", MS_NOSUID | MS_NODEV, "size=16m,mode=0755")
+    bind_back(spec["private"])   # the service's data folder, where it is the repository's service/
+    stand_ins = {"/tmp": "tmp", "/var/tmp": "tmp", "/dev/shm": "shm"}
     for path in hidden:
-        mode = "0711" if path not in SHARED_TMP else "1777"
-        _mount(libc, "tmpfs", path, "tmpfs", MS_NOSUID | MS_NODEV, "size=%d,mode=%s" % (spec["tmpfs_bytes"], mode))
-    bound = []
-    for path, fd in kept:
-        if any(path.startswith(b + "/") for b in bound):
-            continue   # inside a folder already bound back
-        os.makedirs(path, mode=0o711, exist_ok=True)
-        _mount(libc, "/proc/self/fd/%d" % fd, path, None, MS_BIND | MS_REC)
-        bound.append(path)
-    os.execvp(command[0], command)
+        _mount(libc, "/proc/self/fd/%d/%s" % (box, stand_ins.get(path, "service-home")), path, None, MS_BIND)
+    bind_back(hidden)
+    os.chdir(os.path.join(spec["box"], "work"))
+    _init(libc, command)
+
+
+def _init(libc, command):
+    """The job's PID namespace: the next process made is its PID 1 (with a /proc of its own: the job's
+    processes only), which runs the command and reaps whatever the command leaves to it; when PID 1 ends, the
+    kernel stops everything left in the namespace. The door waits and ends as PID 1 ended. Stop signals reach
+    the command through its process group; the door and PID 1 let them pass."""
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, signal.SIG_IGN)
+    first = os.fork()
+    if first == 0:   # PID 1 of the job
+        _mount(libc, "proc", "/proc", "proc", MS_NOSUID | MS_NODEV | MS_NOEXEC)
+        child = os.fork()
+        if child == 0:
+            for sig in STOP_SIGNALS:
+                signal.signal(sig, signal.SIG_DFL)
+            os.execvp(command[0], command)
+        # PID 1 leaves the job's process group (the command stays in it): a process the script left behind,
+        # reparented to PID 1, has no parent in the group any more, so the box's watch sees it left behind.
+        os.setpgid(0, 0)
+        while True:
+            pid, status = os.wait()
+            if pid == child:
+                code = os.waitstatus_to_exitcode(status)
+                os._exit(code if code >= 0 else 128 - code)   # killed by signal N: 128 + N, as a shell says
+    _, status = os.waitpid(first, 0)
+    code = os.waitstatus_to_exitcode(status)
+    if code < 0:   # PID 1 killed (SIGKILL to the job's group): so is the door
+        signal.signal(-code, signal.SIG_DFL)
+        os.kill(os.getpid(), -code)
+    sys.exit(code)
 
 
 if __name__ == "__main__":
-    if len(sys.argv) < 5 or sys.argv[1] != "enter" or sys.argv[3] != "--":
-        sys.exit("usage: python jobbox.py enter SPEC_JSON -- COMMAND... (the job box's door; see its docstring)")
-    enter(json.loads(sys.argv[2]), sys.argv[4:])
+    if len(sys.argv) < 4 or sys.argv[1:3] != ["enter", "--"] or SPEC_VARIABLE not in os.environ:
+        sys.exit("usage: %s=SPEC_JSON python jobbox.py enter -- COMMAND... (the job box's door; see its docstring)"
+                 % SPEC_VARIABLE)
+    enter(json.loads(os.environ.pop(SPEC_VARIABLE)), sys.argv[3:])   # the command gets no spec

@@ -1,5 +1,6 @@
-"""The service's mail: the confirmation link, "issues found" and "completed" (Django's mail: SMTP when
-configured, else files in the data folder's mail/)."""
+"""The service's mail: the confirmation link, approval or refusal, "issues found" and "completed" (Django's
+mail: SMTP when configured, else files in the data folder's mail/). Every link in it is built from the one
+configured base URL, settings.PORTAL_URL (serve's --url; default the address serve listens on)."""
 import logging
 
 from django.conf import settings
@@ -33,18 +34,39 @@ class ConfirmationTokens(PasswordResetTokenGenerator):
 confirmation_tokens = ConfirmationTokens()
 
 
-def send_confirmation(request, user):
-    path = reverse("confirm", args=[urlsafe_base64_encode(force_bytes(user.pk)), confirmation_tokens.make_token(user)])
-    link = request.build_absolute_uri(path)
+def link(name, *args):
+    """The absolute address of the page `name` (a URL name), from the configured base URL."""
+    return settings.PORTAL_URL + reverse(name, args=args)
+
+
+def send_confirmation(user):
     send_mail("Robotarium: confirm your email address",
               "Hello %s,\n\nplease confirm your address for the Robotarium by opening this link:\n\n%s\n\n"
               "An administrator then approves your account; after that you can submit experiments.\n"
-              % (user.profile.name, link),
+              % (user.profile.name if hasattr(user, "profile") else "",
+                 link("confirm", urlsafe_base64_encode(force_bytes(user.pk)), confirmation_tokens.make_token(user))),
               settings.DEFAULT_FROM_EMAIL, [user.email])
 
 
+def send_existing_account(user):
+    """Someone signed up with an address that has an account: its owner hears of it (the page said nothing)."""
+    send_mail("Robotarium: you have an account already",
+              "Hello,\n\nsomeone (you?) tried to sign up for the Robotarium with this address, which has an account "
+              "already. Log in at %s, or, if you forgot your password, set a new one at %s.\n\nIf it was not you, "
+              "nothing changed: you may ignore this mail.\n" % (link("login"), link("password_reset")),
+              settings.DEFAULT_FROM_EMAIL, [user.email])
+
+
+def send_refused(profile):
+    send_mail("Robotarium: your account was not approved",
+              "Hello %s,\n\nan administrator did not approve your Robotarium account, for this reason:\n\n%s\n\n"
+              "Write to the administrators if you think this is a mistake; an account may be approved later.\n\n%s\n"
+              % (profile.name, profile.refusal_reason, link("dashboard")),
+              settings.DEFAULT_FROM_EMAIL, [profile.user.email])
+
+
 def _experiment_link(experiment):
-    return settings.PORTAL_URL + reverse("experiment", args=[experiment.pk])
+    return link("experiment", experiment.pk)
 
 
 def send_issues_found(experiment):
@@ -80,7 +102,7 @@ def tell_administrators_of_a_difference(experiment, in_run, verified):
 def send_approved(user):
     send_mail("Robotarium: your account is approved",
               "Hello %s,\n\nan administrator approved your Robotarium account: you can submit experiments now.\n\n%s\n"
-              % (user.profile.name, settings.PORTAL_URL + reverse("dashboard")),
+              % (user.profile.name, link("dashboard")),
               settings.DEFAULT_FROM_EMAIL, [user.email])
 
 
@@ -93,5 +115,5 @@ def tell_administrators(user):
         send_mail("Robotarium: %s waits for approval" % user.email,
                   "%s (%s, %s) confirmed their address and waits for approval:\n\n%s\n"
                   % (user.profile.name, user.profile.institute, user.email,
-                     settings.PORTAL_URL + reverse("approvals")),
+                     link("approvals")),
                   settings.DEFAULT_FROM_EMAIL, staff)

@@ -1,9 +1,20 @@
-"""What the service keeps: who may use it (Profile beside Django's User) and the experiments."""
+"""What the service keeps: who may use it (Profile beside Django's User, ApiToken), the experiments and
+their state machine (Experiment's transitions), the workers' job slots (Worker)."""
+import hashlib
+import secrets
+
 from django.conf import settings
 from django.db import models
+from django.db.models import F, Q
 from django.utils import timezone
 
 from robotarium_core import run_record
+
+ANY = object()   # a transition that holds for whichever worker holds the experiment
+
+
+def _now_text(when=None):
+    return (when or timezone.now()).strftime("%Y-%m-%d %H:%M:%S UTC")
 
 
 def without_nul(value):
@@ -32,6 +43,8 @@ class Profile(models.Model):
     approved_at = models.DateTimeField(null=True, blank=True)
     approved_by = models.ForeignKey(settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL,
                                     related_name="+")
+    refused_at = models.DateTimeField(null=True, blank=True)
+    refusal_reason = models.TextField(max_length=2000, blank=True)   # mailed to the person
 
     def __str__(self):
         return "%s <%s>" % (self.name, self.user.email)
@@ -40,14 +53,65 @@ class Profile(models.Model):
     def may_submit(self):
         return self.email_confirmed and self.approved and self.user.is_active
 
+    def approve(self, by):
+        """An administrator approves the account (once: True when it was waiting)."""
+        if not Profile.objects.filter(pk=self.pk, approved=False).update(approved=True, approved_at=timezone.now(),
+                                                                          approved_by=by, refused_at=None):
+            return False
+        self.refresh_from_db()
+        return True
+
+    def refuse(self, by, reason):
+        """An administrator refuses the account, with a reason mailed to its owner (once; it may be approved
+        later all the same)."""
+        if not Profile.objects.filter(pk=self.pk, approved=False, refused_at=None).update(
+                refused_at=timezone.now(), refusal_reason=reason, approved_by=by):
+            return False
+        self.refresh_from_db()
+        return True
+
+
+class ApiToken(models.Model):
+    """A person's key to the JSON API (./robotarium submit): only its SHA-256 is kept, the key itself is shown
+    once when it is made. It acts as its owner: the same accounts, permissions and 404s as the pages."""
+    PREFIX = "rbt_"
+    user = models.ForeignKey(settings.AUTH_USER_MODEL, on_delete=models.CASCADE, related_name="api_tokens")
+    digest = models.CharField(max_length=64, unique=True)
+    shown = models.CharField(max_length=16)   # its first characters, to tell tokens apart on the account page
+    created = models.DateTimeField(default=timezone.now)
+    last_used = models.DateTimeField(null=True, blank=True)
+
+    class Meta:
+        ordering = ["-created"]
+
+    @staticmethod
+    def _digest(key):
+        return hashlib.sha256(key.encode()).hexdigest()
+
+    @classmethod
+    def make(cls, user):
+        """(the token, its key: shown once, kept nowhere)."""
+        key = cls.PREFIX + secrets.token_urlsafe(32)
+        return cls.objects.create(user=user, digest=cls._digest(key), shown=key[:12]), key
+
+    @classmethod
+    def user_of(cls, key):
+        """The active user whose key this is, or None."""
+        token = cls.objects.filter(digest=cls._digest(key or "")).select_related("user").first()
+        if token is None or not token.user.is_active:
+            return None
+        cls.objects.filter(pk=token.pk).update(last_used=timezone.now())
+        return token.user
+
 
 class Experiment(models.Model):
     SAVED, SUBMITTED, VERIFYING, REJECTED = "saved", "submitted", "verifying", "rejected"
     QUEUED, RUNNING, COMPLETED, FAILED = "queued", "running", "completed", "failed"
     CANCELLED = "cancelled"   # by an administrator
     STATES = [(s, s) for s in (SAVED, SUBMITTED, VERIFYING, REJECTED, QUEUED, RUNNING, COMPLETED, FAILED, CANCELLED)]
-    PENDING = (SUBMITTED, VERIFYING, QUEUED, RUNNING)   # counted against the per-user cap
-    DONE = (REJECTED, COMPLETED, FAILED, CANCELLED)      # the "Completed Experiments" tab
+    PENDING = (SUBMITTED, VERIFYING, QUEUED, RUNNING)   # submitted, not finished: counted against the per-user cap
+    DONE = (REJECTED, COMPLETED, FAILED, CANCELLED)      # finished: the "Completed Experiments" tab
+    EDITABLE = (SAVED, REJECTED, FAILED, CANCELLED)      # its owner may change it and submit it (again)
 
     owner = models.ForeignKey(settings.AUTH_USER_MODEL, on_delete=models.CASCADE, related_name="experiments")
     title = models.CharField(max_length=200)
@@ -95,6 +159,86 @@ class Experiment(models.Model):
 
     def file_names(self):
         return sorted(f.name for f in self.files.all())
+
+    # -- the state machine: every change of state is one of these methods, each one conditional UPDATE
+    # (state X -> Y only where the row is still in X, and held by `worker` where one is named), so two
+    # workers, a job handed out twice or an administrator's cancel never both win. True when it changed.
+
+    def _transition(self, sources, target, worker=ANY, unless=None, **fields):
+        rows = Experiment.objects.filter(pk=self.pk, state__in=sources)
+        if worker is not ANY:
+            rows = rows.filter(worker=worker)
+        if unless is not None:
+            rows = rows.exclude(unless)
+        fields = {k: without_nul(v) for k, v in fields.items()}
+        if not rows.update(state=target, **fields):
+            return False
+        self.refresh_from_db()
+        return True
+
+    def submit(self):
+        """Saved (or finished: submitted again) -> submitted, its earlier outcome cleared."""
+        return self._transition(self.EDITABLE, self.SUBMITTED, detail="", submitted_at=timezone.now(), results="",
+                                run_outcome="", verification=None, worker_id=None, finished_at=None)
+
+    def claim_verification(self, worker):
+        """Submitted -> verifying, held by worker; not while another of its owner's is verified (one
+        verification slot a person at a time: one person's submissions never hold every slot)."""
+        return self._transition([self.SUBMITTED], self.VERIFYING, worker_id=worker,
+                                unless=Q(owner__experiments__state=self.VERIFYING))
+
+    @classmethod
+    def claim_next_run(cls, worker):
+        """The oldest queued experiment (first come, first served) -> running, held by worker; None if none."""
+        while True:
+            experiment = cls.objects.filter(state=cls.QUEUED).order_by("queued_at", "pk").first()
+            if experiment is None:
+                return None
+            if experiment._transition([cls.QUEUED], cls.RUNNING, worker_id=worker, started_at=timezone.now(),
+                                      attempts=F("attempts") + 1):
+                return experiment
+            # another worker took it first: the next
+
+    def queue(self, worker, verification, timings):
+        """Verified and accepted -> queued (keeping its place: queued_at is set once, a requeue keeps it)."""
+        return self._transition([self.VERIFYING], self.QUEUED, worker, queued_at=timezone.now(),
+                                verification=verification, timings=timings, detail="", worker_id=None)
+
+    def reject(self, worker, detail, verification, timings):
+        """Verifying -> rejected: the rules it broke."""
+        return self._transition([self.VERIFYING], self.REJECTED, worker, detail=detail, verification=verification,
+                                timings=timings, finished_at=timezone.now(), worker_id=None)
+
+    def fail(self, worker, detail, **fields):
+        """Verifying or running -> failed, with why (and what was recorded: results, run_outcome, timings)."""
+        return self._transition([self.VERIFYING, self.RUNNING], self.FAILED, worker, detail=detail,
+                                finished_at=timezone.now(), **fields, worker_id=None)
+
+    def complete(self, worker, detail, **fields):
+        """Running -> completed, with its results."""
+        return self._transition([self.RUNNING], self.COMPLETED, worker, detail=detail, finished_at=timezone.now(),
+                                **fields, worker_id=None)
+
+    def cancel(self, by):
+        """An administrator cancels it while it waits or works (a running one is stopped by its worker)."""
+        return self._transition(self.PENDING, self.CANCELLED, finished_at=timezone.now(),
+                                detail="Cancelled by an administrator (%s) at %s." % (by, _now_text()))
+
+    def requeue(self, worker, why, when=None):
+        """Its worker stopped (a service stopped, a worker lost) at `when` (default now): a run goes back to the
+        head of the queue (its queued_at kept) and runs again from the start; a verification is made again."""
+        at = _now_text(when)
+        if self.state == self.RUNNING:
+            detail = "%s during run %d (at %s); the experiment runs again from the start." % (why, self.attempts, at)
+            return self._transition([self.RUNNING], self.QUEUED, worker, detail=detail, worker_id=None)
+        return self._transition([self.VERIFYING], self.SUBMITTED, worker, worker_id=None,
+                                detail="%s during its verification (at %s); it is verified again." % (why, at))
+
+    def keep_results(self, **fields):
+        """A cancelled run's job ended later: what it recorded stays attached (the state stays cancelled)."""
+        return bool(Experiment.objects.filter(pk=self.pk, state=self.CANCELLED).update(**fields))
+
+    # -- what it is
 
     def differs_from_verification(self):
         """(arrays the run's safety layer changed that a verification's certificate would have changed
@@ -147,7 +291,7 @@ class ReturnMessage(models.Model):
 class Worker(models.Model):
     """One job slot of a worker (./robotarium worker or serve's own): it verifies or runs one job at a time on a
     testbed of its own (ROS_DOMAIN_ID `domain` on `host`). Its supervisor beats for it every
-    settings.WORKER_HEARTBEAT s; one whose beats stopped is found lost (robotarium_portal.workers.sweep)."""
+    settings.WORKER_HEARTBEAT s; one whose beats stopped is found lost (robotarium_portal.supervisor.sweep)."""
     VERIFY, RUNS = "verify", "runs"
     ALIVE, STOPPED, LOST = "alive", "stopped", "lost"
     host = models.CharField(max_length=200)

@@ -1,5 +1,5 @@
 """./robotarium serve: the portal (waitress, a WSGI server) and its own worker (django-q2 clusters:
-"verify" and "runs", robotarium_portal.workers) on this machine, everything kept in one data folder and
+"verify" and "runs", robotarium_portal.supervisor) on this machine, everything kept in one data folder and
 its database (SQLite there, or PostgreSQL with --database, for workers on other machines). Stop it
 (Ctrl-C) and start it again: the experiments' states are in the database, the jobs are made again from them."""
 import argparse
@@ -9,8 +9,9 @@ import os
 import signal
 import sys
 import threading
-import time
 from pathlib import Path
+
+from robotarium_portal.supervisor import database_url
 
 REPOSITORY = Path(__file__).resolve().parent.parent
 
@@ -28,20 +29,26 @@ def parse(argv):
     parser.add_argument("--data", default=str(REPOSITORY / "service"),
                         help="the service's folder (default: service/ in the repository); workers on other "
                              "machines need it too, on a shared path")
-    parser.add_argument("--database", default="",
-                        help="PostgreSQL for the service's state, postgresql://USER[:PASSWORD]@HOST[:PORT]/NAME, "
-                             "for workers on other machines (./robotarium worker); default: SQLite in the data folder")
+    parser.add_argument("--database", default="", type=database_url,
+                        help="PostgreSQL for the service's state, postgresql://USER@HOST[:PORT]/NAME, for workers on "
+                             "other machines (./robotarium worker); its password from PGPASSWORD or a password file "
+                             "(PGPASSFILE, ~/.pgpass), never on the command line; default: SQLite in the data folder")
     parser.add_argument("--jobs", type=int, default=1,
                         help="verifications and runs at once on this machine (default 1 of each; 0: none here, "
                              "the workers run elsewhere)")
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1; 0.0.0.0: "
                         "every interface, then name the host the users type with --allowed-host)")
     parser.add_argument("--port", type=int, default=8000, help="port (default 8000; 0: any free one)")
+    parser.add_argument("--url", help="the address people reach the portal at, the base of every link in its mail "
+                        "(default: the address it listens on, e.g. http://127.0.0.1:8000)")
     parser.add_argument("--allowed-host", action="append", default=[],
                         help="a host name the portal answers to besides localhost (repeat for several)")
     parser.add_argument("--create-admin", metavar="EMAIL",
                         help="create (or make) an administrator account with this email, asking for its password "
                              "(read from standard input when it is not a terminal), then exit")
+    parser.add_argument("--create-token", metavar="EMAIL",
+                        help="make an API token for this approved account (administrators included; for "
+                             "./robotarium submit), print it once, then exit")
     parser.add_argument("--run-domain", type=int, help="ROS_DOMAIN_ID of the runs' testbed (default: a free one)")
     parser.add_argument("--verify-domain", type=int,
                         help="ROS_DOMAIN_ID of the verification's testbed (default: a free one)")
@@ -49,7 +56,7 @@ def parse(argv):
 
 
 def setup_django(data, database=""):
-    from robotarium_portal.workers import setup_django as setup
+    from robotarium_portal.supervisor import setup_django as setup
     setup(data, database)
 
 
@@ -79,12 +86,28 @@ def create_admin(email):
     print("[robotarium] %s is an administrator: log in at the portal; its admin pages are under /admin/" % email)
 
 
+def create_token(email):
+    """An API token for an approved account (an operator's way; a person makes theirs on the account page)."""
+    from django.contrib.auth import get_user_model
+
+    from robotarium_portal.models import ApiToken
+    user = get_user_model().objects.filter(username=email.strip().lower()).select_related("profile").first()
+    profile = getattr(user, "profile", None)
+    if user is None or not user.is_active or not (user.is_staff or (profile is not None and profile.may_submit)):
+        sys.exit("[robotarium] error: no approved account %s here (it signs up, confirms its address and is approved "
+                 "first; an administrator is approved already)" % email)
+    _, key = ApiToken.make(user)
+    print("[robotarium] an API token for %s (shown this once; ./robotarium submit reads it from --token or "
+          "ROBOTARIUM_TOKEN):\n%s" % (user.email, key))
+    return 0
+
+
 def main(argv=None):
     args = parse(argv)
     data = Path(args.data).resolve()
     data.mkdir(parents=True, exist_ok=True)
     lock = open(data / "serve.lock", "w")
-    if args.create_admin is None:
+    if args.create_admin is None and args.create_token is None:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -102,29 +125,32 @@ def main(argv=None):
                  % (args.database.split("@")[-1] or "in " + str(data), str(error).strip()))
     if args.create_admin is not None:
         return create_admin(args.create_admin)
+    if args.create_token is not None:
+        return create_token(args.create_token)
 
     import waitress
 
-    from robotarium_portal import tasks
-    from robotarium_portal.workers import Stop, Supervisor, forget_dead_local_workers, stop_on_signals
+    from robotarium_portal import jobs
+    from robotarium_portal.supervisor import Stop, Supervisor, forget_dead_local_workers, stop_on_signals
     from robotarium_portal.wsgi import application
     forget_dead_local_workers()   # this machine's slots whose supervisor is gone hand their jobs back
-    tasks.reconcile()   # before any worker: the jobs again from the experiments' states
+    jobs.reconcile()   # before any worker: the jobs again from the experiments' states
     hosts = ["localhost", "127.0.0.1", "[::1]"] + args.allowed_host + (
         [args.host] if args.host not in ("0.0.0.0", "::") else [])
     try:
-        server = waitress.create_server(application, host=args.host, port=args.port, threads=8)
+        server = waitress.create_server(application, host=args.host, port=args.port, threads=24)   # live streams hold one each
     except OSError as error:
         sys.exit("[robotarium] error: cannot listen on %s:%d (%s); choose another with --port (0: any free one)"
                  % (args.host, args.port, error.strerror or error))
     shown_host = args.allowed_host[0] if args.allowed_host else ("127.0.0.1" if args.host in ("0.0.0.0", "::")
                                                                  else args.host)
     url = "http://%s:%d/" % (shown_host, int(server.effective_port))
-    env = dict(os.environ, ROBOTARIUM_PORTAL_URL=url.rstrip("/"), ROBOTARIUM_PORTAL_HOSTS=",".join(hosts),
+    base_url = (args.url or url).rstrip("/")   # every mail link, here and in the workers
+    env = dict(os.environ, ROBOTARIUM_PORTAL_URL=base_url, ROBOTARIUM_PORTAL_HOSTS=",".join(hosts),
                PYTHONPATH=os.pathsep.join([str(REPOSITORY), os.environ.get("PYTHONPATH", "")]))
     os.environ.update({k: env[k] for k in ("ROBOTARIUM_PORTAL_URL", "ROBOTARIUM_PORTAL_HOSTS")})
     from django.conf import settings
-    settings.ALLOWED_HOSTS = hosts
+    settings.ALLOWED_HOSTS, settings.PORTAL_URL = hosts, base_url
     workers = Supervisor(data, ["verify", "runs"] if args.jobs else [], args.jobs, env, lock=lock,
                          domains={"verify": args.verify_domain, "runs": args.run_domain})
     workers.start()
@@ -148,9 +174,8 @@ def main(argv=None):
     stop_on_signals()
 
     def watch():
-        while True:
-            time.sleep(2.0)
-            if workers.dead():
+        while not workers.stopping.wait(2.0):   # a stop stops the workers: no error then
+            if workers.dead() and not workers.stopping.is_set():
                 print("[robotarium] error: the worker %s stopped (its log is in %s); stopping the service"
                       % (", ".join(workers.dead()), workers.logs), flush=True)
                 os.kill(os.getpid(), signal.SIGTERM)

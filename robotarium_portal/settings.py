@@ -1,33 +1,27 @@
-"""Django settings of the portal. Everything the service keeps lives under one data folder
-(ROBOTARIUM_PORTAL_DATA, default service/ in the repository): the SQLite database, the secret key,
-the experiments' files and results, and outgoing mail (unless an SMTP server is configured)."""
+"""Django settings of the portal, read from the environment; importing them makes nothing.
+
+Everything the service keeps lives under one data folder (ROBOTARIUM_PORTAL_DATA, default service/
+in the repository): the SQLite database, the secret key, the experiments' files and results, and
+outgoing mail (unless an SMTP server is configured). robotarium_portal.data_folder.prepare() makes
+the folder and its secret key; serve, the worker and the tests call it before Django starts."""
 import os
-import secrets
+from datetime import timedelta
 from pathlib import Path
+
+from django.utils.csp import CSP
+
+from robotarium_portal.data_folder import read_secret_key
 
 REPOSITORY = Path(os.environ.get("ROBOTARIUM_ROOT") or Path(__file__).resolve().parent.parent)
 DATA_DIR = Path(os.environ.get("ROBOTARIUM_PORTAL_DATA") or REPOSITORY / "service").resolve()
-DATA_DIR.mkdir(parents=True, exist_ok=True)
-DATA_DIR.chmod(0o700)   # the service's alone: no job's script may read it (jobbox)
 EXPERIMENTS_DIR = DATA_DIR / "experiments"
 MAIL_DIR = DATA_DIR / "mail"
-
-
-def _secret_key():
-    """Made once per service and kept in its data folder (never in the repository)."""
-    path = DATA_DIR / "secret_key"
-    if not path.exists():
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-        with os.fdopen(fd, "w") as f:
-            f.write(secrets.token_urlsafe(50))
-    return path.read_text().strip()
-
-
-SECRET_KEY = _secret_key()
+SECRET_KEY = read_secret_key(DATA_DIR)   # "" until prepare() made it: Django then refuses to sign anything
 DEBUG = os.environ.get("ROBOTARIUM_PORTAL_DEBUG") == "1"
 ALLOWED_HOSTS = [h for h in os.environ.get("ROBOTARIUM_PORTAL_HOSTS", "localhost,127.0.0.1,[::1]").split(",") if h]
-# The address the service is reached at, for links in mail sent by the worker (no request at hand there).
-PORTAL_URL = os.environ.get("ROBOTARIUM_PORTAL_URL", "http://localhost:8000").rstrip("/")
+# The one base URL of every link in mail (serve's --url; default the address serve listens on, which serve
+# sets for itself and its workers).
+PORTAL_URL = os.environ.get("ROBOTARIUM_PORTAL_URL", "http://127.0.0.1:8000").rstrip("/")
 
 INSTALLED_APPS = [
     "robotarium_portal.apps.PortalConfig",   # first: its registration/ templates over the admin's
@@ -38,6 +32,7 @@ INSTALLED_APPS = [
     "django.contrib.messages",
     "django.contrib.staticfiles",
     "django_q",
+    "axes",
 ]
 MIDDLEWARE = [
     "django.middleware.security.SecurityMiddleware",
@@ -47,7 +42,23 @@ MIDDLEWARE = [
     "django.contrib.auth.middleware.AuthenticationMiddleware",
     "django.contrib.messages.middleware.MessageMiddleware",
     "django.middleware.clickjacking.XFrameOptionsMiddleware",
+    "django.middleware.csp.ContentSecurityPolicyMiddleware",
+    "axes.middleware.AxesMiddleware",   # last: it answers a locked-out log-in
 ]
+# Django's own Content-Security-Policy: this site's scripts, styles, pictures and videos only (the page's
+# <style> and <script> carry the request's nonce); no plug-ins, no framing, forms post here only.
+SECURE_CSP = {
+    "default-src": [CSP.SELF],
+    "script-src": [CSP.SELF, CSP.NONCE],
+    "style-src": [CSP.SELF, CSP.NONCE],
+    "img-src": [CSP.SELF, "data:"],
+    "media-src": [CSP.SELF],
+    "connect-src": [CSP.SELF],
+    "object-src": [CSP.NONE],
+    "base-uri": [CSP.NONE],
+    "frame-ancestors": [CSP.NONE],
+    "form-action": [CSP.SELF],
+}
 ROOT_URLCONF = "robotarium_portal.urls"
 TEMPLATES = [{
     "BACKEND": "django.template.backends.django.DjangoTemplates",
@@ -57,6 +68,7 @@ TEMPLATES = [{
         "django.template.context_processors.request",
         "django.contrib.auth.context_processors.auth",
         "django.contrib.messages.context_processors.messages",
+        "django.template.context_processors.csp",
     ]},
 }]
 WSGI_APPLICATION = "robotarium_portal.wsgi.application"
@@ -93,6 +105,17 @@ AUTH_PASSWORD_VALIDATORS = [
     {"NAME": "django.contrib.auth.password_validation.CommonPasswordValidator"},
     {"NAME": "django.contrib.auth.password_validation.NumericPasswordValidator"},
 ]
+# Failed log-ins (django-axes): after AXES_FAILURE_LIMIT failures for one account, or from one address,
+# log-in is refused for AXES_COOLOFF_TIME with a page that says so; a success or a password reset clears
+# the count. The account is counted by its address as typed, lower case (as the log-in form reads it).
+AUTHENTICATION_BACKENDS = ["axes.backends.AxesStandaloneBackend", "django.contrib.auth.backends.ModelBackend"]
+AXES_FAILURE_LIMIT = 10
+AXES_COOLOFF_TIME = timedelta(minutes=15)
+AXES_LOCKOUT_PARAMETERS = ["username", "ip_address"]   # each on its own: per account, and per address
+AXES_USERNAME_CALLABLE = "robotarium_portal.views_accounts.login_name"
+AXES_LOCKOUT_TEMPLATE = "registration/locked_out.html"
+AXES_RESET_ON_SUCCESS = True
+AXES_VERBOSE = False
 LOGIN_URL = "login"
 LOGIN_REDIRECT_URL = "dashboard"
 LOGOUT_REDIRECT_URL = "login"
@@ -120,7 +143,8 @@ else:
 PORTAL_MAX_FILES = int(os.environ.get("ROBOTARIUM_PORTAL_MAX_FILES", "20"))
 PORTAL_MAX_FILE_BYTES = int(os.environ.get("ROBOTARIUM_PORTAL_MAX_FILE_BYTES", str(5 * 1024 * 1024)))
 PORTAL_MAX_PENDING = int(os.environ.get("ROBOTARIUM_PORTAL_MAX_PENDING", "3"))
-DATA_UPLOAD_MAX_NUMBER_FILES = PORTAL_MAX_FILES + 1   # the form says how many are too many, not Django's 400
+# The form says how many are too many (up to this many in one request); past it, the portal's 400 page says so.
+DATA_UPLOAD_MAX_NUMBER_FILES = 1000
 DATA_UPLOAD_MAX_MEMORY_SIZE = 2 * 1024 * 1024
 FILE_UPLOAD_MAX_MEMORY_SIZE = 2 * 1024 * 1024
 
@@ -141,8 +165,12 @@ Q_CLUSTER = {
     "poll": 0.5,
     "catch_up": False,
     "save_limit": 200,
-    "ALT_CLUSTERS": {"verify": {"timeout": 600, "retry": 720}},
+    "ALT_CLUSTERS": {"verify": {"timeout": 1500, "retry": 1800}},   # over the longest verification's limit
 }
+# A verification's wall-time limit: the verifier's own rule (1.5 x the declared duration) plus VERIFY_STARTUP s
+# for its testbed and the script's imports (900 s declared: 1410 s). A script that spins or never ends is
+# rejected at it, its rule named ("time"), and the next submission is verified.
+VERIFY_STARTUP = float(os.environ.get("ROBOTARIUM_PORTAL_VERIFY_STARTUP", "60"))
 # Each worker beats every WORKER_HEARTBEAT s; one that missed WORKER_LOST_AFTER s of beats, while the one
 # who watches saw the database all that time, is lost: its verification is handed out again, its run failed.
 WORKER_HEARTBEAT = float(os.environ.get("ROBOTARIUM_WORKER_HEARTBEAT", "2"))

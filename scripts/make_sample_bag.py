@@ -52,10 +52,11 @@ def consensus(poses, gain=0.6, max_speed=0.1):
 def publish_drawing(probe, started):
     """What an experiment script would draw on r.axes, sent as the client sends it: the point the
     robots agree on (their centroid) marked and labelled, so the sample's video shows a drawing."""
+    from robotarium_client.drawing import DrawingWatcher
     from robotarium_core.config import DEFAULT
     from robotarium_core.topics import DRAWING, DRAWING_QOS
     from robotarium_recording.arena_figure import ArenaFigure, pyplot
-    from robotarium_recording.drawing import DrawingWatcher, encode
+    from robotarium_recording.drawing import encode
     plt = pyplot()
     poses = np.array([started.x, started.y, started.theta])
     figure = ArenaFigure.live(DEFAULT.arena, DEFAULT.robot_radius, poses, plt=plt)

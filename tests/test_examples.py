@@ -72,6 +72,9 @@ def test_a_guide_script_runs_unchanged_in_real_time(testbed):
     assert len(progress) >= 3 and steps == sorted(steps), out
     assert all("real time" in line for line in progress)
     folder = run_folder(bags, out)
+    with open(os.path.join(folder, "log.txt")) as f:   # the script's prints, not the testbed's progress
+        log = f.read()
+    assert "[robotarium] step " not in log and "##### DEBUG OUTPUT #####" in log, log
     with open(os.path.join(folder, "run.json")) as f:
         info = json.load(f)
     assert info["real_time"] is True and info["steps"] > 100

@@ -16,8 +16,8 @@ from std_srvs.srv import Trigger
 
 from devtools.rosutil import unique_domain_id
 from robotarium_core import cdr, presence
+from robotarium_core.dds_settings import init_context
 from robotarium_core.executor import LeanExecutor
-from robotarium_core.node_tools import init_context
 from robotarium_core.topics import TESTBED_QOS
 
 

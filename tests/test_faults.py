@@ -28,7 +28,7 @@ import yaml
 
 from devtools import REPO
 from devtools.rosutil import FrozenThread, NodeProcess, RosProbe, node_env, unique_domain_id
-from robotarium_core import cdr, model, node_tools, presence
+from robotarium_core import cdr, dds_health, model, presence
 from robotarium_core.config import DEFAULT
 from robotarium_core.topics import TESTBED_QOS, readers_matched
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
@@ -626,8 +626,8 @@ def test_the_testbed_opens_no_shared_memory_port(healthy):
     r = client(LINE3)
     drive(r, [0.0] * 3, [0.0] * 3)
     for name, node in lab.nodes.items():
-        assert node_tools.shared_memory_ports(node.proc.pid)[0] == set(), name
-    assert node_tools.shared_memory_ports()[0] == set()   # the client (and the probe) of this process
+        assert dds_health.shared_memory_ports(node.proc.pid)[0] == set(), name
+    assert dds_health.shared_memory_ports()[0] == set()   # the client (and the probe) of this process
     r.call_at_scripts_end()
 
 
@@ -647,16 +647,16 @@ def test_a_node_whose_shared_memory_port_was_deleted_restarts_and_the_next_clien
     lab.start(name, FASTRTPS_DEFAULT_PROFILES_FILE=USERS_OWN_PROFILE)
     pid = lab.nodes[name].proc.pid
     try:
-        assert lab.probe.spin_until(lambda: lab.watches[name].alive and node_tools.shared_memory_ports(pid)[0], 30)
-        listening, lost = node_tools.shared_memory_ports(pid)
+        assert lab.probe.spin_until(lambda: lab.watches[name].alive and dds_health.shared_memory_ports(pid)[0], 30)
+        listening, lost = dds_health.shared_memory_ports(pid)
         assert listening and not lost
         for port in listening:
             os.remove("/dev/shm/fastrtps_port%d" % port)
-        assert node_tools.shared_memory_ports(pid)[1] == listening
+        assert dds_health.shared_memory_ports(pid)[1] == listening
         assert lab.probe.spin_until(lambda: "restarting: its shared-memory port" in lab.nodes[name].output(), 10), \
             lab.nodes[name].output()
-        assert lab.probe.spin_until(lambda: node_tools.shared_memory_ports(pid)[0]
-                                    and not node_tools.shared_memory_ports(pid)[1] and lab.watches[name].alive, 30)
+        assert lab.probe.spin_until(lambda: dds_health.shared_memory_ports(pid)[0]
+                                    and not dds_health.shared_memory_ports(pid)[1] and lab.watches[name].alive, 30)
         assert lab.nodes[name].alive() and lab.nodes[name].proc.pid == pid
         r = client(LINE3)
         # (the client waits for the safety node's reader, not the recorder's: wait here until it knows it,
@@ -684,14 +684,14 @@ def test_a_node_whose_fast_dds_event_thread_stops_starts_afresh_and_the_next_cli
     lab = healthy
     node = lab.nodes["safety"]
     pid = node.proc.pid
-    (tid,) = node_tools.dds_event_threads(pid)
+    (tid,) = dds_health.dds_event_threads(pid)
     frozen = FrozenThread(tid)
     try:
-        assert lab.probe.spin_until(lambda: frozen.gone(), node_tools.DDS_STALL_LIMIT + 15), node.output()
+        assert lab.probe.spin_until(lambda: frozen.gone(), dds_health.DDS_STALL_LIMIT + 15), node.output()
     finally:
         frozen.release()
     assert "Fast DDS stopped in this process: dds.ev.0 (thread %d) has not run for" % tid in node.output(), node.output()
-    assert lab.probe.spin_until(lambda: node_tools.dds_event_threads(pid) and tid not in node_tools.dds_event_threads(pid)
+    assert lab.probe.spin_until(lambda: dds_health.dds_event_threads(pid) and tid not in dds_health.dds_event_threads(pid)
                                 and lab.watches["safety"].alive, 30), node.output()
     assert node.alive() and node.proc.pid == pid
     r = client(LINE3)

@@ -18,7 +18,7 @@ FOREIGN = {os.path.join("devtools", "flood.py"), os.path.join("devtools", "forge
 
 
 def test_every_participant_of_ours_starts_with_the_testbeds_dds_settings():
-    """rclpy.init only inside node_tools.init_context: Fast DDS reads its profile once, at a process's
+    """rclpy.init only inside dds_settings.init_context: Fast DDS reads its profile once, at a process's
     first participant, so one plain rclpy.init first (a test, a tool) gave every later participant
     of that process Fast DDS's defaults: shared memory, and multicast discovery on the network."""
     found = []
@@ -35,9 +35,9 @@ def test_every_participant_of_ours_starts_with_the_testbeds_dds_settings():
                     for number, line in enumerate(f, 1):
                         if "rclpy.init(" in line and "def init_context" not in line:
                             found.append("%s:%d" % (relative, number))
-    assert found == [os.path.join("robotarium_core", "robotarium_core", "node_tools.py") + ":%d" % _init_line()], found
+    assert found == [os.path.join("robotarium_core", "robotarium_core", "dds_settings.py") + ":%d" % _init_line()], found
 
 
 def _init_line():
-    with open(os.path.join(REPO, "robotarium_core", "robotarium_core", "node_tools.py"), encoding="utf-8") as f:
+    with open(os.path.join(REPO, "robotarium_core", "robotarium_core", "dds_settings.py"), encoding="utf-8") as f:
         return next(n for n, line in enumerate(f, 1) if "rclpy.init(" in line and "def " not in line)

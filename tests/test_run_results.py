@@ -253,15 +253,15 @@ def test_a_guide_plotting_scripts_video_shows_its_goals_and_labels(testbed, tmp_
 
 
 def test_the_results_page_in_a_real_browser(testbed):
-    from devtools.browser import Browser, find_chromium
+    from devtools.browser import chromium, find_chromium, open_page
     if find_chromium() is None:
         pytest.skip("no chromium here and it could not be installed (./robotarium test installs Debian's "
                     "package when it runs as root with apt-get)")
     folder = testbed["runs"].get("guide")
     if folder is None:
         pytest.skip("needs the guide script's run of test_a_guide_plotting_scripts_video_shows_its_goals_and_labels")
-    with Browser() as browser:
-        page = browser.open("file://" + os.path.join(folder, "index.html"))
+    with chromium() as browser:
+        page, errors = open_page(browser, "file://" + os.path.join(folder, "index.html"))
         assert "Run completed." in page.evaluate("document.querySelector('.outcome').textContent")
         played = page.evaluate("""new Promise(async (resolve) => {
             const video = document.getElementById('video');
@@ -269,7 +269,7 @@ def test_the_results_page_in_a_real_browser(testbed):
             const start = video.currentTime;
             setTimeout(() => resolve({start: start, now: video.currentTime, ready: video.readyState,
                                       width: video.videoWidth, height: video.videoHeight}), 500);
-        })""", await_promise=True)
+        })""")
         assert played["now"] > played["start"] and played["ready"] >= 2, played
         assert (played["width"], played["height"]) == (1280, 800)
         links = page.evaluate("""Promise.all(Array.from(document.querySelectorAll('a')).map(a => new Promise(done => {
@@ -278,7 +278,7 @@ def test_the_results_page_in_a_real_browser(testbed):
             request.onload = () => done([a.getAttribute('href'), request.response.length]);
             request.onerror = () => done([a.getAttribute('href'), -1]);
             request.send();
-        })))""", await_promise=True)
+        })))""")
         hrefs = {href for href, _ in links}
         assert {"run.mp4", "report.txt", "log.txt", "run.json", "run_seeded.py", "metadata.yaml"} <= hrefs, hrefs
         assert all(size > 0 for _, size in links), links
@@ -289,8 +289,8 @@ def test_the_results_page_in_a_real_browser(testbed):
                 .map(e => e.tagName + ': ' + e.textContent.slice(0, 60));
         })()""")
         assert overflowing == [], overflowing
-        page.drain(0.5)
-        assert page.errors == []
+        page.wait_for_timeout(500)   # console errors that come late
+        assert errors == []
 
 
 def test_replay_plays_a_lockstep_run_in_experiment_time_and_refuses_a_live_testbed(testbed, tmp_path):

@@ -7,7 +7,7 @@ from test_simulator_node import as_array, command, lockstep
 
 from devtools.rosutil import NodeProcess, RosProbe, unique_domain_id
 from robotarium_core import model
-from robotarium_core.node_tools import init_context
+from robotarium_core.dds_settings import init_context
 from robotarium_core.topics import TESTBED_QOS, readers_matched
 from robotarium_msgs.msg import RobotPoses, SafetyReport, TestbedStatus, TwistArray
 from robotarium_msgs.srv import ArmSafety, EndExperiment, StartExperiment

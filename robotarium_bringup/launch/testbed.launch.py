@@ -3,23 +3,11 @@
     ros2 launch robotarium_bringup testbed.launch.py [namespace:=robotarium] [config:=FILE]
                                                    [bags_dir:=DIR] [record:=true] [fleet:=FILE]
 
-Arguments (`ros2 launch robotarium_bringup testbed.launch.py --show-args` lists them):
-  namespace  the testbed's namespace (default robotarium; clients: ROBOTARIUM_NAMESPACE=/<namespace>)
-  config     the testbed configuration file the simulator and the safety node read (default: the
-             packaged share/robotarium_core/config/testbed.yaml; edit a copy to change a value)
-  bags_dir   where the recorder records each run (default: $ROBOTARIUM_ROOT/bags, else ./bags)
-  record     start the recorder (default true)
-  fleet      a lab's own robots: their fleet file (docs/own-robots.md); the hardware arena (and, for a
-             fleet tracked by a camera, the tag tracker) stands in the simulator's place
-
-Real time or lockstep is no launch argument: each experiment chooses it when it starts
-(StartExperiment.real_time, a script's sim_in_real_time, ./robotarium run --lockstep/--real-time).
-Ctrl-C (SIGINT to ros2 launch) stops the nodes the way ./robotarium up does: the simulator ends a
-running experiment, the recorder closes its bag.
-
-One testbed per namespace: where one runs already in the namespace and domain, each node prints one
-line naming it (host, pid, since when) and exits with code 4 (robotarium_core/claim.py); the launch
-then stops the others and ends with an error (ros2 launch's only failure code is 1).
+`--show-args` lists the arguments. Real time or lockstep is no launch argument: each experiment
+chooses it when it starts. Ctrl-C stops the nodes as ./robotarium up does (the simulator ends a
+running experiment, the recorder closes its bag). Where a testbed runs already in the namespace and
+domain, each node refuses with exit code 4 (robotarium_core/claim.py) and the launch ends with an
+error. The arguments and their defaults: docs/ros-interface.md#launch.
 """
 import os
 

@@ -1,22 +1,17 @@
 """The testbeds running on this machine: what `./robotarium status` lists and `./robotarium stop` stops.
 
-Two sources, so that nothing running is missed:
-- the registry: every LocalTestbed (started by `./robotarium run`, `up`, `demo` or a script) writes
-  a small JSON file into REGISTRY (one folder per user, shared by every checkout on the machine)
-  while it runs: namespace, ROS_DOMAIN_ID, the process that started it (its owner), when, its node
-  process ids and its log folder. LocalTestbed.stop() removes it; one whose processes are all gone
-  is removed by the next `status`.
-- the process table: every process running a testbed node (`python -m robotarium_sim.simulator_node`
-  or the installed `lib/robotarium_sim/simulator`, and the safety node and recorder likewise),
-  with its namespace (`__ns:=`) and ROS_DOMAIN_ID (its environment). This finds what no registry
-  names: nodes started by `ros2 run` or a launch file, and testbeds orphaned by older versions.
-
-A process id is trusted only together with its start time (from /proc), so a reused id is never
-taken for a testbed's process, and never signalled.
+Two sources, so that nothing running is missed: the registry (every LocalTestbed writes a small
+JSON file into REGISTRY while it runs: namespace, ROS_DOMAIN_ID, its owner process, when, its node
+pids and log folder; one folder per user, shared by every checkout on the machine), and the process
+table (every process running a testbed node, with its `__ns:=` and ROS_DOMAIN_ID), which finds
+nodes started by `ros2 run` or a launch file and testbeds orphaned by older versions. A process
+id is trusted only together with its start time (from /proc), so a reused id is never taken for a
+testbed's process, and never signalled.
 """
 import json
 import os
 import signal
+import socket
 import tempfile
 import time
 
@@ -226,7 +221,6 @@ def running_here(namespace, domain):
     """The testbed of this machine with a live node in `namespace` on `domain`, as the identity a
     node claims its place with (robotarium_core.claim: who, host, pid, since, testbed, owner), or
     None. Where discovery reaches this machine only, this is the whole answer, at once."""
-    import socket
     for testbed in matching(find(), namespace, domain):
         if not testbed["nodes"]:
             continue

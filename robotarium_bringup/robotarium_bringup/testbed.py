@@ -11,6 +11,7 @@ log/testbed/<namespace>_<domain>_<pid>/, and is listed in the registry of the ma
 (robotarium_bringup.local_testbeds) while it runs.
 """
 import contextlib
+import json
 import os
 import shutil
 import signal
@@ -18,10 +19,29 @@ import subprocess
 import sys
 import time
 
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from std_msgs.msg import String
+
 from robotarium_bringup import local_testbeds
-from robotarium_core import claim, lifeline
-from robotarium_core.config import DEFAULT_FILE
-from robotarium_core.topics import namespace_from_environment
+from robotarium_core import claim, lifeline, presence
+from robotarium_core.config import DEFAULT, DEFAULT_FILE
+from robotarium_core.dds_settings import init_context
+from robotarium_core.discovery import wait_for_quiet_discovery, wait_for_service
+from robotarium_core.topics import (
+    END_EXPERIMENT,
+    RECORDED_RUNS,
+    RECORDED_RUNS_QOS,
+    START_EXPERIMENT,
+    STATUS,
+    STATUS_QOS,
+    namespace_from_environment,
+)
+from robotarium_hardware import fleet as fleets
+from robotarium_msgs.msg import TestbedStatus
+from robotarium_msgs.srv import EndExperiment, StartExperiment
 
 NODES = {
     # name: (module, whether it reads the testbed configuration)
@@ -127,7 +147,6 @@ class LocalTestbed:
         self.fleet_file = os.path.abspath(fleet_file) if fleet_file else None
         arena = ["simulator"]
         if self.fleet_file:   # the fleet's arena (and its tag tracker) in the simulator's place
-            from robotarium_hardware import fleet as fleets
             arena = ["arena"] + (["tag_tracker"] if fleets.load(self.fleet_file).tracking == "camera" else [])
         self.names = arena + ["safety"] + (["recorder"] if record else [])
         self.bags_dir = bags_dir
@@ -193,7 +212,7 @@ class LocalTestbed:
 
     def begin_stop(self, grace=5.0):
         """SIGINT everyone (the simulator ends a running experiment, the recorder closes its bag:
-        node_tools.run_node's wind-down, at most 2 s); stop() then waits for them. Between the two
+        node_main.run_node's wind-down, at most 2 s); stop() then waits for them. Between the two
         the caller may do other work (./robotarium run makes the results once the bag is closed,
         while the nodes exit)."""
         if self.gate is not None or self._stop_deadline is not None:
@@ -239,9 +258,6 @@ def _kill_group(process):
 
 def testbed_answers(ns=None, timeout=3.0):
     """True when a simulator on this DDS domain offers <ns>/start_experiment within `timeout`."""
-    from robotarium_core.node_tools import wait_for_service
-    from robotarium_msgs.srv import StartExperiment
-
     with probe_node("robotarium_probe") as (node, _):
         client = node.create_client(StartExperiment, "%s/start_experiment" % (ns or namespace_from_environment()))
         return wait_for_service(client, timeout)
@@ -268,12 +284,6 @@ def announced_recording(run_id, ns=None, timeout=RECORDING_LOOKUP_WAIT):
     announcement (a busy recorder opens the bag a few steps late), and a recorder starved of CPU
     answers discovery seconds late, after the run closed; the testbed lost, its recorder may still
     record. "" when none announced it in time, or no recorder shows in RECORDER_SEEN_WAIT s."""
-    import json
-
-    from std_msgs.msg import String
-
-    from robotarium_core.topics import RECORDED_RUNS, RECORDED_RUNS_QOS
-
     found = []
 
     def heard(msg):
@@ -300,12 +310,6 @@ def running_testbed(ns=None, timeout=3.0):
     the first of its simulator, safety node or recorder heard within `timeout` seconds, or
     {"who": "testbed", ...} with what is known where only a simulator without a claim answers; None
     when nothing answered (then it took the whole timeout)."""
-    from std_msgs.msg import String
-
-    from robotarium_core import presence
-    from robotarium_core.topics import START_EXPERIMENT
-    from robotarium_msgs.srv import StartExperiment
-
     ns = (ns or namespace_from_environment()).rstrip("/")
     heard = []
     with probe_node("robotarium_claims") as (node, executor):
@@ -336,10 +340,6 @@ def _probe_context(domain=None, discovery_range=None):
     destroying a participant while discovery callbacks run, spinning for ever (a ./robotarium run
     once spun at 100 % CPU for 28 minutes in rcl_node_fini right after a probe, under load). The
     probes' own nodes come and go; the command ends with os._exit (robotarium_cli.main), never tearing it down."""
-    from rclpy.context import Context
-    from rclpy.node import Node
-
-    from robotarium_core.node_tools import init_context
     # What rcl will read: the environment's, unless given (a test changes ROS_DOMAIN_ID in process).
     key = (str(domain) if domain is not None else os.environ.get("ROS_DOMAIN_ID", "").strip() or "0",
            discovery_range or os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", ""))
@@ -365,9 +365,6 @@ def _probe_context(domain=None, discovery_range=None):
 
 def close_probe_contexts():
     """Tear down the probe contexts (for a long-lived process that leaves a domain, such as the tests)."""
-    import rclpy
-
-    from robotarium_core.node_tools import wait_for_quiet_discovery
     while _probe_contexts:
         _, (context, anchor) = _probe_contexts.popitem()
         wait_for_quiet_discovery(anchor)   # the participant goes with the anchor
@@ -379,9 +376,6 @@ def close_probe_contexts():
 def probe_node(name, domain=None, discovery_range=None):
     """A node (with an executor to spin it) named `name`_<pid> on the probe context of `domain` and
     `discovery_range` (see _probe_context), destroyed again on leaving; the context stays."""
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
-
     context = _probe_context(domain, discovery_range)
     node = Node("%s_%d" % (name, os.getpid()), context=context)
     executor = SingleThreadedExecutor(context=context)
@@ -407,11 +401,6 @@ def testbed_status(targets, timeout=3.0, safety=None):
     whether the safety node's presence (robotarium_core.presence) was seen, a testbed that answers
     being given SAFETY_PRESENCE_WAIT s more for it from its first status (discovery of another process
     may take that long on a loaded machine), so an incomplete one takes that long."""
-    from robotarium_core import presence
-    from robotarium_core.config import DEFAULT
-    from robotarium_core.topics import STATUS, STATUS_QOS
-    from robotarium_msgs.msg import TestbedStatus
-
     newest = {}
     heard_at = {}  # (domain, namespace): when its first status came
     watches = {}   # (domain, namespace): presence.Watch of its safety node
@@ -464,9 +453,6 @@ def end_experiment(ns=None, timeout=10.0, force=False, outcome=0, detail=""):
     testbed answers). Without `force` the testbed refuses: an experiment is ended by its own client
     (with its token), or by an operator who says so. `outcome` and `detail`: how the run ended, as
     its recording will say (robotarium_core.outcomes; 0: the testbed says an operator ended it)."""
-    from robotarium_core.topics import END_EXPERIMENT
-    from robotarium_msgs.srv import EndExperiment
-
     ns = ns or namespace_from_environment()
     with probe_node("robotarium_end") as (node, executor):
         client = node.create_client(EndExperiment, "%s/%s" % (ns.rstrip("/"), END_EXPERIMENT))

@@ -1,15 +1,25 @@
 """Run folders: the checks before a run, the folder each run gets, the results made in it, and the
 folders of runs whose ./robotarium run was killed."""
+import ast
+import difflib
+import errno
+import importlib.util
 import os
+import pkgutil
 import shutil
 import sys
 import tempfile
 import time
+import traceback
+
+import yaml
 
 import robotarium_recording as recording
 from robotarium_cli.console import say
-from robotarium_client import session
+from robotarium_cli.verification import COMPILE_ERRORS, compile_script
+from robotarium_client import progress, session
 from robotarium_core import outcomes, run_record, script_box
+from robotarium_core.config import DEFAULT, ConfigError, TestbedConfig
 
 # Folders never searched for data files a script saved.
 SKIP_DIRS = {".git", ".venv", ".venv-reference", "build", "install", "log", "bags", "results", "__pycache__",
@@ -30,10 +40,17 @@ def snapshot_files(directory):
     return seen
 
 
-def tee(stream, sinks):
-    sinks = list(sinks)
+PROGRESS = progress.LINE_START.encode()
+
+
+def tee(stream, log, console=None):
+    """Each line of `stream` into the log and onto the console; the testbed's progress lines onto the
+    console only (log.txt holds what the script printed and what ended it, not how far it got)."""
+    sinks = [log] + ([console] if console is not None else [])
     for line in iter(stream.readline, b""):
         for sink in list(sinks):
+            if sink is log and line.startswith(PROGRESS):
+                continue
             try:
                 sink.write(line)
                 sink.flush()
@@ -45,7 +62,6 @@ def wait_until_recorded(run_dir, timeout=15.0, quiet=False):
     """The recorder closes a run's bag shortly after the run ended (it keeps late messages for a
     moment); results made before that would miss the last chunk. Wait for metadata.yaml to say
     the bag is complete."""
-    import yaml
     path = os.path.join(run_dir, "metadata.yaml")
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -68,9 +84,6 @@ def _close_module_name(name):
     """An importable module whose dotted name is close to `name` (an import typo: `nump` -> `numpy`,
     `rps.utilities.misk` -> `rps.utilities.misc`), or None. The first part that is missing is
     compared with its siblings: the top-level modules, or the submodules of the package above it."""
-    import difflib
-    import importlib.util
-    import pkgutil
     parts = name.split(".")
     for depth in range(len(parts)):
         try:
@@ -96,14 +109,9 @@ def check_script(script):
     SCRIPT` would meet them (the script's folder first on sys.path), without running it. Returns
     None, or (detail, message): a syntax error or an import typo fails here, before a testbed is
     started, with the message python would print."""
-    import ast
-    import importlib.util
-
-    from robotarium_cli.verification import COMPILE_ERRORS, compile_script
     try:
         source, tree = compile_script(script)
     except COMPILE_ERRORS as error:
-        import traceback
         text = "".join(traceback.format_exception_only(type(error), error))
         where = " (line %d of %s)" % (error.lineno, os.path.basename(script)) if getattr(error, "lineno", None) else ""
         what = "%s: %s" % (type(error).__name__, error.msg) if isinstance(error, SyntaxError) else \
@@ -179,7 +187,6 @@ def results_folder_problem(folder, min_free_mb):
             os.fsync(probe.fileno())
         free = shutil.disk_usage(folder).free
     except OSError as error:
-        import errno
         if error.errno in (errno.ENOSPC, errno.EDQUOT):
             return "%s is on a full disk (%s)" % (folder, error.strerror)
         return "%s is not writable (%s)" % (folder, error.strerror or error)
@@ -191,8 +198,6 @@ def results_folder_problem(folder, min_free_mb):
 def check_run_folders(folders, config_file=None):
     """One line and USAGE_ERROR when a run's folder could not be written (results_folder_problem),
     else None: said before a testbed starts or a robot moves, not as a traceback after the run."""
-    from robotarium_core import outcomes
-    from robotarium_core.config import DEFAULT, ConfigError, TestbedConfig
     try:
         min_free = (TestbedConfig.load(config_file) if config_file else DEFAULT).results_min_free
     except (OSError, ConfigError):
@@ -237,7 +242,6 @@ def write_unrecorded_results(run_dir, run, testbed_report=""):
     """report.txt and index.html for a run (a run_record.RunRecord) with no recording here (it never
     started, or it was recorded on another machine): how it ended, and the testbed's debug report if
     there is one."""
-    from robotarium_core import outcomes
     outcome = {name: value for value, name in outcomes.NAMES.items()}.get(run.outcome, outcomes.UNFINISHED)
     lines = [outcomes.first_line(outcome, run.detail), ""]
     if testbed_report:
@@ -261,7 +265,6 @@ def finish_run_folder(run_dir, run, script, log_path, saved, cwd, data_limit=Non
     The data files are capped at `data_limit` bytes (default: the configuration's run_data_limit):
     the newest first, each that fits; the others are left out, each named in run.json's
     data_not_saved with why, and in one line here (the report says so too: outcomes.run_notes)."""
-    from robotarium_core.config import DEFAULT
     shutil.copy2(script, os.path.join(run_dir, os.path.basename(script)))
     shutil.copy2(log_path, os.path.join(run_dir, "log.txt"))
     limit = DEFAULT.run_data_limit * 1e6 if data_limit is None else data_limit

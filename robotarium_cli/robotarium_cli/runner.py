@@ -3,26 +3,12 @@
     python -m robotarium_cli.runner OPTIONS_JSON RUN_INFO_JSON SCRIPT [ARGS...]
 
 It sets robotarium_client.session.options (the run's choices, explicitly: no environment
-variables) and runs SCRIPT as `python SCRIPT ARGS` would (as __main__, its folder first on
-sys.path). However the script ends - call_at_scripts_end(), an exception, Ctrl-C or a signal,
-a lost testbed, or simply its last line without call_at_scripts_end() - it ends every experiment
-still running, telling the testbed how the run ended (so the recording says it), and keeps the run
-in RUN_INFO_JSON (a robotarium_core.run_record.RunRecord: outcome, detail, step calls, exit code and
-what each Robotarium's testbed said when it ended) for the command line to collect the results.
-
-Beside it, started.json says which experiment runs (run id, recording) from its start on, so that a
-script killed outright (SIGKILL: it writes nothing more) still leaves its run to be found; and once
-./robotarium run is gone, this process's output goes on to log.txt beside it.
-
-The traceback is printed as Python prints it (from the script's own frames), so the run's log
-has it. Exit code: robotarium_core.outcomes.EXIT_CODES (128 + the signal for an interruption).
-
-Stopping: SIGINT raises KeyboardInterrupt in the script, SIGTERM and SIGHUP session.Interrupted
-(so the report names the signal). `./robotarium run` starts this process in a process group of
-its own and forwards the signals it gets, once; and it hands this process its lifeline
-(robotarium_core.lifeline): if `./robotarium run` is killed outright, the script is interrupted the
-same way (its Robotarium ends the experiment on a testbed that outlives `run`; one that `run`
-started ends it itself), and this process exits at the latest ORPHAN_EXIT seconds later.
+variables) and runs SCRIPT as `python SCRIPT ARGS` would. However the script ends (its end, an
+exception, a signal: SIGINT as KeyboardInterrupt, SIGTERM and SIGHUP as session.Interrupted, a
+lost testbed, the lifeline of a killed `run`), it ends every experiment still running, saying how,
+and keeps the run in RUN_INFO_JSON (a run_record.RunRecord); started.json beside it names the run
+from its start, for a script killed outright. Exit code: outcomes.EXIT_CODES (128 + a signal).
+What each end leaves, and its bound: docs/faults.md#a-run-and-its-processes.
 """
 import _thread
 import os
@@ -34,6 +20,7 @@ import traceback
 
 from robotarium_client import session
 from robotarium_client.errors import EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete
+from robotarium_client.figure import skip_headless_idle_draws
 from robotarium_core import lifeline, outcomes, run_record
 
 ORPHAN_EXIT = 1.5
@@ -101,7 +88,6 @@ def run(script, script_args):
     for signum in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(signum, _raise_interrupted)
     if os.environ.get("MPLBACKEND", "").lower() == "agg":   # headless (./robotarium run chose it)
-        from robotarium_client.figure import skip_headless_idle_draws
         skip_headless_idle_draws()
     try:
         runpy.run_path(script, run_name="__main__")

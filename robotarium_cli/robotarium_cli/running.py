@@ -349,7 +349,7 @@ class Run:
                     self.pending.runner = local_testbeds.process(process.pid)
                     self.pending.write(self.work)
                     # the log first: it never lags what was shown
-                    tee(process.stdout, [log, sys.stdout.buffer] if request.echo else [log])
+                    tee(process.stdout, log, sys.stdout.buffer if request.echo else None)
                     self.code = process.wait()
         finally:
             if self.testbed is not None:

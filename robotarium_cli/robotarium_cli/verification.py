@@ -1,32 +1,15 @@
 """`./robotarium verify SCRIPT`: the Robotarium's verdict on a script, before it is submitted.
 
-The Robotarium's verification runs a submitted script in its simulator and rejects it by its
-public verifier's rules. Here, as there:
-  1. before anything runs: the script must compile (the line is named) and import only modules
-     the Robotarium provides (`verify_allowed_modules` in testbed.yaml, and the script's own
-     modules beside it in its folder);
-  2. the script runs in lockstep against a testbed of its own (a private namespace, no video),
-     with the safety node *auditing*: it computes what it would change but lets the script's own
-     commands through (scaled to the actuator limits along their arc), so collisions and robots
-     leaving the arena really happen and the simulator counts them as the Robotarium does;
-  3. the verdict: rejected when the run has more collision iterations or iterations of robots
-     outside the arena than the configured limits, uses another number of robots than declared
-     (--robots), runs longer than verify_duration_factor x the declared duration (--duration),
-     raises, or never calls call_at_scripts_end(). Every limit is in testbed.yaml.
+As the Robotarium's verification: the script must compile and import only modules the Robotarium
+provides (`verify_allowed_modules`), then runs in lockstep on a testbed of its own with the safety
+node auditing (the script's own commands go through and are counted), and is rejected for too many
+collision or boundary iterations, another robot count than declared, too long a run, an exception
+or no call_at_scripts_end(). Exit codes: 0 accepted, 6 rejected, 2 a bad command line, 4 no
+verdict (the web portal depends on them); `--json FILE` writes the verdict.
 
-Exit codes (the web portal depends on them): 0 accepted, 6 rejected, 2 a bad command line, 4 the
-testbed failed (no verdict), 128 + N interrupted by signal N. `--json FILE` writes the verdict:
-
-  {"verdict": "accepted" | "rejected",
-   "rules": [{"rule": "collisions" | "boundary" | "robots" | "duration" | "compile" | "imports" |
-              "script_error" | "no_end", "count": int | null, "limit": int | null,
-              "first_step": int | null, "message": "a sentence"}],   # the broken rules only
-   "iterations": int, "number_of_robots": int | null, "outcome": str, "report": "the debug report",
-   "counts": {...}, "results": "the run's folder" | null}
-
-The rules themselves are plain functions (static_rules, judge) that tests drive without ROS;
-robotarium_cli.running.verify_script runs a script and judges it (./robotarium verify, and
-./robotarium run where the safety layer changed the script's commands).
+The rules are plain functions (static_rules, judge) that tests drive without ROS;
+robotarium_cli.running.verify_script runs a script and judges it. Rules, limits and the JSON:
+docs/user-guide.md#verifying-a-script-as-the-robotarium-does.
 """
 import ast
 import dataclasses
@@ -34,6 +17,7 @@ import json
 import math
 import os
 import sys
+import tokenize
 
 RULES = ("collisions", "boundary", "robots", "duration", "compile", "imports", "script_error", "no_end")
 STDLIB = "stdlib"   # the entry of verify_allowed_modules that stands for Python's standard library
@@ -57,7 +41,6 @@ COMPILE_ERRORS = (SyntaxError, ValueError, UnicodeDecodeError)
 def compile_script(script):
     """The script's source and syntax tree, compiled as `python SCRIPT` would (its encoding
     line honoured); raises one of COMPILE_ERRORS where python would refuse it."""
-    import tokenize
     with tokenize.open(script) as f:
         source = f.read()
     tree = ast.parse(source, filename=script)

@@ -1,19 +1,11 @@
 """Which Robotarium API a script is written against: the guide's (rps 0.0.0) or the simulator 2.x's.
 
 The two share the import path (`import rps.robotarium`, `from rps.utilities.X import ...`) but not
-everything behind it: 2.x's Robotarium defaults to no figure, drives the robots on from chargers
-first, has sensors and obstacles and ends with `debug()`; some utilities share a name with
-different parameters (`create_si_barrier_certificate(safety_radius, barrier_gain, ...)` in 2.x,
-`(barrier_gain, safety_radius, ...)` in the guide). So `rps` is set up for one of them when a
-script first imports it, in this order:
-1. explicitly: `./robotarium run --rps 2` (or `--rps guide`), or ROBOTARIUM_RPS=2|guide in the
-   environment (session.RunOptions.rps_api);
-2. otherwise from the script's source (the __main__ module's file): a 2.x script uses something
-   only 2.x has: `r.debug()`, a 2.x keyword (skip_initialization, use_distance_sensors, obstacles,
-   show_obstacles, ...), a sensor getter (get_distances, get_encoders, ...), a 2.x constant
-   (r.BOUNDARIES, r.TIME_STEP, ...) or a 2.x-only utility (create_pose_controller_hybrid,
-   create_at_pose, generate_random_poses, cycleGL, ...);
-3. otherwise the guide's API (the default: every guide script reads as the guide's).
+everything behind it (2.x's figure default, drive-on phase, sensors, obstacles, `debug()`, and
+utilities of the same name with other parameters). So `rps` is set up for one of them when a
+script first imports it: explicitly (`./robotarium run --rps 2|guide`, ROBOTARIUM_RPS); else from
+the script's source, 2.x when it uses something only 2.x has (`r.debug()`, a 2.x keyword, a sensor
+getter, a 2.x constant or a 2.x-only utility); else the guide's. See docs/rps2.md.
 """
 import ast
 import sys

@@ -3,7 +3,7 @@ in rps's layout, the same drawer as the video and the replay figure.
 
 With no display (or MPLBACKEND=Agg) the figure is built on the Agg backend and not redrawn every
 step: nobody would see it, and a script's savefig() still renders it fully. What a script draws
-on r.axes is recorded as data for the video (robotarium_recording.drawing), not rendered here.
+on r.axes is recorded as data for the video (robotarium_client.drawing), not rendered here.
 """
 import robotarium_recording as recording
 
@@ -27,6 +27,7 @@ def skip_headless_idle_draws():
     every step (2.x's ekf_experiment.py: three figures, 2000 steps) spent their time rendering
     pictures nobody sees. draw(), savefig() and everything that reads a figure still render it
     fully. Canvases of screen backends define their own draw_idle and are untouched."""
+    # matplotlib here: the runner calls this before the script, which may never plot
     from matplotlib.backend_bases import FigureCanvasBase
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     if getattr(FigureCanvasBase.draw_idle, "skips_agg", False):

@@ -5,6 +5,7 @@ obstacles and, when the script asks for them, each robot's distance-sensor endpo
 import numpy as np
 
 import robotarium_recording as recording
+from robotarium_core.sensors import sensor_rays
 
 
 class ArenaFigure2(recording.ArenaFigure):
@@ -30,7 +31,7 @@ class ArenaFigure2(recording.ArenaFigure):
         self.rays = [[self.axes.plot([np.nan, np.nan], [np.nan, np.nan], linewidth=0.5, color=cmap(i % 20),
                                      zorder=2)[0] for _ in range(7)]
                      for i in range(r.number_of_robots)] if sensors and r.show_distance_rays else []
-        # The figure's own, not the script's drawing (robotarium_recording.drawing ignores these).
+        # The figure's own, not the script's drawing (robotarium_client.drawing ignores these).
         self.own_artists.update(self.endpoints)
         self.own_artists.update(line for lines in self.rays for line in lines)
         self.figure.subplots_adjust(left=0.01, right=0.99, bottom=0.01, top=0.99)
@@ -43,7 +44,6 @@ class ArenaFigure2(recording.ArenaFigure):
             for i, scatter in enumerate(self.endpoints):
                 scatter.set_offsets(ends[:, :, i].T)
             if self.rays:
-                from robotarium_core.sensors import sensor_rays
                 origins, _ = sensor_rays(poses, r.config.distance_sensor_poses, r.config.distance_sensor_origin_offset)
                 for i, lines in enumerate(self.rays):
                     for j, line in enumerate(lines):

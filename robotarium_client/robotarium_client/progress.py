@@ -2,6 +2,8 @@
 import sys
 import time
 
+LINE_START = "[robotarium] step "   # how every progress line begins: ./robotarium run keeps them out of log.txt
+
 
 class StepProgress:
     """Prints a line to stderr at most every `interval` seconds of wall time (0: never)."""
@@ -19,5 +21,5 @@ class StepProgress:
         elif now >= self._next:
             self._next = now + self.interval
             elapsed = now - self._started
-            print("[robotarium] step %d: %.1f s of testbed time in %.0f s (%.0f steps/s, %s)" % (
+            print(LINE_START + "%d: %.1f s of testbed time in %.0f s (%.0f steps/s, %s)" % (
                 steps, steps * self.time_step, elapsed, (steps - 1) / elapsed, self.mode), file=sys.stderr, flush=True)

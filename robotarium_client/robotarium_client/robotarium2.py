@@ -1,39 +1,24 @@
 """The Robotarium of the Robotarium Python simulator 2.x (2.1.0, MIT licence), on the ROS 2 testbed.
 
 A subclass of the guide's Robotarium (robotarium.Robotarium, the DDS backend) that adds what 2.x
-scripts use, with 2.x's names, defaults and shapes:
-- keyword-only constructor: number_of_robots, show_figure (default False), sim_in_real_time,
-  initial_conditions (default: random poses, robotarium_core.rps2.random_poses),
-  use_distance_sensors, obstacles (M x 2 x 2 line segments), skip_initialization (default False:
-  the drive-on phase), show_arena_boundaries, show_robot_patches, show_distance_endpoints,
-  show_distance_rays, show_obstacles;
-- the class constants (TIME_STEP, BOUNDARIES = [x_min, x_max, y_min, y_max], ROBOT_DIAMETER, the
-  sensor numbers, ...), from the testbed's configuration;
-- the sensor getters, each returning the readings of the step whose poses get_poses() returns
-  (the simulator computes them: robotarium_core.sensors; they travel on <ns>/sensors);
-- debug(): ends the experiment and prints 2.x's report, which the simulator counts by 2.x's rules
-  (robotarium_core.rps2), plus where the run was recorded;
-- the drive-on phase (initialize): robots start on charger slots and drive to the initial
-  conditions with 2.x's hybrid pose controller and unicycle barrier certificate (the loop:
-  robotarium_core.rps2.DriveOn, which also lets a crowd of 50 settle), through the testbed's
-  always-on safety node like any command; the testbed counts nothing until they are there (its
-  steps count in the duration, as in 2.x).
-
-Why the client drives on (and not the simulator): it is 2.x's own algorithm, run where 2.x runs
-it (2.x's Robotarium, i.e. the script's process, is "the algorithm we use to drive robots onto
-the testbed"), so a script that cannot reach its initial conditions fails here as it would be
-rejected there; its commands pass the always-on safety node like every other, so nothing bypasses
-the guard; lockstep and real time work as for the script's own steps; and the simulator needs no
-controller of its own, only the rule for when counting starts (the poses reach the goals), which
-it applies to the same poses the client sees.
+scripts use, with 2.x's names, defaults and shapes: the keyword-only constructor (obstacles,
+distance sensors, skip_initialization, the show_* switches), the class constants from the
+testbed's configuration, the sensor getters (the simulator computes the readings:
+robotarium_core.sensors, on <ns>/sensors), debug() with 2.x's report, and the drive-on phase
+(initialize: robotarium_core.rps2.DriveOn, 2.x's own algorithm, run in the script's process as 2.x
+runs it, through the always-on safety node). What runs and where it differs: docs/rps2.md.
 """
 import numpy as np
 
 from robotarium_client import robotarium as backend
 from robotarium_client import testbed_link
+from robotarium_client.figure import live_figure
+from robotarium_client.figure2 import ArenaFigure2
 from robotarium_core import rps2
 from robotarium_core.config import DEFAULT
 from robotarium_core.model import RobotariumError
+from robotarium_core.topics import SENSORS, TESTBED_QOS
+from robotarium_msgs.msg import SensorReadings
 
 KEYWORDS = {
     "number_of_robots": -1, "show_figure": False, "initial_conditions": np.array([]), "use_distance_sensors": False,
@@ -135,7 +120,7 @@ class Robotarium(backend.Robotarium):
         return self._reading("orientations", (self.number_of_robots,))
 
     def robot_colormap(self):
-        import matplotlib.pyplot as plt
+        import matplotlib.pyplot as plt  # matplotlib only for a script that draws
         return plt.get_cmap("tab20")
 
     # -- the drive-on phase ---------------------------------------------------------------------------
@@ -143,6 +128,7 @@ class Robotarium(backend.Robotarium):
     def initialize(self, initial_conditions):
         """Drive from the charger slots to the initial conditions (2.x's algorithm, rps2.DriveOn; see
         the module)."""
+        # rps, not at import: the script's first import of rps sets it up for one API (api_level)
         from rps.utilities.barrier_certificates import create_uni_barrier_certificate
         from rps.utilities.controllers import create_pose_controller_hybrid
         n = self.number_of_robots
@@ -181,8 +167,6 @@ class Robotarium(backend.Robotarium):
 
     def _connect(self):
         super()._connect()
-        from robotarium_core.topics import SENSORS, TESTBED_QOS
-        from robotarium_msgs.msg import SensorReadings
         self._link.node.create_subscription(SensorReadings, SENSORS, self._on_sensors, TESTBED_QOS)
 
     def _on_sensors(self, msg):
@@ -217,8 +201,6 @@ class Robotarium(backend.Robotarium):
 
     def _new_arena_figure(self):
         """The live figure in 2.x's layout (robotarium_abc's _make_figure watches what is drawn on it)."""
-        from robotarium_client.figure import live_figure
-        from robotarium_client.figure2 import ArenaFigure2
         arena_figure = live_figure(self.config.arena, self.robot_radius, self.poses, ArenaFigure2)
         arena_figure.dress(self)
         return arena_figure

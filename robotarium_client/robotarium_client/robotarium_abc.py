@@ -15,7 +15,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-import robotarium_recording as recording
+from robotarium_client.drawing import DrawingWatcher
+from robotarium_client.figure import live_figure
 from robotarium_core import model, outcomes
 from robotarium_core.config import DEFAULT
 from robotarium_core.model import RobotariumError
@@ -94,6 +95,7 @@ class RobotariumABC(abc.ABC):
         """Random initial conditions when the script gives none. rps draws these in the script's
         process from numpy's global generator, so a script that seeds numpy gets the same start as
         on the Robotarium simulator."""
+        # rps, not at import: the script's first import of rps sets it up for one API (api_level)
         from rps.utilities.misc import generate_initial_conditions
         return generate_initial_conditions(self.number_of_robots, spacing=0.2, width=2.5, height=1.5)
 
@@ -104,11 +106,10 @@ class RobotariumABC(abc.ABC):
         if self.show_figure:
             self._arena_figure = self._new_arena_figure()
             self.figure, self.axes = self._arena_figure.figure, self._arena_figure.axes
-            self._drawing = recording.DrawingWatcher(self.axes, self._arena_figure.own_artists)
+            self._drawing = DrawingWatcher(self.axes, self._arena_figure.own_artists)
 
     def _new_arena_figure(self) -> ArenaFigure:
         """The live figure in rps's layout (a 2.x Robotarium lays it out as 2.x does)."""
-        from robotarium_client.figure import live_figure
         return live_figure(self.config.arena, self.robot_radius, self.poses)
 
     def _record_drawing(self, step: int) -> None:

@@ -31,9 +31,11 @@ import robotarium_recording as recording
 from robotarium_bringup.testbed import LocalTestbed, security_enabled
 from robotarium_client.errors import EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete, TestbedLost
 from robotarium_core import cdr, outcomes, presence
+from robotarium_core.dds_settings import init_context
+from robotarium_core.discovery import wait_for_quiet_discovery, wait_for_service
 from robotarium_core.executor import LeanExecutor
 from robotarium_core.model import RobotariumError
-from robotarium_core.node_tools import init_context, take_waiting, wait_for_quiet_discovery, wait_for_service
+from robotarium_core.subscriptions import take_waiting
 from robotarium_core.topics import (
     CMD_REQUESTED,
     CONFIG,
@@ -116,7 +118,7 @@ class TestbedLink:
         self.on_recording_announced = None      # called when the recorder names this run's folder
         self._recording = ""          # the recorder's folder, from its announcement
         self.local_testbed = None     # one started here for this client (no ./robotarium around it)
-        # The testbed's Fast DDS settings for the script's participant too (node_tools.init_context): UDP
+        # The testbed's Fast DDS settings for the script's participant too (dds_settings.init_context): UDP
         # only; its writers' heartbeat every 0.1 s, so a lost packet of cmd_requested is sent again at once.
         self._context = Context()
         # With DDS Security (sros2/README.md) a script runs in the client enclave of the policy.

@@ -1,32 +1,13 @@
 """The testbed's hot messages as CDR bytes, read and written with numpy: no rclpy, no Python
 object per robot.
 
-Why: rclpy turns a `geometry_msgs/Twist[20]` into 20 Twist and 40 Vector3 Python objects, about
-0.1 ms to publish and 0.25 ms to take at every hop of every step; a PoseArray of 20 costs as
-much. A subscription made with `raw=True` hands over the serialized bytes instead and a publisher
-publishes `bytes` as they are (both a few microseconds), so the nodes and the client read and
-write these bytes here. The bytes are exactly what rclpy would send (robotarium_core/test/test_cdr.py compares
-them with rclpy's serialize_message, byte for byte apart from the padding, which we zero), so a
-recorder, `ros2 topic echo` and any bag reader see ordinary messages.
-
-The wire format (OMG CDR, XCDR1, as rmw_fastrtps writes it): a 4-byte encapsulation header
-(00 01 00 00: plain CDR, little endian, what every x86 and ARM publisher sends), then the fields in order, each
-aligned to its own size (at most 8) counted from the end of that header; a string is a uint32
-length (with the terminating NUL), its bytes and a NUL; a sequence is a uint32 count, then its
-elements (a struct element is aligned to its largest member; nothing is aligned for an empty
-sequence).
-
-Each message is a `Layout`: its fields in order (the header's stamp and frame_id flattened to
-`sec`, `nanosec`, `frame_id`). `parse` checks every length against the bytes it was given and
-against `max_elements` before reading anything, so a truncated, garbled or oversized array is a
-`CdrError` (a ValueError), never a crash and never a large allocation; `build` returns the bytes.
-A new field in a .msg file is one line in its layout here (robotarium_core/test/test_cdr.py fails until it is).
-
-The testbed's command inputs read with `parse_commands`: the token (kept second in TwistArray for
-this) is compared before anything after it is read, and the lengths are checked against the
-experiment's robot count, so a foreign, oversized or malformed array costs a few microseconds and
-is dropped with its reason (CdrError.reason: FOREIGN, OVERSIZED or MALFORMED; the names of
-robotarium_msgs/DropCounts).
+rclpy makes a Python object per robot of a Twist[] or a PoseArray, which costs more than a step;
+a raw subscription and a bytes publish cost microseconds. The bytes are exactly what rclpy would
+send (test/test_cdr.py compares them), so any subscriber or bag reader sees ordinary messages.
+Each message is a `Layout`; `parse` checks every length before reading anything (a bad array is
+a CdrError, never a crash or a large allocation), `build` returns the bytes, and `parse_commands`
+checks a command array's token and lengths first, dropping a foreign, oversized or malformed one
+with its reason. The wire format and the measurements: docs/architecture.md.
 """
 from __future__ import annotations
 

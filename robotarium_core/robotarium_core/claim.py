@@ -1,24 +1,13 @@
 """One testbed per namespace: each simulator, safety node and recorder claims its place.
 
-A node of kind `who` publishes who it is (host, pid, since when, who started it) on the hidden
-topic `<ns>/_claim/<who>` (reliable, transient local: a node that joins later is handed it on
-discovery) and listens there. Hearing an *older* node of its own kind in its domain and namespace,
-it refuses: exit code 4 and one line naming the one that runs. Its own testbed's other nodes claim
-other topics, so siblings started in parallel never refuse each other.
-
-Older means an earlier (since, host, testbed pid): the nodes a LocalTestbed starts share its
-`since` and its pid (ENV_SINCE, ENV_TESTBED), so when two testbeds start at once, every kind picks
-the same survivor and no testbed is left with half its nodes.
-
-Nodes started by `ros2 run`/`ros2 launch` wait `DEFAULT.claim_wait` seconds for an older claim
-before they create anything else (discovery on one machine takes tens of milliseconds); nodes of
-a LocalTestbed whose starter looked for a testbed already (ENV_CHECKED: `./robotarium up` and `run`
-do) do not wait. Either way they keep listening: a claim heard later (discovery can wait for the
-next periodic announcement) still makes the younger node stop. The claim topics start with '_':
-the recorder does not record them.
-
-A claim is not authenticated (as the token, without SROS2): a forged older claim keeps a testbed
-from starting, it cannot take over one.
+A node of kind `who` publishes who it is (host, pid, since when, who started it) on the hidden,
+latched topic `<ns>/_claim/<who>` and listens there; hearing an *older* node of its kind (an
+earlier since, host, testbed pid: a LocalTestbed's nodes share its `since` and pid, so every kind
+picks the same survivor) in its domain and namespace, it refuses: exit code 4 and one line naming
+it. Nodes wait `DEFAULT.claim_wait` for an older claim before they create anything else, unless
+their starter looked already (ENV_CHECKED), and keep listening after. A claim is not
+authenticated: a forged older claim keeps a testbed from starting, it cannot take over one.
+How it behaves, measured: docs/faults.md#a-second-testbed-a-full-disk-large-data-files.
 """
 import json
 import os

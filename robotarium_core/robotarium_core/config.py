@@ -270,7 +270,7 @@ class _TestbedConfigBehaviour:
     def distance_sensor_poses(self) -> "np.ndarray":
         """3 x 7: x, y and heading of each distance sensor in the robot frame (2.x
         DISTANCE_SENSORS_ORIENTATION)."""
-        import numpy as np
+        import numpy as np  # here only: the command line reads the configuration without numpy
         return np.array([self.distance_sensor_x, self.distance_sensor_y, self.distance_sensor_heading])
 
     @property

@@ -1,18 +1,13 @@
 """Unicycle kinematics: the single-integrator <-> unicycle maps and the points ahead of the axle.
 
-Plain numpy, no ROS, vectorised over robots (one column per robot), no argument checks. Both rps
-APIs map with these: the guide's (robotarium_client/rps/utilities/transformations.py) and 2.x's
-(rps/_v2/utilities/transformations.py) check arguments their own way, then call in here; the
-testbed's 2.x colliders and sensor origins are points ahead too.
-
-A unicycle at pose (x, y, theta) takes commands (v, omega). Two ways to drive it with a
-single-integrator velocity dxi = (x_dot, y_dot):
-* heading tracking (si_to_uni_heading, si_to_uni_heading_reversible): v is dxi along the
-  heading, omega turns the heading towards dxi;
-* a point `distance` ahead of the axle (points_ahead), which moves like a single integrator:
-      d/dt point = [cos theta, -l sin theta; sin theta, l cos theta] [v; omega]   (l = distance)
-  and the matrix is invertible for l > 0 (si_to_uni_projected inverts it, uni_to_si_projected
-  applies it; axles_behind undoes points_ahead).
+Plain numpy, no ROS, vectorised over robots (one column per robot), no argument checks: both rps
+APIs check arguments their own way, then call in here; the testbed's 2.x colliders and sensor
+origins are points ahead too. Two ways to drive a unicycle (v, omega) with a single-integrator
+velocity dxi: heading tracking (si_to_uni_heading, si_to_uni_heading_reversible: v along the
+heading, omega turns it towards dxi), or a point `distance` l ahead of the axle (points_ahead),
+which moves like a single integrator:
+      d/dt point = [cos theta, -l sin theta; sin theta, l cos theta] [v; omega]
+invertible for l > 0 (si_to_uni_projected inverts it, uni_to_si_projected applies it).
 """
 import numpy as np
 

@@ -1,20 +1,13 @@
 """The Robotarium arena and the GTernal robot model: plain numpy, no ROS.
 
-Every number here comes from the user's guide (../shared/seed/robotarium_python_guide.txt, cited
-as "guide §x") or from the Robotarium Python simulator it documents (PyPI
-robotarium-python-simulator 0.0.0, cited as "rps": rps/robotarium_abc.py and rps/robotarium.py).
-
-One step of the testbed, as in rps.Robotarium.step():
-  1. count the debug report's errors on the poses *before* the move and the commands as set
-     (collisions, boundary violations, actuator-limit iterations);
-  2. threshold the commands to the wheel limits, keeping the commanded arc (guide §2.5);
-  3. integrate the unicycle with one forward-Euler step of TIME_STEP and wrap the heading.
-
-Where rps 0.0.0 differs from the guide we follow the guide and say so: rps clips v and omega
-separately in set_velocities() and its _threshold() has no effect (it never returns), so a
-command beyond the wheel limits drives on a different arc there; here it is scaled to the wheel
-limits along its own arc (guide §2.5 "scaling both the linear and angular components
-proportionally"). Commands within the limits move the robots bit for bit as rps does.
+Every number comes from the user's guide (cited as "guide §x") or from the Robotarium Python
+simulator it documents (robotarium-python-simulator 0.0.0, cited as "rps"). One step of the
+testbed, as in rps.Robotarium.step(): count the debug report's errors on the poses *before* the
+move and the commands as set; threshold the commands to the wheel limits, keeping the commanded
+arc (guide §2.5); integrate the unicycle with one forward-Euler step of TIME_STEP and wrap the
+heading. Where rps 0.0.0 differs from the guide (it clips v and omega separately) we follow the
+guide; commands within the limits move the robots bit for bit as rps does
+(docs/user-guide.md#behaviour-worth-knowing).
 """
 import functools
 from collections.abc import Mapping, Sequence

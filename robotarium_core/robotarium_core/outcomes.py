@@ -5,6 +5,8 @@ agree): the simulator keeps the outcome an end_experiment request gives in the I
 closes the run, so the recording itself says how the run ended. One more has no message value,
 because only the report can tell it: a recording that ends while its experiment was still running.
 """
+import re
+
 NONE, COMPLETED, SCRIPT_ERROR, INTERRUPTED, NO_END, TIME_LIMIT, CLIENT_LOST, TESTBED_LOST = range(8)
 UNFINISHED = 100     # the recording ends while the experiment was still running
 TESTBED_BUSY = 101   # the experiment never started: the testbed was busy and the client would not wait (--no-wait)
@@ -69,7 +71,6 @@ def unsent_end(step):
 
 def step_of_end_reason(end_reason, default=0):
     """The step in the simulator's end_reason ("ended by its client at step 115"), else `default`."""
-    import re
     found = re.search(r"at step (\d+)", end_reason or "")
     return int(found.group(1)) if found else default
 

@@ -1,21 +1,12 @@
 """Noticing within a bound that a process is gone: DDS liveliness on a hidden topic.
 
 Each testbed node (and each client, for its experiment) holds a `Presence`: a publisher that never
-publishes, on `<ns>/_alive/<who>`, with AUTOMATIC liveliness. Fast DDS asserts it from its own
-threads every 2/3 of the offered lease, however busy the process's Python is, and stops when the
-process is gone (killed, crashed, cut off). A `Watch` on that topic requests a lease of `lease`
+publishes, on `<ns>/_alive/<who>`, with AUTOMATIC liveliness, which Fast DDS asserts from its own
+threads however busy the process's Python is. A `Watch` on that topic requests a lease of `lease`
 seconds and calls `on_lost` once no writer has been alive for that long (or one left cleanly):
-0.6-0.75 s after a kill -9 with the nodes' 0.75 s lease, 1.7-1.9 s with the clients' 2 s one, on
-this project's 2-core machine (docs/faults.md).
-
-Measured here: the reader's *requested* lease is what decides (a reader that requests an infinite
-lease never hears of a lost writer), and a writer must offer a lease no longer than the reader
-requests (DDS's request/offer rule); writers offer a third of it, so an assertion can be late by
-two thirds of the lease before a loss is reported.
-
-The topics start with '_' (hidden: the recorder does not record them, so a replay never fakes a
-presence); nothing is published on them but one empty message a client sends once the testbed
-follows its presence (Presence.announce).
+0.6-0.75 s after a kill -9 with the nodes' 0.75 s lease. The topics are hidden, so the recorder
+does not keep them and a replay never fakes a presence. The request/offer rule, the measurements:
+docs/faults.md#how-a-node-winds-down.
 """
 from rclpy.duration import Duration
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks

@@ -1,20 +1,12 @@
 """The testbed's side of the Robotarium simulator 2.x API: plain numpy, no ROS.
 
-Scripts written against the Robotarium Python simulator 2.1.0 (MIT licence; rps/robotarium.py,
-rps/robotarium_abc.py, rps/utilities/misc.py: read and written anew here) are judged by its rules,
-which differ from the guide's (rps 0.0.0, robotarium_core.model):
-- "too close": two robots whose colliders (discs of `collision_diameter` 0.135 m around the point
-  `collision_offset` 0.025 m ahead of the axle) are that close, counted per pair and step;
-- "outside boundaries": steps in which some robot's centre is outside the arena (not per robot);
-- actuator limits: steps in which a command as the script set it turns a wheel faster than the
-  limit (no clipping first); a warning, not an error;
-- nothing is counted during the drive-on phase, whose steps still count in the duration.
-Beyond 2.x (which draws obstacles and lets its sensors see them but never checks them): a step in
-which a robot's collider touches a line-segment obstacle counts as an error too.
-
-Also here: the drive-on phase (DriveOn), where it starts (charger slots) and random initial
-conditions, the last two without 2.1.0's limits (it samples 22 charger slots, so 23 or more
-robots always fail, and it draws random poses 0.5 m apart, which 18 or more robots never fit).
+Scripts written against the Robotarium Python simulator 2.1.0 (MIT licence; read and written anew
+here) are judged by its rules, which differ from the guide's (robotarium_core.model): colliders
+ahead of the axle counted per pair and step, boundary steps, wheel-limit steps as a warning,
+nothing counted during the drive-on phase; and beyond 2.x, a collider touching an obstacle counts
+as an error. Also here: the drive-on phase (DriveOn), its charger slots and random initial
+conditions, without 2.1.0's limits on the robot count. The rules and the differences:
+docs/rps2.md.
 """
 import numpy as np
 
@@ -223,7 +215,7 @@ def charger_slots(number_of_robots, rng, config=model.DEFAULT, goals=None):
     slots = np.array(slots, dtype=float)
     if goals is None:
         return slots[rng.choice(len(slots), number_of_robots, replace=False)].T
-    from scipy.optimize import linear_sum_assignment
+    from scipy.optimize import linear_sum_assignment  # here: slow to import, needed only with goals
     goals = np.asarray(goals, dtype=float)
     cost = np.hypot(goals[0][:, None] - slots[:, 0][None], goals[1][:, None] - slots[:, 1][None])
     robots, chosen = linear_sum_assignment(cost)

@@ -3,34 +3,11 @@
 Source of the models and numbers: the Robotarium Python simulator 2.1.0 (MIT licence;
 rps/robotarium_abc.py, rps/robotarium.py, rps/utilities/sensors.py), written anew here and
 vectorised; the numbers are in the testbed configuration (robotarium_core/testbed.yaml).
+Distance sensors (7 rays per robot, stopped by obstacles, robots and, if set, the arena's edges;
+dropouts, outliers, noise), wheel encoders and the IMU (accelerometer, gyroscope, magnetometer,
+fused yaw), each drawn from the testbed's generator seeded per experiment.
 
-Distance sensors: 7 per robot, at (x, y, heading) in the robot frame, whose origin sits
-`distance_sensor_origin_offset` (1 cm) ahead of the axle. Each ray reaches `distance_sensor_range`
-(1.2 m) and stops at the first line-segment obstacle, other robot (a disc of the robot diameter
-around that robot's own frame origin) or, where `distance_sensors_see_walls` is set, arena edge.
-A ray that hits nothing reads -1. A hit reads -1 with probability p_dropout, else a uniform
-value in [0, range] with probability p_outlier, else the distance plus Gaussian noise of standard
-deviation error * distance, clipped to [0, range].
-Encoders: each wheel's counts advance by its angle in the step times counts per revolution times
-the gear ratio over 2 pi, plus Gaussian noise of std noise * sqrt(max(|counts|, 1)), rounded.
-IMU: accelerometer (the body's acceleration at the IMU: forward acceleration, tangential and
-centripetal terms from the turn, gravity as -9.81 on z, as 2.x), gyroscope (0, 0, omega), a
-magnetometer (a fixed field turned into the robot frame), and a fused yaw in degrees in
-[0, 360); each with Gaussian noise.
-
-Where we differ from 2.1.0, on purpose:
-- the arena's edges stop rays (configurable; 2.x sees only obstacles and robots, its examples add
-  the edges as obstacles by hand, which gives the same readings);
-- endpoints are measured from the same origin as the distances (2.x computes distances from the
-  frame 1 cm ahead of the axle but draws endpoints from the axle, 1 cm off);
-- the accelerometer's forward and tangential terms use the change of the applied command since
-  the previous step (2.x overwrites its previous command before differencing, so those terms are
-  always zero);
-- encoders use the configured base length (0.105 m, the GTernal's; 2.x's wheel conversion uses
-  0.11 m) and start at zero when the experiment proper starts (after the drive-on phase), as the
-  2.x examples document;
-- the random draws are made in a different order (vectorised), with the testbed's own generator:
-  the same distributions, seeded per experiment, and never from the script's numpy generator.
+The models, and where they differ from 2.1.0 on purpose: docs/rps2.md#the-sensor-models.
 """
 import numpy as np
 

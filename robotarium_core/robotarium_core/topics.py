@@ -1,48 +1,12 @@
 """Topic names and the QoS of the testbed's topics (shared by the nodes and the client).
 
-DDS discovery is asymmetric: a reader may know a writer well before the writer knows the
-reader, and a reliable writer delivers nothing to readers it does not know yet. With slow
-discovery (a loaded 2-core machine takes seconds) a message published too early is lost.
-
-Streams (poses, cmd_requested, cmd_safe, safety_report, sensors, the status stream) are reliable
-and *volatile* (`OUTPUT_QOS` for writers, `TESTBED_QOS` for readers): a late joiner (`ros2 topic
-echo`, a viewer) gets what comes from then on, never a sample of an earlier run. Nothing of a run
-may be lost for that, so a writer publishes a run's first sample only once its writer has matched
-the readers that need all of it (`readers_matched`): the simulator's start waits for the client's,
-the safety node's and the recorder's readers (`listeners`), the client's first command for the
-safety node's and the recorder's, the safety node's first cmd_safe for the simulator's and the
-recorder's. The recorder reads the testbed's streams from its start (it does not wait for the graph
-to show a writer). The writers' depth (1000) is how far a reader may fall behind: a reliable
-keep-last writer lets go of samples a reader has not acknowledged once its history is full, and a
-lockstep run makes 200 steps a second, so with 50 a recorder starved of CPU for a quarter of a
-second lost 60 steps of poses, commands and status.
-
-The drawing (client -> recorder, viewers) is the script's figure as a list of changes: its writer
-is the client's, lives as long as its run and keeps the run's changes (`DRAWING_QOS`, transient
-local), so a viewer opened mid-run draws the whole figure; no other run's drawing outlives its client.
-
-The status is a state, not a stream: `<ns>/status` keeps only its newest message (`STATUS_QOS`,
-depth 1), so a late joiner (`ros2 topic echo --once`, ./robotarium status) gets what holds now,
-never a status from before the last run. A keep-last-1 writer may replace a sample a reliable
-reader has not acknowledged yet (the final RUNNING status with the run's counters is followed at
-once by IDLE), so every status also goes on the hidden stream `<ns>/_status/stream`
-(`STATUS_STREAM_QOS`), which the recorder records under the name `<ns>/status`.
-
-The two command inputs (the safety node's cmd_requested, the simulator's cmd_safe) subscribe
-reliable and *volatile* (`COMMAND_INPUT_QOS`): a volatile reader matches every reliable writer,
-transient-local or not, so `ros2 topic pub` and plain rclpy/rclcpp publishers (reliable + volatile
-by default) drive the testbed. A volatile reader receives no history, so the sender must not
-publish before its writer has matched the reader: our client waits until its publisher matched
-the safety node (`readers_matched`), and the safety node holds a command until its cmd_safe
-writer matched the simulator. From then on DDS's reliability delivers every sample: the writer
-keeps each one until the matched reader acknowledged it, even where the reader side learns of
-the writer a moment later.
-
-A reader that acts on the present (the client's and the safety node's poses) takes every sample
-its reader holds before it acts and keeps the newest (node_tools.take_waiting): a slow reader never
-works through the history one old sample per step (a 60 ms loop would trail the testbed by the 50
-queued ticks, 1.7 s), and a flood of foreign samples cannot push the testbed's own out of a short
-history.
+Streams (poses, commands, safety reports, sensors, the status stream) are reliable and volatile
+(`OUTPUT_QOS`, `TESTBED_QOS`): a late joiner never gets a sample of an earlier run, and a writer
+sends a run's first sample only once the readers that need all of it matched (`readers_matched`,
+`listeners`). The status is a state (`STATUS_QOS`, depth 1) with a hidden stream beside it for the
+recorder; the drawing is kept for its run by the client's writer (`DRAWING_QOS`). The command
+inputs (`command_input_qos`) are volatile, so any reliable publisher drives the testbed.
+Why each choice: docs/ros-interface.md#topics.
 """
 import os
 

@@ -1,33 +1,14 @@
 """The hardware arena node: the simulator's place in the testbed, moving a lab's own robots.
 
-It is the simulator node (robotarium_sim.simulator_node: the same topics, services, status, experiment
-life, tokens and keys, the safety node's arming, model.StepGate, the command timeout, the report's
-counters; node name `simulator`, so the safety node, the client and the recorder see no difference)
-with the world replaced by the fleet of a fleet file (robotarium_hardware.fleet):
+It is the simulator node (robotarium_sim.simulator_node: the same topics, services, status,
+experiment life, secrets, model.StepGate, command timeout and counters; node name `simulator`)
+with the world replaced by the fleet of a fleet file (robotarium_hardware.fleet): each robot's
+cmd_vel out at 30 Hz, its pose in from motion capture or the tag tracker, the roster on
+<ns>/fleet. A start takes the first N robots present and tracked, drives them onto the initial
+conditions (rps2.DriveOn, under the safety node), then runs in real time; a robot that loses
+tracking or stops answering stops every robot and ends the run. How: docs/own-robots.md.
 
-  towards the robots  each robot's cmd_vel (geometry_msgs/Twist or TwistStamped, topic and type from
-                      the fleet file) at the testbed's rate (30 Hz) while a run lasts: the command in
-                      force, thresholded to the GTernal's limits along its arc; zeros once it is older
-                      than the command timeout; zeros to every robot at the end of a run, when a robot
-                      fails, and when the node stops
-  from the robots     each robot's pose (geometry_msgs/PoseStamped, from motion capture as vrpn_mocap
-                      publishes it, or from the tag tracker), converted to the arena frame by the fleet
-                      file's calibration (yaw from the quaternion; NaN and malformed poses are dropped and
-                      counted); its odometry as a sign of life (answer_topic) and its battery
-                      (sensor_msgs/BatteryState), where it publishes them
-  fleet               std_msgs/String (JSON, latched, once a second): the roster, which robots are present
-                      and tracked, their battery (./robotarium status shows it)
-
-A start takes the first N robots that are present and tracked (or is refused, naming them all), then
-drives them from wherever they stand to the experiment's initial conditions (the drive-on phase: the
-2.x simulator's algorithm, robotarium_core.rps2.DriveOn, under the safety node like every command, as
-a run of its own that is not recorded), then starts the experiment, in real time whatever was asked
-(real robots have no lockstep). A robot that loses tracking (no pose for the fleet's lost_after) or
-stops answering (no odometry for its answer_timeout) during a run or the drive-on stops every robot at
-once (checked every 10 ms) and ends the run with a cause that names it: "robot r3 lost tracking at step
-k". 2.x experiments (sensors, obstacles) are refused: they run on the simulator.
-
-    ros2 run robotarium_hardware arena --ros-args -r __ns:=/robotarium -p fleet_file:=fleet.yaml \\
+    ros2 run robotarium_hardware arena --ros-args -r __ns:=/robotarium -p fleet_file:=fleet.yaml \
         --params-file install/share/robotarium_core/config/testbed.yaml
 """
 import dataclasses
@@ -43,12 +24,16 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import BatteryState
 from std_msgs.msg import String
 
-from robotarium_core import cdr, control, kinematics, model, outcomes, rps2
-from robotarium_core.node_tools import declare_parameter, run_node, take_waiting
+from robotarium_core import cdr, control, kinematics, model, outcomes, presence, rps2
+from robotarium_core.dds_health import fast_dds_watchdogs
+from robotarium_core.node_main import run_node
+from robotarium_core.parameters import declare_parameter
+from robotarium_core.subscriptions import take_waiting
 from robotarium_core.topics import CMD_REQUESTED, LATCHED, OUTPUT_QOS, readers_matched
 from robotarium_hardware import fleet as fleets
 from robotarium_hardware.steady import steady
 from robotarium_hardware.tracking import FleetTestbed, Roster
+from robotarium_msgs.msg import TwistArray
 from robotarium_msgs.srv import ArmSafety
 from robotarium_sim import experiment
 from robotarium_sim.experiment import Experiment
@@ -122,7 +107,7 @@ class HardwareArenaNode(SimulatorNode):
                                          lambda msg, i=i: self.roster.battery_state(i, msg.percentage),
                                          qos_profile_sensor_data)
         # The drive-on phase's commands go through the safety node like a client's.
-        self.drive_pub = self.create_publisher(cdr_twist_array_type(), CMD_REQUESTED, OUTPUT_QOS)
+        self.drive_pub = self.create_publisher(TwistArray, CMD_REQUESTED, OUTPUT_QOS)
         self.roster_pub = self.create_publisher(String, FLEET, LATCHED)
         self.create_timer(FAULT_CHECK, self.check_faults)
         self.create_timer(ROSTER_PERIOD, self.publish_roster)
@@ -307,11 +292,6 @@ class HardwareArenaNode(SimulatorNode):
                        for s in self.roster.states(now)]})))
 
 
-def cdr_twist_array_type():
-    from robotarium_msgs.msg import TwistArray
-    return TwistArray
-
-
 USAGE = """usage: ros2 run robotarium_hardware arena --ros-args -r __ns:=/robotarium -p fleet_file:=FILE
                                         [--params-file testbed.yaml]
 
@@ -324,8 +304,7 @@ def main(args=None):
     if "--help" in (args or sys.argv) or "-h" in (args or sys.argv)[1:2]:
         print(USAGE)
         return 0
-    from robotarium_core import presence
-    return run_node(HardwareArenaNode, "arena", args, claim=presence.SIMULATOR)
+    return run_node(HardwareArenaNode, "arena", args, claim=presence.SIMULATOR, watchdogs=fast_dds_watchdogs())
 
 
 if __name__ == "__main__":

@@ -20,7 +20,9 @@ from sensor_msgs.msg import CompressedImage
 from std_msgs.msg import String
 
 from robotarium_core.config import DEFAULT
-from robotarium_core.node_tools import declare_parameter, run_node
+from robotarium_core.dds_health import fast_dds_watchdogs
+from robotarium_core.node_main import run_node
+from robotarium_core.parameters import declare_parameter
 from robotarium_hardware.fleet import Camera
 from robotarium_hardware.steady import steady
 from robotarium_hardware.tags import OverheadCamera, Renderer, compressed_bytes
@@ -89,7 +91,7 @@ def main(args=None):
     if "--help" in argv or "-h" in argv[1:2]:
         print(__doc__)
         return 0
-    return run_node(CameraNode, "camera", args)
+    return run_node(CameraNode, "camera", args, watchdogs=fast_dds_watchdogs())
 
 
 if __name__ == "__main__":

@@ -5,22 +5,7 @@ Every default of the file is written once, here (the dataclasses' defaults; the 
 default to the testbed configuration's hardware-like numbers). `load(path)` reads and checks a file;
 a bad one raises FleetError naming the field ("robots[2].cmd_type must be Twist or TwistStamped").
 `Fleet.to_yaml()` writes one (./robotarium fleet writes the file of the fleet it serves).
-
-    name: lab                      # a name for the fleet (the report and status say it)
-    tracking: mocap                # mocap (a PoseStamped per robot, as vrpn_mocap publishes) or camera
-    lost_after: 0.06               # s without a pose before a robot counts as not tracked
-    lost_behind: 0.05              # s its newest pose may lag the other robots' newest
-    answer_timeout: 0.1            # s without a message on a robot's answer_topic before it counts as gone
-    command_latency: 0.03          # s from the arena to the wheels, declared (the safety layer's figure)
-    tracking_latency: 0.02         # s from the robots to a pose, declared
-    calibration: {x: -1.6, y: -1.0, yaw: 0.0}   # mocap frame -> arena: the mocap origin in the arena, its x axis
-    camera: {image_topic: /camera/image_raw, corner_tags: [0, 1, 2, 3], tag_size: 0.075}
-    robots:
-      - name: r0                   # cmd_topic /r0/cmd_vel, pose_topic /vrpn_mocap/r0/pose by default
-        cmd_type: TwistStamped
-        tag: 10                    # camera tracking: its ArUco id (DICT_4X4_50)
-        battery_topic: /r0/battery_state
-        answer_topic: /r0/odom
+The file, field by field: docs/own-robots.md#the-fleet-file.
 """
 import dataclasses
 import math

@@ -19,7 +19,9 @@ from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 
 from robotarium_core.config import DEFAULT
-from robotarium_core.node_tools import declare_parameter, run_node
+from robotarium_core.dds_health import fast_dds_watchdogs
+from robotarium_core.node_main import run_node
+from robotarium_core.parameters import declare_parameter
 from robotarium_hardware.fleet import Calibration
 from robotarium_hardware.steady import steady
 from robotarium_hardware.templates import Template
@@ -79,7 +81,7 @@ def main(args=None):
     if "--help" in argv or "-h" in argv[1:2]:
         print(__doc__)
         return 0
-    return run_node(MocapNode, "mocap", args)
+    return run_node(MocapNode, "mocap", args, watchdogs=fast_dds_watchdogs())
 
 
 if __name__ == "__main__":

@@ -24,7 +24,9 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import BatteryState
 
 from robotarium_core.config import DEFAULT
-from robotarium_core.node_tools import declare_parameter, run_node
+from robotarium_core.dds_health import fast_dds_watchdogs
+from robotarium_core.node_main import run_node
+from robotarium_core.parameters import declare_parameter
 from robotarium_hardware.steady import steady
 from robotarium_hardware.templates import Template
 from robotarium_hardware.world import World
@@ -123,7 +125,7 @@ def main(args=None):
     if "--help" in argv or "-h" in argv[1:2]:
         print("A simulated robot of the fleet (./robotarium fleet starts them).\n\nusage:" + USAGE)
         return 0
-    return run_node(RobotNode, "robot", args)
+    return run_node(RobotNode, "robot", args, watchdogs=fast_dds_watchdogs())
 
 
 if __name__ == "__main__":

@@ -21,7 +21,9 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CompressedImage, Image
 
 from robotarium_core.config import DEFAULT
-from robotarium_core.node_tools import declare_parameter, run_node
+from robotarium_core.dds_health import fast_dds_watchdogs
+from robotarium_core.node_main import run_node
+from robotarium_core.parameters import declare_parameter
 from robotarium_hardware import fleet as fleets
 from robotarium_hardware.steady import steady
 from robotarium_hardware.tags import TagTracker, parse_compressed, parse_image
@@ -100,7 +102,7 @@ def main(args=None):
     if "--help" in argv or "-h" in argv[1:2]:
         print(__doc__)
         return 0
-    return run_node(TagTrackerNode, "tag_tracker", args)
+    return run_node(TagTrackerNode, "tag_tracker", args, watchdogs=fast_dds_watchdogs())
 
 
 if __name__ == "__main__":

@@ -1,21 +1,24 @@
 """Recording of Robotarium runs: bag I/O (`bag` reads, `bag_writer` writes, `schema`: the message
-definitions and QoS profiles they store), the recorder and replay nodes, and the results of a run
-made from its bag alone (`results`).
+definitions and QoS profiles they store), the recorder, replay and view nodes, and the results of
+a run made from its bag alone (`results`, `pictures`, `page`).
 
-What other packages use of it (robotarium_client: the live figure and what a script draws on it,
-a run's bag and results, the replay, view and report commands) is the public API below, imported
-as `import robotarium_recording as recording`. That import costs nothing: each name loads its
-module on first use (matplotlib and the bag reader's types take seconds to import).
+What other packages use of it is the public API below, imported as `import robotarium_recording
+as recording`: a run's bag and results, the replay, view and report commands, and two things the
+client shares with the results: the arena drawer (the live figure is the video's, `ArenaFigure`)
+and the drawing topic's text (`encode_drawing`, read back from every bag by `drawing`). The
+client's own side of the live figure and of a script's drawing is in robotarium_client (`figure`,
+`drawing`). The import costs nothing: each name loads its module on first use (matplotlib and the
+bag reader's types take seconds to import).
 """
 import importlib
 
 _API = {
     # name: (module, its name there)
-    "ArenaFigure": ("arena_figure", "ArenaFigure"),              # the one arena drawer
+    "ArenaFigure": ("arena_figure", "ArenaFigure"),              # the one arena drawer (live, video, replay)
     "is_interactive": ("arena_figure", "is_interactive"),
     "pyplot": ("arena_figure", "pyplot"),
-    "DrawingWatcher": ("drawing", "DrawingWatcher"),            # what a script draws on r.axes, as changes
-    "encode_drawing": ("drawing", "encode"),                    # a change as the drawing topic's text
+    "points_per_metre": ("arena_figure", "points_per_metre"),
+    "encode_drawing": ("drawing", "encode"),                    # a drawing change as the drawing topic's text
     "Bag": ("bag", "Bag"),                                      # a recorded run, read
     "recover_bag": ("bag", "recover_bag"),                      # a bag nothing will close, made readable
     "write_results": ("results", "write_results"),              # report, plot, video and page of a run's bag

@@ -12,6 +12,8 @@ Two layouts: `live()` is rps's figure (pyplot's default window, the arena fillin
 which scripts draw on; `offscreen()` is an Agg figure of a given pixel size for the video and
 pictures, the same view of the arena with the axes filling a 16:10 frame.
 """
+# matplotlib is imported inside the functions that draw: the modules that import this one (the
+# client's drawing watcher, the drawing's reader) must not pay matplotlib's import for nothing.
 import os
 
 import numpy as np

@@ -1,34 +1,31 @@
 """Recorded runs: rosbag2 folders with MCAP storage, read without ROS (no rclpy).
 
-A run folder, as `ros2 bag record -s mcap` makes it and `ros2 bag info/play`, rosbags and Foxglove
-read it:
-    <run_id>/metadata.yaml       rosbag2 metadata, version 9 (Jazzy)
-    <run_id>/<run_id>_0.mcap     MCAP, profile "ros2": one `ros2msg` schema per type holding the whole
-                                 concatenated .msg text, `cdr` messages, zstd-compressed chunks
-
-The recorder writes it with robotarium_recording.bag_writer (BagWriter: a killed writer leaves a
-readable file), from the message definitions, type hashes and QoS profiles of
-robotarium_recording.schema.
-
-Reading (Bag) scans the records in file order and stops cleanly at a torn tail, so even a file cut
-in the middle of a write gives back every complete chunk; `recover_bag()` rewrites such a file's
-tail and metadata.yaml so that other readers open it too (like `ros2 bag reindex`).
-Messages decode with a rosbags typestore: Jazzy's standard types plus the schemas stored in the
-bag itself (so an old bag still decodes after our .msg files change).
+A run folder is what `ros2 bag record -s mcap` makes: <run_id>/metadata.yaml (rosbag2 metadata,
+version 9, Jazzy) and <run_id>/<run_id>_0.mcap (profile "ros2": one `ros2msg` schema per type,
+`cdr` messages, zstd-compressed chunks), written by bag_writer.BagWriter from schema's message
+definitions, type hashes and QoS profiles. Reading (Bag) scans the records in file order and stops
+cleanly at a torn tail, so a file cut mid-write gives back every complete chunk; `recover_bag()`
+rewrites such a file's tail and metadata.yaml so that other readers open it too (like `ros2 bag
+reindex`). Messages decode with a rosbags typestore: Jazzy's standard types plus the schemas stored
+in the bag itself (so an old bag still decodes after our .msg files change).
 """
 import errno
 import functools
 import glob
 import hashlib
+import io
+import json
 import os
 import struct
 from collections import namedtuple
 
 import numpy as np
 import yaml
+from mcap.data_stream import ReadDataStream
 from mcap.records import Channel, Chunk, Footer, Message, Schema
-from mcap.stream_reader import StreamReader
+from mcap.stream_reader import StreamReader, breakup_chunk
 
+from robotarium_core.config import DEFAULT, TestbedConfig
 from robotarium_recording.bag_writer import (
     MAGIC,
     METADATA_TMP,
@@ -187,6 +184,7 @@ class Bag:
     def typestore(self):
         """A rosbags typestore with Jazzy's types and every schema stored in this bag."""
         if self._typestore is None:
+            # rosbags' types take seconds to import: only for a bag whose messages are decoded
             from rosbags.typesys import Stores, get_types_from_msg, get_typestore
             store = get_typestore(Stores.ROS2_JAZZY)
             for name, text in self.schemas.items():
@@ -269,7 +267,6 @@ class Bag:
     def config(self):
         """The TestbedConfig the run was made with (the simulator's `config` topic); the packaged
         default for a bag recorded before the configuration travelled with runs."""
-        from robotarium_core.config import DEFAULT, TestbedConfig
         name = self.topic("config", required=False)
         if name not in self.topics:
             return DEFAULT
@@ -279,7 +276,6 @@ class Bag:
     def drawings(self):
         """What the script drew on r.axes: the drawing messages (robotarium_recording.drawing), in
         recorded order; [] for a run that drew nothing or a bag recorded before they were kept."""
-        import json
         name = self.topic("drawing", required=False)
         if name not in self.topics:
             return []
@@ -295,7 +291,6 @@ class Bag:
     def experiment(self):
         """The experiment's settings (the simulator's `experiment` topic: api, obstacles, drive-on
         goals) as a dict; {} for a bag recorded before they travelled with runs."""
-        import yaml
         name = self.topic("experiment", required=False)
         if name not in self.topics:
             return {}
@@ -393,10 +388,6 @@ def _write_recovered_metadata(path):
 def _complete_record_ends(data):
     """Offsets just after each complete data-section record of an MCAP file's bytes, in order (a
     chunk counts only if it decompresses and its CRC matches); just the magic's end if none is."""
-    import io
-
-    from mcap.data_stream import ReadDataStream
-    from mcap.stream_reader import breakup_chunk
     pos = len(MAGIC)
     ends = []
     while pos + 9 <= len(data):

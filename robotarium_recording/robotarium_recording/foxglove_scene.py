@@ -37,6 +37,7 @@ from foxglove.messages import (
 )
 
 from robotarium_core import scene
+from robotarium_recording.drawing import DrawingPainter
 
 FRAME = "arena"
 ROBOT_HEIGHT = 0.03     # m, the footprint's thickness (as robotarium_core.markers)
@@ -113,10 +114,10 @@ class DrawingRaster:
     DPI = 100
 
     def __init__(self, arena, cell=DRAWING_CELL):
+        # matplotlib when a view shows a drawing, not when the view node starts
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
 
-        from robotarium_recording.drawing import DrawingPainter
         self.arena = tuple(float(v) for v in arena)
         x_min, x_max, y_min, y_max = self.arena
         self.cell = cell

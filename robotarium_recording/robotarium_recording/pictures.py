@@ -14,6 +14,7 @@ over what the script drew, faded.
 """
 import fractions
 import os
+import shutil
 import subprocess
 import sys
 
@@ -38,11 +39,10 @@ COMPOSITE_CHANGES = 25
 def ffmpeg_path():
     """ffmpeg of the imageio-ffmpeg wheel, else one on PATH, else None."""
     try:
-        import imageio_ffmpeg
+        import imageio_ffmpeg  # here: the wheel is optional
         return imageio_ffmpeg.get_ffmpeg_exe()
     except Exception:   # no wheel, or no binary for this platform
-        from shutil import which
-        return which("ffmpeg")
+        return shutil.which("ffmpeg")
 
 
 def frame_rate(time_step):
@@ -150,6 +150,7 @@ class Compositor:
     costs well under a millisecond for a few robots, where a matplotlib redraw costs ten."""
 
     def __init__(self, arena_figure, painter):
+        # matplotlib's fonts and Pillow when a video is drawn, not when this module is imported (by the CLI)
         from matplotlib import font_manager
         from PIL import Image, ImageDraw, ImageFont
         self.Image, self.ImageDraw = Image, ImageDraw
@@ -432,7 +433,7 @@ def render_video(track, drawings, config, out_dir, title="", progress=True, fmt=
             if encoder.wait() != 0:
                 raise RuntimeError("ffmpeg could not encode %s (exit code %d)" % (path, encoder.returncode))
     else:
-        from PIL import Image
+        from PIL import Image  # the GIF fallback only
         images = [Image.fromarray(np.ascontiguousarray(rgb)).quantize(colors=64) for _, rgb in rendered()]
         images[0].save(path, save_all=True, append_images=images[1:], loop=0,
                        duration=int(round(1000 * frames.stride * config.time_step)))

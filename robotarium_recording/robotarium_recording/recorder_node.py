@@ -1,44 +1,12 @@
 """The recorder node: every experiment of the testbed, recorded as a rosbag2 folder with MCAP storage.
 
-It listens to every topic of its namespace (/robotarium by default: poses, pose_array,
-cmd_requested, cmd_safe, safety_report, status, and any other that appears there) and to the
-/rosout entries of that namespace's nodes, all taken serialized (no decode/encode round trip).
-An experiment begins when <ns>/status says RUNNING with a run id not seen before and ends with
-the IDLE status that follows (the simulator publishes a last RUNNING status with the final
-counters first). Each run goes to <bags_dir>/<run_id>/ (see robotarium_recording.bag for the format and
-robotarium_recording.bag_writer for why a killed recorder still leaves a readable bag); its absolute
-path is announced on <ns>/recording (std_msgs/String, reliable + transient local), which the
-simulator hands back in end_experiment's `recording`, and an empty string is announced when the run
-is closed. The hidden <ns>/_recording/runs keeps the last runs' {"run_id", "path"}, for a command
-that asks after the close.
+It takes every topic of its namespace and the namespace's /rosout serialized, opens a bag at
+<bags_dir>/<run_id>/ when the status says a new run is RUNNING and closes it after the IDLE status
+that follows, announcing the path on <ns>/recording. The testbed's streams and the drawing are
+subscribed from the start, any other topic once it has publishers, with one reader per kind of
+publisher (samples.py). Which messages belong to a run is decided by RunRecorder below (no ROS).
 
-Subscriptions: the testbed's streams (robotarium_core.topics: volatile; their writers wait for our
-readers before a run's first sample) and the client's drawing (transient local) are subscribed from
-the start, so that a new client's writers match them in a discovery round trip. Any other topic is
-subscribed once it has publishers (looked up every 0.5 s), with one reader per kind of publisher it
-has (robotarium_recording.samples): reliable transient-local for a latched one, so the history it keeps
-is handed over on matching; reliable volatile for a volatile one (`ros2 topic pub`, plain rclpy), which
-a transient-local reader never matches; best effort for a best-effort one. Kinds that appear later get
-their reader then. A sample that two readers hear is recorded once (samples.SeenSamples, the last
-recorder_dedup_window samples of a topic). /rosout is taken live only (volatile).
-
-Which messages belong to a run (RunRecorder below, no ROS in it): messages from different
-publishers can arrive in any order around the start and end, so the node keeps the last seconds
-while idle and, when a run starts at status stamp S, keeps those published at or after S (poses
-of step 0 carry S exactly); after the final IDLE status at stamp E it keeps, for half a second,
-the late messages published up to E and the namespace's log lines. A RUNNING status published
-before the recorder started (history handed over on matching) opens a bag only once a live one
-confirms that the run is still going, so a run that ended before (or a replay of an old run,
-which carries the old stamps) is never recorded as new. This compares the simulator's stamps
-with the recorder's clock: on two machines their clocks must agree to within a second or so.
-
-Timestamps: log time = when the recorder received the message; publish time = the message's
-header stamp (or the Log stamp), else the receive time.
-
-Parameters: bags_dir (default $ROBOTARIUM_ROOT/bags, else ./bags), chunk_seconds (0.8: a chunk
-is closed and put on disk this long after the previous one at the latest, checked on every
-message and five times a second, so no received message waits more than a second), node_lease
-(the testbed configuration's: clients notice a lost recorder within it, robotarium_core.presence).
+The specification (subscriptions, a run's bounds, timestamps, parameters): docs/ros-interface.md#the-recorder.
 Run: ros2 run robotarium_recording recorder [--ros-args -r __ns:=/other -p bags_dir:=/data/bags]
 """
 import errno
@@ -57,7 +25,10 @@ from std_msgs.msg import String
 
 from robotarium_core import cdr, presence
 from robotarium_core.config import DEFAULT, FIELDS
-from robotarium_core.node_tools import declare_parameter, run_node, take_waiting
+from robotarium_core.dds_health import fast_dds_watchdogs
+from robotarium_core.node_main import run_node
+from robotarium_core.parameters import declare_parameter
+from robotarium_core.subscriptions import take_waiting
 from robotarium_core.topics import (
     CMD_REQUESTED,
     CMD_SAFE,
@@ -496,7 +467,7 @@ class RecorderNode(Node):
             self.recording_pub.publish(String(data=""))
 
     def at_rest(self):
-        """No run is being recorded: restarting the node loses nothing (node_tools.check_ports)."""
+        """No run is being recorded: restarting the node loses nothing (dds_health.SharedMemoryPortWatch)."""
         return self.session.state == "idle"
 
     def wind_down(self, reason):
@@ -510,7 +481,8 @@ class RecorderNode(Node):
 
 def main(args=None):
     # a run in progress is closed properly on the way out: summary, final metadata.yaml
-    return run_node(RecorderNode, "recorder", args, before_destroy=lambda node: node.close(), claim=presence.RECORDER)
+    return run_node(RecorderNode, "recorder", args, before_destroy=lambda node: node.close(), claim=presence.RECORDER,
+                    watchdogs=fast_dds_watchdogs())
 
 
 if __name__ == "__main__":

@@ -1,11 +1,18 @@
 """What a replay shows and reads besides its topics: the keys of a terminal (Keyboard) and the run
 drawn as its live figure was, or written as a video without a display (Figure)."""
+import json
 import os
 import select
 import sys
+import termios
 import time
+import tty
 
 import numpy as np
+
+from robotarium_recording.arena_figure import ArenaFigure, is_interactive, pyplot
+from robotarium_recording.drawing import DrawingPainter, DrawingState
+from robotarium_recording.pictures import render_video
 
 FIGURE_HZ = 15   # at most this many redraws a second on a screen
 
@@ -17,8 +24,6 @@ class Keyboard:
         self.enabled = sys.stdin.isatty()
         self.saved = None
         if self.enabled:
-            import termios
-            import tty
             self.saved = termios.tcgetattr(sys.stdin)
             tty.setcbreak(sys.stdin.fileno())
 
@@ -29,7 +34,6 @@ class Keyboard:
 
     def close(self):
         if self.saved is not None:
-            import termios
             termios.tcsetattr(sys.stdin, termios.TCSADRAIN, self.saved)
 
 
@@ -40,7 +44,6 @@ class Figure:
     replayed run is written as a video (pictures.render_video) when the replay ends."""
 
     def __init__(self, bag, path):
-        from robotarium_recording.arena_figure import is_interactive, pyplot
         self.plt, self.bag, self.path = pyplot(), bag, path
         self.interactive = is_interactive(self.plt)
         self.config = bag.config()
@@ -58,8 +61,6 @@ class Figure:
         msg = self.bag.typestore.deserialize_cdr(data, type_name)
         poses = np.array([msg.x, msg.y, msg.theta])
         if self.view is None:
-            from robotarium_recording.arena_figure import ArenaFigure
-            from robotarium_recording.drawing import DrawingPainter, DrawingState
             self.view = ArenaFigure.window(self.config.arena, self.config.robot_radius, poses, self.plt,
                                            title="replay of %s" % self.bag.name)
             self.view.draw_obstacles(self.bag.experiment().get("obstacles") or ())   # a 2.x run's walls
@@ -72,7 +73,6 @@ class Figure:
     def drawing(self, data, type_name):
         """A replayed drawing message (what the script drew)."""
         if self.interactive and self.state is not None:
-            import json
             try:
                 self.state.apply(json.loads(self.bag.typestore.deserialize_cdr(data, type_name).data))
             except ValueError:
@@ -90,7 +90,6 @@ class Figure:
 
     def close(self):
         if not self.interactive:
-            from robotarium_recording.pictures import render_video
             folder, name = os.path.split(os.path.abspath(self.path))
             os.makedirs(folder, exist_ok=True)
             written = render_video(self.bag.poses(), self.bag.drawings(), self.config, folder, self.bag.name,

@@ -3,21 +3,11 @@
     ./robotarium replay BAG [--rate R] [--loop] [--figure] [--view] [--namespace NS] [--timing T] [--into-live]
     ros2 run robotarium_recording replay BAG ...
 
-Every recorded topic except /rosout (the log lines stay in the bag: republishing them would mix
-them with live logs) is published again, serialized bytes as recorded, scaled by 1/rate: a
-lockstep run (recorded as fast as it ran) in experiment time, step k at k time steps, as its
-video plays; a real-time run at its recorded receive times. A namespace where a live testbed
-answers is refused unless --into-live says so. QoS follows what the recorded publishers offered (reliable unless one of
-them was best effort; transient local only if all of them were). Pause and resume: the space bar
-(or p) when started from a terminal, q quits; or the service <ns>/replay/pause
-(std_srvs/SetBool: true pauses, false resumes). --figure draws the run as its live figure was
-(arena_figure.ArenaFigure with ids and what the script drew); with no display (Agg) the replay is
-written as a video to --figure-file (default <bag>/replay.mp4). --view also serves the replay to
-Foxglove: the view node (view_node.py, as `./robotarium view` runs it for a live testbed) in a
-process of its own subscribes to the republished topics like any viewer, and the replay starts once
-it has matched; so the live view and the replay's share one path, DDS included. Played once (no
---loop), it also waits for a viewer (a Foxglove client) to subscribe, else it would be over before
-anyone looked.
+Every recorded topic but /rosout goes out again as its recorded bytes, with the QoS its recorded
+publishers offered, scaled by 1/rate: a lockstep run in experiment time, a real-time run at its
+recorded times. A namespace where a live testbed answers is refused unless --into-live. --figure
+draws it as its live figure was (or writes a video without a display); --view serves it to
+Foxglove through the view node. What each option does: docs/user-guide.md (replay).
 """
 import argparse
 import os
@@ -32,11 +22,14 @@ from rclpy.serialization import serialize_message
 from rclpy.utilities import remove_ros_args
 from std_srvs.srv import SetBool
 
-from robotarium_core.node_tools import init_context
+from robotarium_core.dds_settings import init_context
+from robotarium_core.topics import readers_matched
+from robotarium_msgs.srv import StartExperiment
 from robotarium_recording.bag import Bag
 from robotarium_recording.recorder_node import message_class
 from robotarium_recording.replay_display import Figure, Keyboard
 from robotarium_recording.replay_timing import ReplayClock, experiment_times
+from robotarium_recording.schema import message_definition
 from robotarium_recording.view_node import ViewProcess, add_view_arguments
 
 SKIPPED_TOPICS = {"/rosout"}
@@ -87,7 +80,6 @@ class ReplayNode(Node):
         another definition than the one installed (a message gained fields since): republishing the
         recorded bytes as they are would reach no subscriber (they fail to deserialize). Fields that are
         gone are dropped, new ones keep their defaults."""
-        from robotarium_recording.schema import message_definition
         converters = {}
         for type_name in {self.bag.topics[t].type for t in self.publishers_by_topic}:
             recorded = self.bag.schemas.get(type_name)
@@ -234,7 +226,6 @@ def add_arguments(parser):
 
 def live_testbed_answers(node, namespace, timeout):
     """True when a simulator offers <namespace>/start_experiment on this domain (a live testbed)."""
-    from robotarium_msgs.srv import StartExperiment
     client = node.create_client(StartExperiment, "%s/start_experiment" % namespace.rstrip("/"))
     try:
         return client.wait_for_service(timeout_sec=timeout)
@@ -245,7 +236,6 @@ def live_testbed_answers(node, namespace, timeout):
 def wait_for_view(node, poses_topic):
     """Until the view's subscriptions matched the replay's publishers (the poses' first: the scene is
     made of them), so that the view gets the replay from its first message."""
-    from robotarium_core.topics import readers_matched
     publishers = list(node.publishers_by_topic.values())
     first = node.publishers_by_topic.get(poses_topic)
     deadline = time.monotonic() + VIEW_MATCH
@@ -263,7 +253,6 @@ def wait_for_subscriber(node, poses_topic, timeout=SUBSCRIBER_WAIT):
     """Until the poses publisher has matched at least one subscriber, and every publisher every
     reader the graph shows (a reliable writer sends only to the readers it has matched: what it
     published before is lost to the others)."""
-    from robotarium_core.topics import readers_matched
     publisher = node.publishers_by_topic.get(poses_topic)
     if publisher is None:
         return True

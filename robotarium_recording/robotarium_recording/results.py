@@ -1,25 +1,12 @@
 """The Robotarium's results for a recorded run, made from its bag alone (no ROS needed).
 
-The Robotarium's results page (guide §1.3.2) gives back the experiment settings, a video of the
-run, the printed output and data files. From a bag folder this makes, beside the bag:
-  report.txt        how the run ended (first line: the IDLE status that closed it says so, or
-                    run.json where the testbed could not be told), then the debug report of
-                    rps.Robotarium.call_at_scripts_end() recomputed from the recorded poses and
-                    safe commands with robotarium_core.model's own counting functions (the
-                    acceptance estimate only for a completed run), then the run's settings, a
-                    cross-check against the counters the testbed published (status topic) and
-                    the safety node's interventions (SafetyReport: changes beyond the tolerance);
-  trajectories.png  pictures.plot_trajectories: every robot's path over the script's drawing;
-  run.mp4           pictures.render_video: the Robotarium's video, with what the script drew;
-  index.html        page.write_page: the results page.
-
-How the report is recomputed, as the simulator counts (robotarium_core.model.Testbed.step): step
-k+1 counts collisions and robots outside the arena on the poses of step k (before the move) and
-an actuator-limit iteration when the commands in force exceed the wheel limits. In lockstep mode
-the valid command array on cmd_safe marked step k is exactly the one applied at step k; in real-time mode
-the commands in force at a tick are the ones stamped before that tick's poses, stopped after the
-0.5 s timeout, which can differ from the simulator for a command that crossed a tick (the
-cross-check then says so).
+Beside the bag: report.txt (how the run ended, then the debug report of
+rps.Robotarium.call_at_scripts_end() recomputed from the recorded poses and safe commands with
+robotarium_core.model's own counting functions, the run's settings, a cross-check against the
+testbed's counters and the safety node's interventions), trajectories.png
+(pictures.plot_trajectories), run.mp4 (pictures.render_video, with what the script drew) and
+index.html (page.write_page). What each holds and how the report is recomputed:
+docs/user-guide.md#what-a-run-gives-back-whatever-its-end.
 
 Usage: ./robotarium report BAG [--out DIR] [--no-video]   (BAG: a run folder under bags/)
 """
@@ -30,6 +17,7 @@ import sys
 import numpy as np
 
 from robotarium_core import model, outcomes, rps2, run_record
+from robotarium_recording import page, pictures
 from robotarium_recording.bag import Bag
 
 COUNTS_ONLY = 5             # SafetyReport.STATUS_COUNTS_ONLY: no array was filtered
@@ -429,7 +417,6 @@ def preload(video=True):
         from matplotlib.backends import backend_agg  # noqa: F401
         from rosbags.typesys.stores import ros2_jazzy  # noqa: F401
 
-        from robotarium_recording import page, pictures  # noqa: F401
         if video:
             import PIL.ImageDraw  # noqa: F401
             pictures.ffmpeg_path()
@@ -443,7 +430,6 @@ def write_results(bag_dir, progress=True, *, out_dir=None, video=True, run=None)
     run.json beside the bag) says how the run ended where the bag cannot and goes on the page.
     Returns {"report": path, "trajectories": path, "video": path, "page": path} ("video" only when
     video=True and the bag has poses). Prints nothing but progress (stderr)."""
-    from robotarium_recording import page, pictures
     bag = Bag(bag_dir)
     out_dir = os.path.abspath(out_dir or bag.path)
     os.makedirs(out_dir, exist_ok=True)

@@ -7,6 +7,7 @@ written as names). The .msg and .json files come from the ament share folders (A
 falling back to this repository's robotarium_msgs. Also here: the leading stamp of a CDR message,
 which the recorder takes as a message's publish time.
 """
+import json
 import os
 import re
 import struct
@@ -104,7 +105,6 @@ def type_hash(type_name):
     path = interface_file(type_name, "json")
     if not path:
         return ""
-    import json
     with open(path, encoding="utf-8") as f:
         hashes = json.load(f).get("type_hashes", [])
     pkg, _, name = split_type(type_name)

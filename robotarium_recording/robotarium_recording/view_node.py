@@ -5,26 +5,11 @@ testbed's namespace, live or replayed.
     ./robotarium view --layout FILE [--namespace NS]              (write the Foxglove layout, exit)
     ros2 run robotarium_recording view ...
 
-Foxglove (the app, or studio in a browser) connects to ws://HOST:PORT ("Open connection" >
-"Foxglove WebSocket") and gets:
-
-- the testbed's own messages, forwarded as their serialized CDR bytes on channels named as the
-  ROS topics (`<ns>/poses`, `<ns>/status`, `<ns>/cmd_requested`, `<ns>/cmd_safe`,
-  `<ns>/safety_report`, `<ns>/drawing`, `<ns>/config`, `<ns>/obstacles`), each with its ros2msg
-  schema, so Foxglove decodes them as it decodes a ROS connection or a bag;
-- `<ns>/scene`, a foxglove.SceneUpdate in the `arena` frame: the arena, each robot (footprint,
-  heading, id) and its recent trail (robotarium_recording.foxglove_scene), at the testbed's
-  `viewer_rate` (testbed.yaml), not at every step;
-- `<ns>/scene/drawing`, a foxglove.Grid on the arena floor: what the script drew on r.axes, as
-  its video shows it, whenever it changed (at most at `viewer_rate`).
-
-The committed layout foxglove/robotarium_layout.json (written by `--layout`) opens a 3D panel on
-the scene, the status as raw messages and a plot of its counters.
-
-The node is a thin shell: it forwards bytes as they arrive, keeps the newest poses, the trails
-and the drawing state, and builds the scene on a timer; the scene is plain numpy in
-foxglove_scene.py. It subscribes like any viewer, so `./robotarium replay BAG --view` streams a
-recorded run by replaying it on DDS into this same node.
+A thin shell: it forwards the testbed's messages as their CDR bytes with their ros2msg schemas,
+keeps the newest poses, the trails and the drawing, and builds `<ns>/scene` and
+`<ns>/scene/drawing` on a timer (plain numpy in foxglove_scene.py). It subscribes like any viewer,
+so a replay (`./robotarium replay BAG --view`) streams through it too. What it serves and how to
+open it: docs/ros-interface.md#a-live-view-in-foxglove.
 """
 import argparse
 import json
@@ -47,7 +32,8 @@ from visualization_msgs.msg import Marker
 import foxglove
 from robotarium_core import cdr, lifeline, scene
 from robotarium_core.config import DEFAULT, ConfigError, TestbedConfig
-from robotarium_core.node_tools import run_node
+from robotarium_core.dds_health import fast_dds_watchdogs
+from robotarium_core.node_main import run_node
 from robotarium_core.topics import (
     CMD_REQUESTED,
     CMD_SAFE,
@@ -366,7 +352,8 @@ def view(args, error, ros_args=()):
               flush=True)
         return node
 
-    return run_node(make_node, "view", ["view"] + list(ros_args), before_destroy=lambda node: server.stop())
+    return run_node(make_node, "view", ["view"] + list(ros_args), before_destroy=lambda node: server.stop(),
+                    watchdogs=fast_dds_watchdogs())
 
 
 if __name__ == "__main__":

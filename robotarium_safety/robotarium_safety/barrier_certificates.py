@@ -1,28 +1,14 @@
 """Barrier certificates of the Robotarium (guide §4.5, §4.6), solved with OSQP.
 
-Each creator has the name, parameters and defaults of the guide (../shared/seed/
-robotarium_python_guide.txt §4.5-4.6) and of the Robotarium Python simulator it documents (PyPI
-robotarium-python-simulator 0.0.0, "rps": rps/utilities/barrier_certificates.py and
-barrier_certificates2.py), and returns a function with the guide's call signature that poses the
-same minimally invasive QP as its rps namesake. (The safety node's own certificate is
-robotarium_safety.testbed_certificate: no QP.) The formulas: docs/safety.md.
+Each creator has the name, parameters and defaults of the guide and of the Robotarium Python
+simulator it documents (robotarium-python-simulator 0.0.0, "rps": rps/utilities/
+barrier_certificates.py and barrier_certificates2.py), and returns a function with the guide's
+call signature that poses the same minimally invasive QP as its rps namesake, carrying `info`
+(barrier_qp.new_info) about its last call. (The safety node's own certificate is
+robotarium_safety.testbed_certificate: no QP.) Plain numpy + scipy + osqp: no ROS, no matplotlib.
 
-Where we differ from rps, on purpose: the caller's arrays are never modified (rps scales dxi in
-place); inputs are validated with a RobotariumError that names the parameter; the unicycle
-certificates honour magnitude_limit (rps ignores it and always uses 0.2, the default, so default
-behaviour is the same); the differential-drive certificate without boundary works (in rps it
-raises NameError: `solver2` is not imported), and obstacles work in the _with_boundary variant (rps
-refers to an undefined variable there); when the QP cannot be solved the answer is the stop
-command, all zeros, never the unfiltered request (rps returns whatever cvxopt had, or raises).
-
-Beyond rps, and without changing the answer: pairs that provably cannot constrain it are left out
-(see `_single_integrator_pair_rate` and `_DifferentialDriveQP` for the rule and its derivation),
-so a call builds O(N) rows instead of O(N^2); OSQP sees only the rows that may bind and is warm-
-started from the previous call (barrier_qp.QPSolver); a request that is already safe is returned
-as it is ("passthrough"). Each returned function carries `info`, a dict updated on every call
-(barrier_qp.new_info): status, solve_time, fallback, num_constraints, reason, ...
-
-Plain numpy + scipy + osqp: no ROS, no matplotlib.
+The formulas, where they differ from rps on purpose and how they are solved:
+docs/safety.md#the-certificates-in-formulas.
 """
 import math
 import numbers

@@ -1,23 +1,12 @@
 """The machinery under the barrier certificates: sparse QP rows, neighbour search, OSQP.
 
-Every barrier QP of rps has the same shape: 2 decision variables per robot (a single-integrator
-velocity, or two wheel speeds) and constraint rows that each touch one robot (boundary, wheel limit,
-obstacle) or two robots (a pair). `Rows` holds them as index arrays and coefficient arrays, so the
-constraint matrix is built with numpy, no Python loop over pairs, and `QPSolver` hands it to OSQP
-(osqp 1.x API) as a CSC matrix whose sparsity pattern only changes when the set of rows does:
-then the solver is set up again, otherwise it is updated in place (`update(q, l, u, Ax)`) and
-warm-started from the previous tick's solution.
-
-Two things keep a call cheap without changing its answer:
-- `NeighbourCache` + `cubic_cutoff_distance`: pairs too far apart to ever bind are not rows at all
-  (the certificates derive the distance);
-- `QPSolver.solve`: OSQP gets only a working set of rows (those the request breaks or nearly
-  breaks, and those nearly active last tick), grown until the answer satisfies every row
-  (constraint generation; exact because the answer is then feasible for the full QP).
-OSQP solves to a moderate tolerance and then polishes (solves again with its active rows held as
-equalities), which makes the answer exact to round-off whenever it succeeds.
-
-Plain numpy + scipy + osqp: no ROS import.
+`Rows` holds the constraint rows (each touching one robot or a pair) as index and coefficient
+arrays, built with numpy; `QPSolver` hands them to OSQP (osqp 1.x API) as a CSC matrix, set up
+again only when the set of rows changes, otherwise updated in place and warm-started. Two things
+keep a call cheap without changing its answer: `NeighbourCache` + `cubic_cutoff_distance` (pairs
+too far apart to bind are no rows), and `QPSolver.solve`'s working set of rows, grown until the
+answer satisfies every row (constraint generation), then polished to round-off.
+Plain numpy + scipy + osqp: no ROS import. Why each step is exact: docs/safety.md#the-certificates-in-formulas.
 """
 import functools
 import time

@@ -1,28 +1,12 @@
 """Which requested arrays the safety node filters, at which poses, and how it marks them (issue 22).
-Plain Python, no ROS: the safety node calls it, and robotarium_safety/test/test_safety_guarantee.py runs it on
-adversarial streams together with the simulator's rule (robotarium_core.model.StepGate).
+Plain Python, no ROS: the safety node calls it, and robotarium_safety/test/test_safety_guarantee.py
+runs it on adversarial streams together with the simulator's rule (robotarium_core.model.StepGate).
 
-The barrier certificate's guarantee is about one step from the poses a command was filtered at.
-Whoever sends arrays with the experiment's token (the client, or a process that copied the token
-off the wire: without SROS2 it is no secret), in whatever order and with whatever step numbers,
-the commands applied must each have been filtered at the poses they move the robots from. So
-every forwarded array is marked with the step it produces (cmd_safe `step`: the pose step it was
-filtered at, plus one), and:
-
-  lockstep:  an array for step k is filtered exactly at the poses of step k - 1, once they came,
-             and at most one array is forwarded per step. Unnumbered (step 0) means "the next
-             step". An array for a step already forwarded, already past, or further ahead than a
-             client can be (it sends step k after it saw the poses of k - 1, which may reach us a
-             moment after its array: so at most two ahead of our newest poses) is dropped as
-             "stale"; one waiting for its poses longer than lockstep_wait too.
-  real time: the newest array is filtered at the newest poses (the node takes every poses message
-             waiting first) and marked with their step plus one; the simulator takes it only on
-             that tick or the next (StepGate). The commands in force are filtered again at every
-             new poses (forwarded as None: "the commands in force") while the client's newest
-             array is younger than command_timeout: a client slower than the tick, or arrays that
-             miss their tick, never leave the robots driving a command filtered ticks ago.
-
-What is waiting is bounded: at most the two steps a client can be ahead (WAITING_STEPS).
+Invariant: whoever sends arrays with the experiment's token, in whatever order and with whatever
+step numbers, every array forwarded was filtered at the poses of the step it moves the robots from,
+and is marked with that step plus one (cmd_safe `step`); lockstep forwards at most one per step,
+real time the newest at the newest poses, filtered again at every new poses while it is in force.
+What waits is bounded (WAITING_STEPS). The rules and why: docs/safety.md#the-safety-node.
 """
 from typing import NamedTuple
 

@@ -1,60 +1,14 @@
 """The always-on safety node: every command on its way to the robots passes a barrier certificate.
 
-Topics (relative to the node's namespace, /robotarium by default):
-  cmd_requested  robotarium_msgs/TwistArray    in:  what the client asks for, read serialized
-  poses          robotarium_msgs/RobotPoses    in:  the newest poses from the simulator
-  cmd_safe       robotarium_msgs/TwistArray    out: the filtered commands, the simulator's only input
-  safety_report  robotarium_msgs/SafetyReport  out: one per command array: change, solve time, status,
-                                                    and the arrays dropped so far
-Service: safety/arm robotarium_msgs/ArmSafety (the simulator, at every start and end of an experiment)
+It forwards only cmd_requested arrays with the armed experiment's token, scaled to the actuator
+limits along their arc, merged into the commands in force and filtered through the testbed's
+certificate (robotarium_safety.testbed_certificate) at the poses of the step they move the robots
+from (robotarium_safety.guard), as cmd_safe with the safety key; a stop where poses are stale, the
+input malformed or the certificate failed, never the raw command. Audit mode (verify) lets the
+script's own commands through and reports what it would change. Poses, cmd_safe and safety_report
+travel as CDR bytes (robotarium_core.cdr).
 
-It guards only the experiment the simulator armed it with: it forwards only cmd_requested arrays
-that carry that experiment's token (anything else - a stray publisher, a replayed bag, another
-script - is dropped from its first bytes and counted by reason, robotarium_core.cdr), takes only
-poses that carry the run's poses key, and marks what it forwards with the safety key, the only
-cmd_safe the simulator applies. Commands beyond the actuator limits are first scaled to them
-keeping their arc (as the simulator's thresholding would), so the certificate judges what the
-robots will drive and a huge finite value becomes full speed along its arc, never a stop.
-
-Each requested array is merged into the current command of all robots (robots not named keep
-their last command, as on the simulator) and filtered through the testbed's certificate
-(robotarium_safety.testbed_certificate, every number from the testbed configuration) at the
-newest poses: it changes a command only where, without the change, two robot centres could come
-within robot_diameter (the simulator's collision rule) or a centre could leave the arena, and
-passes every other command on exactly as the script sent it (docs/safety.md). If it has no recent
-poses, or the input is malformed, or the certificate fails, it sends a stop for the robots
-concerned: never the raw command. Without this node nothing reaches the simulator.
-
-Audit mode (ArmSafety.audit, set for ./robotarium verify only, never for a plain run): the
-certificate is computed and reported as always, but the script's own commands go out, so
-collisions and boundary violations really happen and the simulator counts them as the
-Robotarium's verification does.
-
-cmd_requested takes any reliable publisher (`ros2 topic pub` too: robotarium_core.topics). The
-simulator's cmd_safe reader is volatile, so a command is held here until our cmd_safe writer has
-matched it (at most `lockstep_wait`): the first commands of a run are never lost to discovery.
-
-In lockstep the client numbers its command arrays: step k is sent right after the client saw the
-poses of step k - 1. Those poses may reach this node a moment after the command (two topics, no
-ordering between them), so a numbered command waits here until the poses it was computed from
-have arrived (at most `lockstep_wait`). That keeps lockstep deterministic. Real-time commands use
-the newest poses, if they are younger than `pose_timeout`. Whoever sends arrays with the token,
-in whatever order and with whatever step numbers, each array forwarded is filtered at the poses
-of the step it will move the robots from, at most one per lockstep step, and marked with the
-step it produces (robotarium_safety.guard; the simulator applies nothing else: model.StepGate).
-
-Poses come in and cmd_safe and safety_report go out as CDR bytes read and written with numpy
-(robotarium_core.cdr): rclpy's message objects, one per robot for a Twist[], cost more than the
-barrier QP.
-
-Newest poses: before filtering a real-time command it takes every poses message its reader holds
-(node_tools.take_waiting), so a loaded node never filters with poses queued behind newer ones. A
-pose's age is counted from when it reached this node (no clock shared with the simulator is
-needed, and this node's own backlog never counts against the poses): late poses under load do not
-stop robots until they are older than `pose_timeout` (0.5 s, the command timeout: by then the
-simulator would stop the robots anyway). Each such stop is counted (SafetyReport
-STATUS_STOP_NO_POSES with its pose_age; the simulator's status counts them as stale_pose_stops)
-and logged: the first of a spell at once, then at most once a second, and the spell's end.
+The specification (topics, audit, lockstep and real time, stale poses): docs/safety.md#the-safety-node.
 """
 import sys
 import time
@@ -67,7 +21,10 @@ from rclpy.node import Node
 from std_msgs.msg import String
 
 from robotarium_core import cdr, model, presence
-from robotarium_core.node_tools import declare_config, run_node, take_waiting
+from robotarium_core.dds_health import fast_dds_watchdogs
+from robotarium_core.node_main import run_node
+from robotarium_core.parameters import declare_config
+from robotarium_core.subscriptions import take_waiting
 from robotarium_core.topics import (
     CMD_REQUESTED,
     CMD_SAFE,
@@ -138,7 +95,7 @@ class SafetyNode(Node):
                 list(c.arena)))
 
     def at_rest(self):
-        """No experiment is guarded: restarting the node loses nothing (node_tools.check_ports)."""
+        """No experiment is guarded: restarting the node loses nothing (dds_health.SharedMemoryPortWatch)."""
         return not self.armed.run_id
 
     def on_arm(self, request, response):
@@ -210,7 +167,7 @@ class SafetyNode(Node):
             self.api = settings.get("api") or ""   # 2.x's rule for the actuator-limit flag
 
     def on_requests(self, data):
-        """Everything waiting on cmd_requested at once (node_tools.take_waiting): foreign arrays are
+        """Everything waiting on cmd_requested at once (subscriptions.take_waiting): foreign arrays are
         dropped in microseconds; of the client's own, in real time only the newest counts (as on
         the robots' firmware), in lockstep each is a step."""
         # One at a time, as taken: an array refused is freed before the next is taken.
@@ -386,7 +343,7 @@ class SafetyNode(Node):
 
 
 def main(args=None):
-    return run_node(SafetyNode, "safety", args, claim=presence.SAFETY)
+    return run_node(SafetyNode, "safety", args, claim=presence.SAFETY, watchdogs=fast_dds_watchdogs())
 
 
 if __name__ == "__main__":

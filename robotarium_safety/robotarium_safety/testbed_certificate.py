@@ -1,19 +1,12 @@
 """The safety node's certificate: the least change to a command array that keeps robot centres
 apart and inside the arena, one step at a time. Plain numpy, no QP, no ROS.
 
-A centre moves only with the forward speed v (a turn never moves it), so every row is a bound
-on one robot's v alone: the change is each v moved into the interval its rows allow (nothing
-else satisfies the rows with a smaller change), and omega is never touched. Rows:
-
-  pairs (i, j), e = c_i - c_j, h = |e|^2 - D^2:  -2 (e.n_i) v_i <= max(0, rate h / T) / 2, and j's alike
-  edges, gap = centre to the edge less the margin:  n.v <= max(0, rate gap / T)
-
-so a pair closes at most `rate` of its remaining gap a step, and an edge's gap shrinks at most by
-`rate`. Where a command may act later than the poses it was filtered at (real time: a tick late;
-`latency`: the hardware-like mode's pipeline, a lab's robots), each row holds for every heading
-the robot may have turned to meanwhile (|delta| <= max_angular_velocity x delay: the row becomes
-c v + k |v| <= b), and D and the margin grow by max_speed x latency, the distance a robot covers
-before it obeys. The guarantee, its assumptions and its proof: docs/safety.md.
+A centre moves only with the forward speed v (a turn never moves it), so every row (a pair closes
+at most `rate` of its remaining gap a step, an edge's gap shrinks at most by `rate`) bounds one
+robot's v alone: the change is each v moved into the interval its rows allow, and omega is never
+touched. Where a command may act late (real time, a declared `latency`), each row holds for every
+heading the robot may have turned to meanwhile, and the distances grow by what a robot covers in
+the latency. The rows, the guarantee, its assumptions and its proof: docs/safety.md.
 """
 import math
 import time

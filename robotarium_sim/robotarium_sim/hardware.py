@@ -1,31 +1,13 @@
 """The hardware-like mode: the real pipeline between a script's commands and the GTernal's
 wheels, and between the robots and the poses the script sees. Plain numpy, no ROS.
 
-The ideal testbed (robotarium_core.model.Testbed, as rps) applies a command for exactly one
-0.033 s step and hands back exact poses. The real Robotarium does not:
-
-  cmd_safe --(command_latency + jitter)--> Raspberry Pi loop every 16 ms, newest command wins
-           --(serial)--> Teensy: deadband -> motors off; else wheel-speed PID at 100 Hz whose PWM
-           output is slewed at most 50 of +-255 units per period; brake after 0.5 s without a
-           command --> DC motors (first-order lag to PWM) --> wheels of slightly different radii
-           --> the robot moves --(tracking_latency)--> poses + noise
-
-Each stage is a parameter of the one testbed configuration (robotarium_core/testbed.yaml, with the
-source of each default: the GTernal firmware, github.com/robotarium/GTernal, or our estimate). The
-model runs on a clock of TICK = 1 ms: every latency and period is a whole number of ticks, and
-everything random (the loops' phases, the wheel radii, each command's jitter, the pose noise)
-comes from one numpy Generator seeded per experiment. So a lockstep run is the same bit for bit
-for the same seed.
-
-What the firmware does and we model (GTernal.cpp): followCommands() switches the motors off when
-|v| < 1e-4 and |omega| < 0.01; otherwise PIDMotorControl() applies the PWM it computed in the
-previous period, measures each wheel's speed from the encoder counts of the last period, and adds
-int(kp * error + ki * integral of the error) to the PWM (a velocity-form PI: the PWM itself
-integrates the error; kd is declared int and so 0), saturates it at +-255 (without integrating
-there) and limits its change to _maxMotorInc per period. communicationCheck(500) brakes when no
-command came for 0.5 s. Simplified: a coasting wheel (motors off) and a braked one slow down
-with the same motor time constant; after a stop the PID restarts from PWM 0 (the firmware first
-re-applies the last PWM for one period); the serial link Pi -> Teensy takes no time.
+Where the ideal testbed (robotarium_core.model.Testbed, as rps) applies a command for exactly one
+step and hands back exact poses, this models command latency and jitter, the robot's 16 ms loop,
+the GTernal firmware's deadband, wheel-speed PI, PWM slew and brake, the motors' lag, unequal
+wheels, and tracking latency and noise. Every stage is a parameter of the testbed configuration
+(with its source); the model runs on a clock of TICK = 1 ms with one Generator seeded per
+experiment, so a lockstep run is the same bit for bit for the same seed.
+The pipeline, the firmware it follows and what it simplifies: docs/hardware.md.
 """
 import collections
 import dataclasses

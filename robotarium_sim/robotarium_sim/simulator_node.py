@@ -1,61 +1,14 @@
 """The Robotarium simulator node: a thin ROS 2 shell around robotarium_core.model.Testbed and
 robotarium_sim.experiment (what a start asks for, the run's id, secrets and counters).
 
-Topics (relative to the node's namespace, /robotarium by default):
-  cmd_safe        robotarium_msgs/TwistArray   in:  the safety node's commands (the only command input), read
-                                                    serialized: foreign, oversized and malformed arrays are
-                                                    dropped from their first bytes (robotarium_core.cdr)
-  safety_report   robotarium_msgs/SafetyReport in:  counted as safety interventions (a change beyond
-                                                    intervention_tolerance, or a stop)
-  poses           robotarium_msgs/RobotPoses   out: every step
-  pose_array      geometry_msgs/PoseArray      out: every step, for viewers (built only when someone listens)
-  markers         visualization_msgs/MarkerArray out: the arena, robots (footprint, heading, id) and their
-                                                    trails (robotarium_core.markers), at `viewer_rate` Hz
-                                                    while someone listens (RViz, Foxglove: frame `arena`)
-  status          robotarium_msgs/TestbedStatus out: every step, and once a second while idle or in lockstep;
-                                                    latched, the newest only (a late joiner gets the state now)
-  _status/stream  robotarium_msgs/TestbedStatus out: the same messages with a history (hidden; the recorder
-                                                    records every status from it, as <ns>/status)
-  sensors         robotarium_msgs/SensorReadings out: every step of a 2.x experiment (robotarium_core.sensors)
-  robot_<i>/imu   sensor_msgs/Imu              out: the same sensors per robot on standard types, for ROS tools
-  robot_<i>/mag   sensor_msgs/MagneticField         (rviz, Foxglove, ros2 topic echo) and the bag: 2.x experiments,
-  robot_<i>/range sensor_msgs/Range (7 a period)    at `standard_sensor_rate` Hz of simulated time, stamped and valued
-                                                    as that step's sensors in SI units (rps2_io.StandardSensors)
-  experiment      std_msgs/String (latched)    out: the experiment's settings as YAML (api, obstacles, drive-on goals)
-  obstacles       visualization_msgs/Marker (latched) out: the experiment's obstacles as a LINE_LIST, for viewers
-Services:
-  start_experiment robotarium_msgs/StartExperiment, end_experiment robotarium_msgs/EndExperiment
-Calls: safety/arm robotarium_msgs/ArmSafety (at every start and end)
+It takes the safety node's cmd_safe (read as CDR bytes; only arrays with the run's safety key and
+the step they produce, model.StepGate) and publishes poses, status, the viewers' topics and a 2.x
+experiment's sensors; it serves start_experiment and end_experiment and arms the safety node.
+Real time (a timer at `rate` Hz, the command timeout) or lockstep (one step per accepted array),
+ideal or hardware-like (robotarium_sim.hardware), chosen per experiment. An experiment belongs to
+the client that started it and ends by itself when that client is gone.
 
-An experiment belongs to the client that started it. A start makes three secrets: the client's
-token (returned to it; the safety node forwards only commands that carry it, and only it ends the
-experiment, or an operator with force), the safety key (only the safety node learns it, in the
-ArmSafety request, and puts it on cmd_safe: this node applies nothing else) and the poses key (on
-every poses message: the client and the safety node take no others). The start is refused when
-no safety node answers. The client holds a presence on the topic the start names; when it is gone
-for `client_lease` s the experiment ends by itself ("client lost at step k"). When the safety
-node's presence is lost, every robot stops at once. The streams are volatile (robotarium_core.topics):
-a start sends the run's first poses, status and sensors once its writers matched the readers the run
-needs (the client's that StartExperiment.client_node names, the safety node's, the recorder's, also
-before the graph shows a recorder with the parameter wait_for_recorder), at most `listeners_wait` s.
-
-Modes, chosen per experiment: real time (a timer at `rate` Hz; a robot whose last command is older
-than `command_timeout` stops) or lockstep (exactly one step per accepted command array, as fast as
-commands come, so a run is deterministic). A cmd_safe array's `step` is the step it produces:
-the safety node filtered it at the poses of the step before (robotarium_safety.guard). Lockstep
-applies only the array for the next step, one per step; real time only one filtered at the
-current tick's poses or the one before (model.StepGate says why that keeps the certificate's
-guarantee). Any other array (a re-send, a burst, a step ahead or behind) is dropped as "stale"
-and adds no motion.
-
-Poses and pose_array go out as CDR bytes made with numpy (robotarium_core.cdr): rclpy's message
-objects, one per robot for a PoseArray, cost more than the whole step at N = 20.
-
-Either mode may be ideal (robotarium_core.model.Testbed, as rps) or hardware-like
-(robotarium_sim.hardware.HardwareTestbed: latency, pose noise, wheel dynamics), asked for per
-experiment (StartExperiment.hardware) or for all of them (`hardware: true` in the configuration).
-In real time a command goes into the hardware-like pipeline at the moment it arrived within the
-current tick; in lockstep at the start of its step, so a seed gives the same run bit for bit.
+The specification (topics, secrets, modes, the step gate): docs/simulator.md.
 """
 import array
 import secrets
@@ -73,8 +26,11 @@ from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
 from robotarium_core import cdr, markers, model, outcomes, presence, rps2, scene
+from robotarium_core.dds_health import fast_dds_watchdogs
 from robotarium_core.line import Line
-from robotarium_core.node_tools import declare_config, declare_parameter, run_node, take_waiting
+from robotarium_core.node_main import run_node
+from robotarium_core.parameters import declare_config, declare_parameter
+from robotarium_core.subscriptions import take_waiting
 from robotarium_core.topics import (
     CMD_SAFE,
     CONFIG,
@@ -500,11 +456,11 @@ class SimulatorNode(Node):
         return response
 
     def at_rest(self):
-        """No experiment runs: restarting the node loses nothing (node_tools.check_ports)."""
+        """No experiment runs: restarting the node loses nothing (dds_health.SharedMemoryPortWatch)."""
         return self.testbed is None
 
     def wind_down(self, reason):
-        """Stopping (a signal, or the process that started the testbed is gone: node_tools.run_node):
+        """Stopping (a signal, or the process that started the testbed is gone: node_main.run_node):
         end the running experiment as end_experiment does, and wait until its last statuses reached
         every subscriber, so the recorder records the end and closes the run."""
         if self.testbed is not None:
@@ -519,7 +475,7 @@ class SimulatorNode(Node):
     # -- commands ----------------------------------------------------------------------------
 
     def on_commands(self, data):
-        """Everything waiting on cmd_safe at once (node_tools.take_waiting), so that a flood of
+        """Everything waiting on cmd_safe at once (subscriptions.take_waiting), so that a flood of
         foreign arrays never fills the queue and pushes the safety node's out."""
         for each in chain([data], take_waiting(self.commands)):   # one at a time: a refused one is freed at once
             self.on_command(each)
@@ -659,7 +615,7 @@ class SimulatorNode(Node):
 
 
 def main(args=None):
-    return run_node(SimulatorNode, "simulator", args, claim=presence.SIMULATOR)
+    return run_node(SimulatorNode, "simulator", args, claim=presence.SIMULATOR, watchdogs=fast_dds_watchdogs())
 
 
 if __name__ == "__main__":

@@ -1,20 +1,14 @@
 """The Robotarium toolbox: what `from rps.utilities.X import *` brings into an experiment script.
 
-  transformations       single-integrator <-> unicycle mappings (guide section 4.3)
-  controllers           position and pose controllers (guide 4.4)
-  barrier_certificates  collision and boundary barrier certificates (guide 4.5; robotarium_safety)
-  barrier_certificates2 robust barriers (guide 4.6; robotarium_safety)
-  misc                  initial conditions, "at goal" tests, plot sizes (guide 4.7)
-  graph                 graph Laplacians and neighbours (guide 4.8)
+  transformations (guide 4.3), controllers (4.4), barrier_certificates and barrier_certificates2
+  (4.5, 4.6; robotarium_safety), misc (initial conditions, "at goal" tests, plot sizes: 4.7),
+  graph (Laplacians and neighbours: 4.8)
 
-Names, parameters and defaults are those of the Robotarium's own simulator (PyPI
-robotarium-python-simulator 0.0.0, "rps" below) and the user's guide; where the two differ, or
-rps has a bug, the module says so next to the code.
-
-This file also holds the argument checks the modules share. They raise RobotariumError (a
-ValueError and an AssertionError, so scripts that catch rps's failed asserts still work) with a
-message that names the function, the argument, what was expected and what was received. Their
-names start with an underscore, so star imports never bring them.
+Names, parameters and defaults are those of the Robotarium's own simulator (robotarium-python-
+simulator 0.0.0, "rps") and the guide; where rps has a bug, the fix is marked next to the code.
+This file also holds the argument checks the modules share: they raise RobotariumError (a
+ValueError and an AssertionError) naming the function, the argument, what was expected and what
+was received; underscore names, so star imports never bring them.
 """
 import numbers
 

@@ -2,24 +2,12 @@
 
 Each create_* function checks its gains once and returns a controller that maps the robots'
 current states and goals (one column per robot) to velocity commands for all robots at once.
-
 Like rps, `from rps.utilities.controllers import *` also brings the transformations.
 
-Differences from rps 0.0.0, each marked "Fix:" in the code:
-* create_clf_unicycle_pose_controller printed three debug lines per robot per call, returned NaN
-  for a robot whose bearing error alpha is exactly 0 (cos(a) sin(a) / a at a = 0), and checked
-  none of its arguments.
-* create_hybrid_unicycle_pose_controller raised NameError when given an input_approach_state of
-  the right size, replaced the whole state array by the integer 1 when a rotating robot had
-  drifted (`approach_state = 1` for `approach_state[i] = 1`), and checked none of its arguments.
-  Its default position_epsilon is the guide's 0.03 (rps 0.0.0 had 0.02; later rps also uses 0.03).
-* create_si_position_controller's type-check message for velocity_magnitude_limit named
-  y_velocity_gain.
-
 The laws themselves (proportional single-integrator control, the CLF pose law, the hybrid pose
-controller's step) are robotarium_core.control's, which 2.x's module (rps/_v2/utilities/
-controllers.py) shares; this module keeps the guide's names, defaults, checks and messages and
-passes the guide's choices where the two APIs differ.
+controller's step) are robotarium_core.control's, shared with 2.x's module; this one keeps the
+guide's names, defaults, checks and messages. Its fixes to rps 0.0.0 are marked "Fix:" in the code
+and listed in docs/user-guide.md#the-toolboxs-fixes-to-rps-000.
 """
 import numpy as np
 

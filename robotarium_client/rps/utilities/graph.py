@@ -3,16 +3,9 @@
 A graph Laplacian is L = D - A: node degrees on the diagonal, -1 for every edge off it, so each
 row sums to zero and the neighbours of i are the nonzero off-diagonal entries of row i.
 
-The graphs are built by robotarium_core.graphs, which 2.x's module (rps/_v2/utilities/graph.py)
-shares; this module keeps the guide's names, argument checks and messages.
-
-Differences from rps 0.0.0, each marked "Fix:" in the code:
-* cycle_GL(1) was [[-1]], cycle_GL(2) [[2, -1], [-1, 2]] and lineGL(1) [[1]]: not Laplacians
-  (rows must sum to zero), and consensus on them drives robots towards the origin.
-* topological_neighbors wrote 0 into the diagonal of the caller's L.
-* topological_neighbors and delta_disk_neighbors accepted agent = N (off by one) and then raised
-  IndexError; delta_disk_neighbors's message for a bad delta named agent.
-* randomGL checked none of its arguments.
+The graphs are built by robotarium_core.graphs, shared with 2.x's module; this one keeps the
+guide's names, argument checks and messages. Its fixes to rps 0.0.0 are marked "Fix:" in the code
+and listed in docs/user-guide.md#the-toolboxs-fixes-to-rps-000.
 """
 import numpy as np
 

@@ -1,28 +1,14 @@
 """Mappings between single-integrator and unicycle models (guide section 4.3).
 
 A unicycle at pose (x, y, theta) takes commands (v, omega). Two ways to drive it with a
-single-integrator velocity dxi = (x_dot, y_dot):
+single-integrator velocity dxi: heading tracking (create_si_to_uni_dynamics,
+..._with_backwards_motion: v along the heading, omega turns it towards dxi), or a point
+`projection_distance` ahead of the axle, which moves exactly like a single integrator
+(create_si_to_uni_mapping, create_uni_to_si_dynamics; guide 4.3.3-4.3.4).
 
-* heading tracking (create_si_to_uni_dynamics, ..._with_backwards_motion): v is dxi projected on
-  the heading, omega turns the heading towards dxi;
-* a point projected `projection_distance` ahead of the wheel axle (create_si_to_uni_mapping,
-  create_uni_to_si_dynamics): that point moves exactly like a single integrator, since
-      [x_dot_p; y_dot_p] = [cos theta, -l sin theta; sin theta, l cos theta] [v; omega]
-  and the matrix is invertible for l > 0 (guide 4.3.3-4.3.4; rps transformations.py).
-
-The maps themselves are robotarium_core.kinematics', which 2.x's module
-(rps/_v2/utilities/transformations.py) shares; this module keeps the guide's names, defaults,
-argument checks and messages, and passes the guide's choices where the two APIs differ.
-
-Differences from rps 0.0.0, each marked "Fix:" in the code:
-* create_si_to_uni_dynamics_with_backwards_motion was a copy of the forward mapping; it now
-  drives backwards when that needs less rotation, as the guide (4.3.2) and the Robotarium MATLAB
-  toolbox describe.
-* A zero command could spin a robot at 2*angular_velocity_limit: with theta in (-pi, -pi/2)
-  the projections come out as -0.0 and arctan2(+0.0, -0.0) = pi.
-* create_si_to_uni_mapping checked projection_distance twice and never angular_velocity_limit.
-* uni_to_si_dyn's type check referred to an undefined name (dxi) and raised NameError.
-* uni_to_si_states did not check its input.
+The maps themselves are robotarium_core.kinematics', shared with 2.x's module; this one keeps the
+guide's names, defaults, argument checks and messages. Its fixes to rps 0.0.0 are marked "Fix:"
+in the code and listed in docs/user-guide.md#the-toolboxs-fixes-to-rps-000.
 """
 import numpy as np
 

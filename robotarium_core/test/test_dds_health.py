@@ -1,11 +1,11 @@
-"""node_tools.DdsStallWatch with real threads of this process named as Fast DDS names its event
+"""dds_health.DdsStallWatch with real threads of this process named as Fast DDS names its event
 threads: one blocked for good (as a deadlock blocks it) is told, one that runs is not, and a gap in
 the checks themselves (the process stopped) counts for nothing."""
 import ctypes
 import threading
 import time
 
-from robotarium_core import node_tools
+from robotarium_core import dds_health
 
 _PR_SET_NAME = 15
 
@@ -33,7 +33,7 @@ def test_an_event_thread_blocked_for_good_is_told_and_one_that_runs_is_not():
             time.sleep(0.02)
     named_thread("dds.ev.lively", lively)
     try:
-        watch = node_tools.DdsStallWatch(limit=0.6)
+        watch = dds_health.DdsStallWatch(limit=0.6)
         told = []
         deadline = time.monotonic() + 5
         while not told and time.monotonic() < deadline:
@@ -51,7 +51,7 @@ def test_a_gap_in_the_checks_counts_for_nothing():
     release = threading.Event()
     named_thread("dds.ev.gap", release.wait)
     try:
-        watch = node_tools.DdsStallWatch(limit=0.6, gap=0.5)
+        watch = dds_health.DdsStallWatch(limit=0.6, gap=0.5)
         watch.check()
         time.sleep(1.0)   # the loop that checks did not run either (a stopped or starved process)
         first = watch.check()

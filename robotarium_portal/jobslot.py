@@ -1,5 +1,5 @@
-"""One job slot of a worker (robotarium_portal.workers.Supervisor): a django-q2 cluster
-(python -m robotarium_portal.worker verify|runs), one job at a time, on its slot's testbed.
+"""One job slot of a worker (robotarium_portal.supervisor.Supervisor): a django-q2 cluster
+(python -m robotarium_portal.jobslot verify|runs), one job at a time, on its slot's testbed.
 
 It holds its supervisor's lifeline (robotarium_core.lifeline): should the supervisor die, however it dies
 (kill -9 included), the slot stops its job's ./robotarium (which ends its experiment and writes its
@@ -18,10 +18,10 @@ def main():
     from django.core.management import call_command
 
     from robotarium_core import lifeline
-    from robotarium_portal import tasks
+    from robotarium_portal import jobs
 
     def supervisor_is_gone():
-        tasks.stop_jobs()
+        jobs.stop_jobs()
         os.kill(os.getpid(), signal.SIGTERM)   # the cluster's own stop: its worker ends, then the cluster
 
     lifeline.watch(supervisor_is_gone, name="supervisor")

@@ -1,17 +1,13 @@
-"""The service's workers, on this machine or any other that reaches its database and its data folder.
+"""./robotarium worker, and serve's own: the job slots of one machine, their heartbeats, the watch for lost slots.
 
-A supervisor (./robotarium worker, or ./robotarium serve for its own) starts one django-q2 cluster per job
-slot (python -m robotarium_portal.worker), each with a testbed of its own (a ROS_DOMAIN_ID), and beats for
-each slot in the database (Worker.beats, last_heartbeat) every settings.WORKER_HEARTBEAT s. Every
-supervisor, serve's included, also watches the others: a slot whose beats stood still for
-settings.WORKER_LOST_AFTER s of the watcher's own unbroken view of the database is lost (its machine gone,
-kill -9): its verification is handed out again, its run fails ("the testbed was lost") with what it recorded.
-Beats are counted, not timed, so two machines' clocks never need to agree, and a database restart (nobody
-can beat or watch) never makes a worker look lost.
-
-A supervisor stopped properly (Ctrl-C, SIGTERM) stops its jobs (each ./robotarium ends its experiment)
-and hands them back: the run to the head of the queue, the verification to be made again. Killed outright,
-its clusters notice (robotarium_core.lifeline), stop their jobs and exit; its watchers do the rest."""
+A supervisor starts one django-q2 cluster per slot (robotarium_portal.jobslot), each with a testbed of its
+own (a ROS_DOMAIN_ID), and beats for each slot in the Worker table every settings.WORKER_HEARTBEAT s. It
+also watches every other slot of the service: one whose beats stood still for settings.WORKER_LOST_AFTER s
+of its own unbroken view of the database is lost; what it held is requeued (a verification) or failed
+(a run: "the testbed was lost") through the experiment's transitions. Beats are counted, not timed: no two
+clocks need to agree, and a database restart makes nobody look lost. Stopped properly, it stops its jobs
+and hands them back; killed outright, its slots notice (robotarium_core.lifeline) and stop.
+docs/portal.md says why django-q2 and why this watch is the service's own."""
 import argparse
 import logging
 import os
@@ -43,28 +39,20 @@ def stop_on_signals():
         signal.signal(sig, stop)
 
 
-def _now_text():
-    from django.utils import timezone
-    return timezone.now().strftime("%Y-%m-%d %H:%M:%S UTC")
-
-
-def release(worker_pks):
-    """The slots stopped properly: their run goes back to the head of the queue (queued_at kept), their
-    verification is made again; the slots are marked stopped."""
+def release(worker_pks, stopped_at_last_beat=False):
+    """The slots stopped (properly, now; or, found dead at a start, at their last beat): their run goes back
+    to the head of the queue (queued_at kept), their verification is made again; the slots are marked
+    stopped."""
     from django.utils import timezone
 
-    from robotarium_portal import tasks
+    from robotarium_portal import jobs
     from robotarium_portal.models import Experiment, Worker
-    for experiment in Experiment.objects.filter(worker__in=worker_pks, state=Experiment.RUNNING):
-        detail = ("The service stopped during run %d (at %s); the experiment runs again from the start."
-                  % (experiment.attempts, _now_text()))
-        if Experiment.objects.filter(pk=experiment.pk, state=Experiment.RUNNING, worker=experiment.worker_id).update(
-                state=Experiment.QUEUED, worker=None, detail=detail):
-            tasks.enqueue_run()
-    for experiment in Experiment.objects.filter(worker__in=worker_pks, state=Experiment.VERIFYING):
-        if Experiment.objects.filter(pk=experiment.pk, state=Experiment.VERIFYING, worker=experiment.worker_id).update(
-                state=Experiment.SUBMITTED, worker=None):
-            tasks.enqueue_verification(experiment)
+    for experiment in Experiment.objects.filter(worker__in=worker_pks, state__in=(Experiment.RUNNING,
+                                                                                  Experiment.VERIFYING)):
+        running = experiment.state == Experiment.RUNNING
+        when = experiment.worker.last_heartbeat if stopped_at_last_beat else None
+        if experiment.requeue(experiment.worker_id, jobs.SERVICE_STOPPED, when):
+            jobs.enqueue_run() if running else jobs.enqueue_verification(experiment)
     Worker.objects.filter(pk__in=worker_pks, state=Worker.ALIVE).update(
         state=Worker.STOPPED, ended_at=timezone.now(), current_job="")
 
@@ -72,8 +60,8 @@ def release(worker_pks):
 def recorded_so_far(experiment):
     """The folder of the run's results as far as they were written (relative to the experiment's folder):
     the run folder ./robotarium made, else the job's own (its output.txt)."""
-    from robotarium_portal import tasks
-    root = tasks.run_folder(experiment)
+    from robotarium_portal import jobs
+    root = jobs.run_folder(experiment)
     made = sorted((p for p in (root / "results").glob("*") if p.is_dir()), key=lambda p: p.stat().st_mtime)
     if made:
         return str(made[-1].relative_to(experiment.folder))
@@ -82,24 +70,17 @@ def recorded_so_far(experiment):
 
 def lost(worker):
     """A slot found lost: its verification again, its run failed with what was recorded so far."""
-    from robotarium_portal import mail, tasks
+    from robotarium_portal import jobs, mail
     from robotarium_portal.models import Experiment
     when = worker.last_heartbeat.strftime("%Y-%m-%d %H:%M:%S UTC")
     for experiment in Experiment.objects.filter(worker=worker, state=Experiment.VERIFYING):
-        if Experiment.objects.filter(pk=experiment.pk, state=Experiment.VERIFYING, worker=worker).update(
-                state=Experiment.SUBMITTED, worker=None,
-                detail="The worker verifying it (%s) was lost (last heard of %s); it is verified again." % (
-                    worker, when)):
-            tasks.enqueue_verification(experiment)
+        if experiment.requeue(worker.pk, "The worker verifying it (%s) was lost (last heard of %s)" % (worker, when)):
+            jobs.enqueue_verification(experiment)
     for experiment in Experiment.objects.filter(worker=worker, state=Experiment.RUNNING):
-        from django.utils import timezone
         detail = ("Failed: the testbed was lost: worker %s stopped answering during run %d (last heard of %s). "
                   "What was recorded so far is attached; you may submit the experiment again."
                   % (worker, experiment.attempts, when))
-        if Experiment.objects.filter(pk=experiment.pk, state=Experiment.RUNNING, worker=worker).update(
-                state=Experiment.FAILED, detail=detail, finished_at=timezone.now(),
-                results=recorded_so_far(experiment)):
-            experiment.refresh_from_db()
+        if experiment.fail(worker.pk, detail, results=recorded_so_far(experiment)):
             mail.try_sending(mail.send_issues_found, experiment)
     logger.warning("worker %s was lost; its jobs were handed out again or failed", worker)
 
@@ -130,21 +111,8 @@ class Watcher:
                 lost(Worker.objects.get(pk=pk))
 
 
-def cancel(experiment, by):
-    """An administrator cancels a queued or running experiment (a running one is stopped by its worker
-    at its next beat); True when it was."""
-    from django.utils import timezone
-
-    from robotarium_portal.models import Experiment
-    detail = "Cancelled by an administrator (%s) at %s." % (by, _now_text())
-    return bool(Experiment.objects.filter(pk=experiment.pk, state__in=(Experiment.SUBMITTED, Experiment.QUEUED,
-                                                                      Experiment.RUNNING, Experiment.VERIFYING))
-                .update(state=Experiment.CANCELLED, detail=detail, finished_at=timezone.now()))
-
-
 def free_domain():
-    sys.path.insert(0, str(REPOSITORY))
-    from devtools.rosutil import unique_domain_id  # a file lock held while this process lives
+    from robotarium_bringup.domains import unique_domain_id  # a file lock held while this process lives
     return unique_domain_id()
 
 
@@ -176,20 +144,20 @@ class Supervisor:
 
     def start(self):
         from robotarium_core import lifeline
-        from robotarium_portal import tasks
+        from robotarium_portal import jobs
         for slot in self.slots:
             worker = slot[0]
             log = open(self.logs / ("worker-%s-%s-%d.txt" % (self.host, worker.kind, worker.pk)), "ab")
             env = dict(self.env, ROBOTARIUM_WORKER_ID=str(worker.pk), Q_CLUSTER_NAME=worker.kind,
                        ROBOTARIUM_PORTAL_RUN_DOMAIN=str(worker.domain), ROBOTARIUM_PORTAL_VERIFY_DOMAIN=str(worker.domain))
             if self.fleet_file and worker.kind == "runs":
-                env[tasks.FLEET_VARIABLE] = self.fleet_file
+                env[jobs.FLEET_VARIABLE] = self.fleet_file
                 self.fleet_testbed = start_fleet_testbed(self.fleet_file, worker.domain, self.data / "fleet-runs",
                                                          self.logs / ("fleet-%s-%d" % (self.host, worker.pk)))
             env, pass_fds = lifeline.for_child(env)
             if self.lock is not None:
                 pass_fds = pass_fds + (self.lock.fileno(),)
-            slot[1] = subprocess.Popen([sys.executable, "-m", "robotarium_portal.worker", worker.kind], env=env,
+            slot[1] = subprocess.Popen([sys.executable, "-m", "robotarium_portal.jobslot", worker.kind], env=env,
                                        pass_fds=pass_fds, stdout=log, stderr=subprocess.STDOUT,
                                        stdin=subprocess.DEVNULL, process_group=0, cwd=REPOSITORY)
         threading.Thread(target=self._beat, daemon=True, name="heartbeat").start()
@@ -227,8 +195,8 @@ class Supervisor:
                 self._stop_job(worker.pk, "experiment %d cancelled" % pk)
 
     def _stop_job(self, worker_pk, why):
-        from robotarium_portal import tasks
-        for pgid_file in tasks.jobs_dir(worker_pk).glob("*.pgid"):
+        from robotarium_portal import jobs
+        for pgid_file in jobs.jobs_dir(worker_pk).glob("*.pgid"):
             key = (pgid_file, pgid_file.stat().st_mtime if pgid_file.exists() else 0)
             if key in self.stopped_jobs:
                 continue
@@ -238,16 +206,16 @@ class Supervisor:
             except (OSError, ValueError):
                 continue
             logger.warning("stopping the job of worker %d: %s", worker_pk, why)
-            threading.Thread(target=tasks.stop_group, args=(pgid,), daemon=True).start()
+            threading.Thread(target=jobs.stop_group, args=(pgid,), daemon=True).start()
 
     def stop(self, hand_back=True):
         """Stop the jobs first (each ./robotarium ends its experiment and writes its results), then the
         clusters (SIGTERM: each lets its worker finish and exits; SIGKILL after STOP_GRACE), and hand the
         jobs back."""
-        from robotarium_portal import tasks
+        from robotarium_portal import jobs
         self.stopping.set()
         for pk in self.pks:
-            tasks.stop_jobs(pk)
+            jobs.stop_jobs(pk)
         for _, process in self.slots:
             if process is not None and process.poll() is None:
                 process.send_signal(signal.SIGTERM)
@@ -270,7 +238,7 @@ class Supervisor:
         if hand_back:
             database_retry(lambda: release(self.pks), "handing the jobs back")
         for pk in self.pks:
-            shutil.rmtree(tasks.jobs_dir(pk), ignore_errors=True)
+            shutil.rmtree(jobs.jobs_dir(pk), ignore_errors=True)
 
 
 def start_fleet_testbed(fleet_file, domain, bags, log_dir):
@@ -296,7 +264,7 @@ def forget_dead_local_workers():
     gone = [w.pk for w in Worker.objects.filter(state=Worker.ALIVE, host=socket.gethostname())
             if not _running(w.pid)]
     if gone:
-        release(gone)
+        release(gone, stopped_at_last_beat=True)
 
 
 def _running(pid):
@@ -307,6 +275,17 @@ def _running(pid):
     except PermissionError:
         return True
     return True
+
+
+def database_url(value):
+    """--database's value: a PostgreSQL URL without a password (a command line is every process's to read)."""
+    from urllib.parse import urlsplit
+    if urlsplit(value).password is not None:
+        raise argparse.ArgumentTypeError(
+            "no password on the command line, where any process on this machine may read it: give it in "
+            "PGPASSWORD, or in a password file (PGPASSFILE, default ~/.pgpass: HOST:PORT:NAME:USER:PASSWORD, "
+            "mode 0600), and --database postgresql://USER@HOST[:PORT]/NAME")
+    return value
 
 
 def parse(argv):
@@ -321,8 +300,9 @@ def parse(argv):
                "--data /srv/robotarium. Ctrl-C stops it: its running experiment goes back to the head of the "
                "queue. Killed outright (or its machine gone), the service notices within 5 heartbeats (10 s) and "
                "verifies its submission again or fails its run (\"the testbed was lost\").")
-    parser.add_argument("--database", default="",
-                        help="the service's database, postgresql://USER[:PASSWORD]@HOST[:PORT]/NAME (default: the "
+    parser.add_argument("--database", default="", type=database_url,
+                        help="the service's database, postgresql://USER@HOST[:PORT]/NAME, its password from "
+                             "PGPASSWORD or a password file (PGPASSFILE, ~/.pgpass) (default: the "
                              "SQLite database in the data folder, for workers beside serve on its machine)")
     parser.add_argument("--data", default=str(REPOSITORY / "service"),
                         help="the service's data folder, shared with the portal (default: service/ in the repository)")
@@ -360,7 +340,9 @@ def kinds_of(args):
 
 
 def setup_django(data, database):
-    os.environ["ROBOTARIUM_PORTAL_DATA"] = str(Path(data).resolve())
+    """Django on the service's data folder (made with its secret key when missing) and its database."""
+    from robotarium_portal.data_folder import prepare
+    os.environ["ROBOTARIUM_PORTAL_DATA"] = str(prepare(data))
     if database:
         os.environ["ROBOTARIUM_PORTAL_DATABASE"] = database
     os.environ.setdefault("DJANGO_SETTINGS_MODULE", "robotarium_portal.settings")

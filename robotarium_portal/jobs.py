@@ -1,36 +1,41 @@
 """The jobs the workers run (django-q2 tasks): verify a submission, run the oldest queued experiment.
 
-Each job claims its experiment with a conditional UPDATE (state X -> Y where the state is still X), so a
-job handed out twice, or two workers, never verify or run one experiment twice. The experiment table is
-the truth; the broker's queue only says that there is work (reconcile() rebuilds it from the table)."""
+Each job changes its experiment only through the model's transitions (Experiment.claim_verification,
+claim_next_run, queue, reject, fail, complete): conditional UPDATEs, so a job handed out twice, or two
+workers, never verify or run one experiment twice, and an outcome is written only while its worker still
+holds the experiment. The experiment table is the truth; the broker's queue only says that there is work
+(reconcile() rebuilds it from the table). Each job's command runs in a box of its own (jobbox)."""
 import functools
 import json
 import logging
 import os
 import re
 import shutil
+import sys
 import time
 from pathlib import Path
 
 from django.conf import settings
 from django.db import transaction
 from django.db.models import F, Q
-from django.utils import timezone
 from django_q.models import OrmQ
 from django_q.tasks import async_task
 
 from robotarium_core import run_record
+from robotarium_core.config import TestbedConfig
 from robotarium_portal import jobbox, mail
 from robotarium_portal.database import database_retry
 from robotarium_portal.files import copy_files
 from robotarium_portal.jobbox import stop_group
-from robotarium_portal.models import Experiment, Worker, without_nul
+from robotarium_portal.models import Experiment, Worker
 
 logger = logging.getLogger("robotarium_portal")
 VERIFY_CLUSTER, RUN_CLUSTER = "verify", "runs"
 # ./robotarium verify's exit codes (its fixed interface)
 VERIFY_ACCEPTED, VERIFY_TESTBED, VERIFY_REJECTED = 0, 4, 6
-VERIFY_TIMEOUT = 540      # s; under the verify cluster's job timeout (settings.Q_CLUSTER)
+SERVICE_STOPPED = "The service stopped"   # the cause a requeue names when a worker was stopped properly
+TIME_RULE = "time"   # the portal's own rule beside the verifier's: its wall-time limit (verification_limit)
+BUSY_OWNER_PAUSE = 1.0   # s before a verification waiting for its owner's other one goes back in the queue
 RESULTS_GRACE = 600       # s after the time limit for the start, the end and the results' video
 STEP_LINE = re.compile(rb"\[robotarium\] step (\d+)")
 # What a user's script must not see of the service (the environment is passed on to its run).
@@ -41,12 +46,11 @@ SECRET_VARIABLES = ("ROBOTARIUM_SMTP_PASSWORD", "ROBOTARIUM_SMTP_USER", "DJANGO_
 @functools.cache
 def time_limit():
     """The testbed configuration's time limit (900 s: the Robotarium's 15-minute slot); read once."""
-    from robotarium_core.config import TestbedConfig
     return TestbedConfig.load().time_limit
 
 
 def enqueue_verification(experiment):
-    async_task("robotarium_portal.tasks.verify_experiment", experiment.pk, cluster=VERIFY_CLUSTER,
+    async_task("robotarium_portal.jobs.verify_experiment", experiment.pk, cluster=VERIFY_CLUSTER,
                task_name="verify #%d" % experiment.pk)
 
 
@@ -57,7 +61,7 @@ def me():
 
 
 def enqueue_run():
-    async_task("robotarium_portal.tasks.run_next", cluster=RUN_CLUSTER, task_name="run the next experiment")
+    async_task("robotarium_portal.jobs.run_next", cluster=RUN_CLUSTER, task_name="run the next experiment")
 
 
 def reconcile():
@@ -66,12 +70,9 @@ def reconcile():
     worker (on another machine) holds stays its own."""
     OrmQ.objects.filter(key__in=[VERIFY_CLUSTER, RUN_CLUSTER]).delete()
     unheld = Q(worker__isnull=True) | ~Q(worker__state=Worker.ALIVE)
-    for experiment in Experiment.objects.filter(unheld, state=Experiment.RUNNING):
-        experiment.state, experiment.worker = Experiment.QUEUED, None
-        experiment.detail = ("The service stopped during run %d (at %s); the experiment runs again from the start."
-                             % (experiment.attempts, timezone.now().strftime("%Y-%m-%d %H:%M UTC")))
-        experiment.save(update_fields=["state", "detail", "worker"])
-    Experiment.objects.filter(unheld, state=Experiment.VERIFYING).update(state=Experiment.SUBMITTED, worker=None)
+    for experiment in Experiment.objects.filter(unheld, state__in=(Experiment.RUNNING, Experiment.VERIFYING)):
+        experiment.requeue(experiment.worker_id, SERVICE_STOPPED,
+                           experiment.worker.last_heartbeat if experiment.worker else None)   # when it stopped
     for experiment in Experiment.objects.filter(state=Experiment.SUBMITTED).order_by("submitted_at", "pk"):
         enqueue_verification(experiment)
     for _ in range(Experiment.objects.filter(state=Experiment.QUEUED).count()):
@@ -144,12 +145,19 @@ def _tail(path, lines=15):
 
 
 def rejection_text(verdict):
-    """The rules the verifier found broken, one per line: the rule, the count against its limit, the first step."""
+    """The rules the verifier found broken, one per line: the rule, its count against its limit and the first
+    step where it has them, then what it says ("collisions: 168 times, limit 100 (first at step 37). ...")."""
     lines = []
     for rule in verdict.get("rules") or []:
-        where = " (first at step %s)" % rule["first_step"] if rule.get("first_step") is not None else ""
-        count = " %s times, limit %s" % (rule.get("count"), rule.get("limit")) if rule.get("limit") is not None else ""
-        lines.append("%s:%s%s. %s" % (rule.get("rule"), count, where, rule.get("message") or ""))
+        line = "%s:" % rule.get("rule")
+        if rule.get("limit") is not None:
+            line += " %s times, limit %s" % (rule.get("count"), rule.get("limit"))
+        if rule.get("first_step") is not None:
+            line += " (first at step %s)" % rule["first_step"]
+        message = " ".join((rule.get("message") or "").split())
+        if message:
+            line += (". " if line.endswith(")") or rule.get("limit") is not None else " ") + message
+        lines.append(line)
     return "\n".join(lines) or (verdict.get("report") or "rejected")
 
 
@@ -168,10 +176,24 @@ def failing_truthfully(job):
 
 def verify_experiment(pk):
     """./robotarium verify on a copy of the experiment's files: accepted -> queued, else rejected or failed."""
-    if not database_retry(lambda: Experiment.objects.filter(pk=pk, state=Experiment.SUBMITTED).update(
-            state=Experiment.VERIFYING, worker=me()), "claiming a verification"):
+    experiment = Experiment.objects.filter(pk=pk).first()
+    if experiment is None or not database_retry(lambda: experiment.claim_verification(me()), "claiming a verification"):
+        if experiment is not None and Experiment.objects.filter(pk=pk, state=Experiment.SUBMITTED).exists():
+            # Its owner's other submission is being verified in another slot: one slot a person at a time, so
+            # the others' submissions go first; this one goes back in the queue.
+            time.sleep(BUSY_OWNER_PAUSE)
+            enqueue_verification(experiment)
+            return "experiment %d waits for its owner's other verification" % pk
         return "experiment %d is not waiting for verification" % pk
-    return _working_on("verify #%d" % pk, lambda: _verify(Experiment.objects.get(pk=pk)))
+    return _working_on("verify #%d" % pk, lambda: _verify(experiment))
+
+
+def verification_limit(experiment):
+    """(s a verification may take, the sentence that says why): the verifier's 1.5 x the declared duration,
+    plus the start-up allowance."""
+    limit = 1.5 * experiment.estimated_duration + settings.VERIFY_STARTUP
+    return limit, ("%d s: 1.5 x its declared duration of %d s, plus %d s to start"
+                   % (limit, experiment.estimated_duration, settings.VERIFY_STARTUP))
 
 
 def _working_on(job, work):
@@ -201,8 +223,8 @@ def _verify(experiment):
                "--robots", str(experiment.number_of_robots), "--duration", str(experiment.estimated_duration),
                "--json", str(verdict_path), "--no-record", "--results-dir", str(experiment.folder / "verification")]
     began = time.monotonic()
-    code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_VERIFY_DOMAIN"), output, VERIFY_TIMEOUT,
-                       VERIFY_CLUSTER)
+    limit, rule = verification_limit(experiment)
+    code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_VERIFY_DOMAIN"), output, limit, VERIFY_CLUSTER)
     experiment.timings = {"verify_command": round(time.monotonic() - began, 3)}
     shutil.rmtree(work, ignore_errors=True)
     if stopping():
@@ -212,14 +234,18 @@ def _verify(experiment):
     except (OSError, ValueError):
         verdict = None
     if code == VERIFY_ACCEPTED and verdict and verdict.get("verdict") == "accepted":
-        return _queue(experiment, verdict, "")
+        return _queue(experiment, verdict)
     if code == VERIFY_REJECTED and verdict:
         return _finish(experiment, Experiment.REJECTED, "Rejected by the verification:\n" + rejection_text(verdict)
-                       + box_notes(output),
+                       + box_notes(output), verification=verdict, timings=experiment.timings)
+    if code is None:   # it ran past its limit: rejected, the rule named
+        verdict = {"verdict": "rejected", "rules": [{
+            "rule": TIME_RULE, "count": None, "limit": None, "first_step": None,
+            "message": "the verification did not end within its limit of %s; a script that spins or never ends "
+                       "is rejected (declare a longer duration if it needs one)" % rule}]}
+        return _finish(experiment, Experiment.REJECTED, "Rejected by the verification:\n" + rejection_text(verdict),
                        verification=verdict, timings=experiment.timings)
-    if code is None:
-        why = "the verification did not end within %d s" % VERIFY_TIMEOUT
-    elif code == VERIFY_TESTBED:
+    if code == VERIFY_TESTBED:
         why = "the verification's testbed had a problem (exit code 4)"
     else:
         why = "the verification could not run (exit code %s)" % code
@@ -227,13 +253,10 @@ def _verify(experiment):
                    % (why, box_notes(output), _tail(output)), verification=verdict, timings=experiment.timings)
 
 
-def _queue(experiment, verdict, detail):
+def _queue(experiment, verdict):
     def queue():
         with transaction.atomic():
-            if not Experiment.objects.filter(pk=experiment.pk, state=Experiment.VERIFYING, worker=me()).update(
-                    state=Experiment.QUEUED, queued_at=timezone.now(), verification=without_nul(verdict),
-                    detail=without_nul(detail),
-                    timings=experiment.timings, worker=None):
+            if not experiment.queue(me(), verdict, experiment.timings):
                 return False
             enqueue_run()   # in the same transaction: queued and its job, or neither
             return True
@@ -242,52 +265,44 @@ def _queue(experiment, verdict, detail):
     return "experiment %d queued" % experiment.pk
 
 
+TRANSITIONS = {Experiment.REJECTED: Experiment.reject, Experiment.FAILED: Experiment.fail,
+               Experiment.COMPLETED: Experiment.complete}
+
+
 def _finish(experiment, state, detail, **fields):
-    """The job's outcome, unless the experiment was decided elsewhere meanwhile (an administrator cancelled
-    it, or this worker was found lost): that stays, and a cancelled run keeps what it recorded."""
+    """The job's outcome (rejected, failed, completed) and its mail, unless the experiment was decided elsewhere
+    meanwhile (an administrator cancelled it, or this worker was found lost): that stays, and a cancelled run
+    keeps what it recorded."""
     def write():
-        with transaction.atomic():
-            current = Experiment.objects.select_for_update().get(pk=experiment.pk)
-            if current.state not in (Experiment.VERIFYING, Experiment.RUNNING) or current.worker_id != me():
-                if current.state == Experiment.CANCELLED and fields.get("results"):
-                    Experiment.objects.filter(pk=current.pk).update(
-                        **{k: v for k, v in fields.items() if k in ("results", "run_outcome", "timings")})
-                return False
-            current.state, current.detail, current.finished_at, current.worker = state, detail, timezone.now(), None
-            for name, value in fields.items():
-                setattr(current, name, value)
-            current.save()
+        if TRANSITIONS[state](experiment, me(), detail, **fields):
             return True
+        if fields.get("results"):
+            experiment.keep_results(**{k: v for k, v in fields.items() if k in ("results", "run_outcome", "timings")})
+        return False
     if not database_retry(write, "writing the outcome of experiment %d" % experiment.pk):
         return "experiment %d was decided elsewhere meanwhile (cancelled, or its worker found lost)" % experiment.pk
-    experiment.refresh_from_db()
-    try:
-        if state == Experiment.COMPLETED:
-            mail.send_completed(experiment)
-        else:
-            mail.send_issues_found(experiment)
-    except Exception as error:   # noqa: BLE001 - the mail server's trouble; the page tells the truth anyway
-        logger.error("could not mail %s about experiment %d: %s", experiment.owner.email, experiment.pk, error)
+    if state == Experiment.COMPLETED:
+        mail.try_sending(mail.send_completed, experiment)
+    else:
+        mail.try_sending(mail.send_issues_found, experiment)
     return "experiment %d %s" % (experiment.pk, state)
 
 
 def run_next():
     """Claim the oldest queued experiment (first come, first served) and run it."""
-    def claim():
-        while True:
-            experiment = Experiment.objects.filter(state=Experiment.QUEUED).order_by("queued_at", "pk").first()
-            if experiment is None or Experiment.objects.filter(pk=experiment.pk, state=Experiment.QUEUED).update(
-                    state=Experiment.RUNNING, started_at=timezone.now(), attempts=F("attempts") + 1, worker=me()):
-                return experiment   # else another worker took it first: try the next
-    experiment = database_retry(claim, "claiming a run")
+    experiment = database_retry(lambda: Experiment.claim_next_run(me()), "claiming a run")
     if experiment is None:
         return "the queue is empty"
-    experiment.refresh_from_db()
     return _working_on("run #%d" % experiment.pk, lambda: run_experiment(experiment))
 
 
 def run_folder(experiment, attempt=None):
     return experiment.folder / ("run-%d" % (attempt or experiment.attempts))
+
+
+def live_file(experiment):
+    """The running experiment's poses and drawing as they come (live_feed.py writes it, the page streams it)."""
+    return run_folder(experiment) / "live.jsonl"
 
 
 def current_step(experiment):
@@ -302,7 +317,7 @@ def current_step(experiment):
     return int(steps[-1]) if steps else None
 
 
-# Set (to its fleet file) for the run slot of a worker that moves real robots (robotarium_portal.workers --fleet).
+# Set (to its fleet file) for the run slot of a worker that moves real robots (./robotarium worker --fleet).
 FLEET_VARIABLE = "ROBOTARIUM_PORTAL_FLEET"
 
 
@@ -329,12 +344,15 @@ def run_experiment(experiment):
     limit = time_limit()
     fleet = os.environ.get(FLEET_VARIABLE)
     if fleet:   # a worker of robots (./robotarium worker --fleet): its hardware arena's testbed, on its run domain
-        command = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--no-local-testbed", "--no-verdict",
-                   "--time-limit", "%g" % limit, "--results-dir", str(results), experiment.main_file]
+        run = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--no-local-testbed", "--no-verdict",
+               "--time-limit", "%g" % limit, "--results-dir", str(results), experiment.main_file]
     else:
-        command = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--hardware", "--no-verdict",
-                   "--time-limit", "%g" % limit, "--bags-dir", str(results), "--results-dir", str(results),
-                   experiment.main_file]
+        run = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--hardware", "--no-verdict",
+               "--time-limit", "%g" % limit, "--bags-dir", str(results), "--results-dir", str(results),
+               experiment.main_file]
+    # The live view's feed beside the run, on its testbed (live_feed.py); the job's end ends it.
+    command = ["sh", "-c", '"$0" -m robotarium_portal.live_feed "$1" & shift; exec "$@"', sys.executable,
+               str(live_file(experiment)), *run]
     began = time.monotonic()
     code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_RUN_DOMAIN"), root / "output.txt",
                        limit + RESULTS_GRACE, RUN_CLUSTER, own_network=not fleet)
