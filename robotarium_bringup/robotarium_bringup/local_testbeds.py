@@ -135,6 +135,12 @@ def register(testbed, owner_command):
         "started": time.time(),
         "log_dir": os.path.abspath(testbed.log_dir),
         "bags_dir": os.path.abspath(testbed.bags_dir) if testbed.bags_dir else "",
+        # what the testbed judges by: the checkout it runs from, its configuration file ("": the packaged
+        # one), hardware-like or not, a fleet (./robotarium verify takes a warm testbed only where they match)
+        "root": testbed.root,
+        "config_file": os.path.abspath(testbed.config_file) if testbed.config_file else "",
+        "hardware": bool(testbed.hardware),
+        "fleet_file": testbed.fleet_file or "",
         "nodes": {name: process(p.pid) or {"pid": p.pid, "start": None} for name, (p, _) in testbed.processes.items()},
     }
     path = os.path.join(REGISTRY, "%s_%s_%d_%d.json" % (

@@ -142,6 +142,7 @@ class LocalTestbed:
         self._stop_deadline = None   # set by begin_stop()
         self.ns = ns or namespace_from_environment()
         self.config_file = config_file
+        self.root = repository_root()   # the checkout whose nodes these are
         self.log_dir = log_dir   # None: log/testbed/<namespace>_<domain>_<pid>/, chosen at start
         self.hardware = hardware   # every experiment hardware-like (the simulator's `hardware` parameter)
         self.fleet_file = os.path.abspath(fleet_file) if fleet_file else None

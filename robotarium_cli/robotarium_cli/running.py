@@ -64,6 +64,8 @@ class RunRequest:
     video: bool = True
     local_testbed: bool = True   # start a testbed here when none answers (False: wait for one)
     own_testbed: bool = False    # start one here without looking (verify: a namespace of its own)
+    warm_testbed: bool = False   # one runs in `namespace`, known from this machine's registry (verify's warm
+                                 # verification testbed): use it, never look for or start one
     results_dir: object = None   # None: <repository>/results
     namespace: object = None     # the testbed's namespace; None: $ROBOTARIUM_NAMESPACE or /robotarium
     echo: bool = True            # show what the script prints and where the results are (log.txt has the prints)
@@ -301,6 +303,8 @@ class Run:
             if not interrupted:
                 self.testbed = LocalTestbed(record=request.record, ns=self.ns, bags_dir=request.bags_dir,
                                             config_file=config_file, looked=True).start()
+        elif request.warm_testbed:
+            pass   # the script's client finds it (and says so if it does not answer)
         elif not request.local_testbed:   # a testbed is known to be up (or coming up): wait for it, never start one
             if not testbed_answers(self.ns, timeout=60.0):
                 say("no testbed answers in %s on ROS_DOMAIN_ID %s (--no-local-testbed forbids starting one); "
@@ -594,23 +598,92 @@ def _judge(request, run):
     return dict(judged.document(), text=text)
 
 
+# The namespace of a warm verification testbed (./robotarium up --verification): verify, on this machine
+# and ROS_DOMAIN_ID, runs its script there when it is free instead of starting a testbed of its own.
+VERIFY_NAMESPACE = "/robotarium_verify"
+
+
+def warm_verification_testbed(entries, domain, discovery_range, root, config_file, record, bags_dir, alive):
+    """The entry, of this machine's registry `entries` (robotarium_bringup.local_testbeds.registered), of a
+    warm verification testbed that judges as a testbed of verify's own would: in VERIFY_NAMESPACE on
+    `domain` and `discovery_range`, run from the checkout `root` with the configuration file `config_file`
+    ("": the packaged one), neither hardware-like nor a fleet, its owner, simulator and safety node alive
+    (alive(process)), and a recorder into `bags_dir` where the verification records, none where it does
+    not. None when none is."""
+    wanted = {"simulator", "safety"} | ({"recorder"} if record else set())
+    for entry in entries:
+        nodes = entry.get("nodes", {})
+        if (entry.get("namespace") == VERIFY_NAMESPACE and entry.get("domain") == domain
+                and entry.get("discovery_range", "") == discovery_range and entry.get("root") == root
+                and entry.get("config_file") == config_file and entry.get("hardware") is False
+                and not entry.get("fleet_file") and set(nodes) == wanted
+                and (not record or (entry.get("bags_dir") or os.path.join(root, "bags")) == bags_dir)
+                and alive(entry.get("owner")) and all(alive(p) for p in nodes.values())):
+            return entry
+    return None
+
+
+def find_warm_verification_testbed(config_file, record, bags_dir):
+    """warm_verification_testbed of this machine, for a verification with these settings."""
+    root = repository_root()
+    return warm_verification_testbed(
+        [entry for _, entry in local_testbeds.registered()], local_testbeds.domain_id(),
+        os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", ""), root,
+        os.path.abspath(config_file) if config_file else "", record,
+        os.path.abspath(bags_dir or os.path.join(root, "bags")), local_testbeds.running)
+
+
+def warm_testbed_failure(code, run):
+    """Why a verification on the warm testbed gave no verdict through the testbed's doing (it was busy,
+    lost, stopped or incomplete), or None: the run judges the script (or fails as one on verify's own
+    testbed would). `code` and `run`: run_script's exit code and run_record.RunRecord."""
+    if run is None:
+        return None
+    if run.outcome == outcomes.NAMES[outcomes.TESTBED_BUSY]:
+        return "is busy"
+    if run.outcome in ("testbed_lost", "unfinished", "testbed_incomplete") or (
+            run.outcome == "interrupted" and 0 < code < 128):   # ended by the testbed, not by a signal to verify
+        return "failed (%s)" % (run.detail or run.outcome)
+    return None
+
+
 def verify_script(script, script_args=(), config_file=None, robots=None, duration=None, rps_api=None, record=True,
-                  bags_dir=None, results_dir=None, echo=True):
-    """Judge `script` as the Robotarium's verification does: the static rules, then a lockstep run on
-    a testbed of its own (a namespace no other testbed uses) with the safety node auditing. Returns
-    a verification.Verdict; raises verification.NoVerdict where the run could not judge it."""
+                  bags_dir=None, results_dir=None, echo=True, video=False):
+    """Judge `script` as the Robotarium's verification does: the static rules, then a lockstep run with
+    the safety node auditing, on the warm verification testbed where one matches and is free
+    (find_warm_verification_testbed), else on a testbed of its own (a namespace no other testbed uses).
+    Returns a verification.Verdict; raises verification.NoVerdict where the run could not judge it."""
     config = TestbedConfig.load(config_file) if config_file else DEFAULT
     rules = verification.static_rules(script, config)
     if rules:
         return verification.Verdict(rules, None, "", None, config, robots, duration)
-    if echo:
-        say("verifying %s as the Robotarium does: lockstep, safety node auditing (the script's own commands go "
-            "through and every collision counts)" % shown(script))
     options = session.RunOptions(real_time=False, config_file=config_file, audit=True,
                                  rps_api=rps_api or session.rps_api_from_environment())
-    code, run, run_dir = run_script(RunRequest(
-        script, tuple(script_args), options, record=record, bags_dir=bags_dir, video=False, own_testbed=True,
-        results_dir=results_dir, namespace="/robotarium_verify_%d" % os.getpid(), echo=echo))
+
+    def request(options, **testbed):
+        return RunRequest(script, tuple(script_args), options, record=record, bags_dir=bags_dir, video=video,
+                          results_dir=results_dir, echo=echo, **testbed)
+    how = "lockstep, safety node auditing (the script's own commands go through and every collision counts)"
+    warm = find_warm_verification_testbed(config_file, record, bags_dir)
+    if warm is not None:
+        if echo:
+            say("verifying %s as the Robotarium does on the warm verification testbed (%s, pid %d): %s"
+                % (shown(script), VERIFY_NAMESPACE, warm["owner"]["pid"], how))
+        # busy: a testbed of its own at once, rather than waiting in line
+        code, run, run_dir = run_script(request(dataclasses.replace(options, wait=False), warm_testbed=True,
+                                                namespace=VERIFY_NAMESPACE))
+        failure = warm_testbed_failure(code, run)
+        if failure is None:
+            return _verdict(code, run, run_dir, config, robots, duration)
+        say("the warm verification testbed %s: verifying %s on a testbed of its own" % (failure, shown(script)))
+    elif echo:
+        say("verifying %s as the Robotarium does: %s" % (shown(script), how))
+    code, run, run_dir = run_script(request(options, own_testbed=True, namespace="/robotarium_verify_%d" % os.getpid()))
+    return _verdict(code, run, run_dir, config, robots, duration)
+
+
+def _verdict(code, run, run_dir, config, robots, duration):
+    """verify_script's verdict on a verification run (run_script's exit code, record and folder)."""
     if run is None:
         raise verification.NoVerdict("the run did not start (exit code %d)" % code,
                                      code if code != outcomes.USAGE_ERROR else outcomes.TESTBED_PROBLEM)

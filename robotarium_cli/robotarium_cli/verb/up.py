@@ -5,7 +5,7 @@ import time
 import robotarium_recording as recording
 from robotarium_bringup.testbed import LocalTestbed, running_testbed
 from robotarium_cli.console import Interruption, say
-from robotarium_cli.running import PROBE_WAIT, discovery_is_local
+from robotarium_cli.running import PROBE_WAIT, VERIFY_NAMESPACE, discovery_is_local
 from robotarium_core.topics import namespace_from_environment as namespace
 
 HELP = "start the testbed nodes; they run as long as this command does (Ctrl-C stops)"
@@ -22,6 +22,10 @@ def add_arguments(parser):
                         help="move your own robots: the hardware arena in the simulator's place, with the robots, "
                              "topics, tracking and calibration of this fleet file (./robotarium fleet writes one for a "
                              "simulated fleet; docs/own-robots.md)")
+    parser.add_argument("--verification", action="store_true",
+                        help="a warm verification testbed, in namespace %s: ./robotarium verify on this machine and "
+                             "ROS_DOMAIN_ID runs its scripts here when it is free and its settings match (--config, "
+                             "--no-record, --bags-dir) instead of starting a testbed each time" % VERIFY_NAMESPACE)
     parser.add_argument("--view", action="store_true",
                         help="also serve the testbed to Foxglove, as ./robotarium view does (--view-host, --view-port)")
     recording.add_view_arguments(parser, prefix="view-")
@@ -31,7 +35,10 @@ def main(args):
     from robotarium_bringup import local_testbeds
     from robotarium_core import claim
     from robotarium_core.config import DEFAULT
-    ns = namespace()
+    ns = VERIFY_NAMESPACE if args.verification else namespace()
+    if args.verification and (args.hardware or args.fleet):
+        say("error: --verification judges scripts as the Robotarium's simulator does: not with --hardware or --fleet")
+        return 2
     domain = os.environ.get("ROS_DOMAIN_ID", "0")
     # One testbed per namespace: name the one that runs. Where discovery reaches this machine only,
     # the process table knows it at once (a look on the domain backs it up for a claim_wait); else
@@ -60,12 +67,13 @@ def main(args):
             say("the Foxglove view could not start (its message is above); no testbed was started")
             return 1
     interruption = Interruption()
-    testbed = LocalTestbed(record=not args.no_record, quiet=False, bags_dir=args.bags_dir,
+    testbed = LocalTestbed(ns=ns, record=not args.no_record, quiet=False, bags_dir=args.bags_dir,
                            config_file=args.config, hardware=args.hardware, looked=True, fleet_file=args.fleet).start()
     code = 0
     try:
         arena = "hardware arena of fleet %s (%d robots, %s)" % (fleet.name, len(fleet.robots), fleet.tracking) \
-            if args.fleet else "simulator" + (" hardware-like" if args.hardware else "")
+            if args.fleet else "simulator" + (" hardware-like" if args.hardware else "") + (
+                " for ./robotarium verify" if args.verification else "")
         say("testbed up in namespace %s on ROS_DOMAIN_ID %s (%s, safety%s%s). It runs as long as this "
             "command does: Ctrl-C (or SIGTERM, SIGHUP) stops it." % (
                 ns, os.environ.get("ROS_DOMAIN_ID", "0"), arena,
