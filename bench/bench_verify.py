@@ -10,6 +10,16 @@ leave the arena (issue 36: no count a student reads is a guess). For each script
               verdict (run.json: verdict).
 
 Counts are collision / boundary iterations. Run: ./robotarium bench verify [SCRIPT[:NAME=VALUE] ...]
+
+--wall: a verdict in seconds (issue 40, goal 2: `verify` of a 300-step script <= 3 s). The wall time from
+Enter to the prompt of `./robotarium verify` (through ./robotarium, as a user types it: the environment
+check included) of bench/wall_script.py (3 robots, 300 lockstep steps), median of --repeat runs,
+interleaved so every row sees the same load: the Robotarium simulator 0.0.0 printing its debug report
+(.venv-reference, one process); verify on a testbed of its own, recorded (the default) and --no-record
+(the portal's); the same with a warm verification testbed (./robotarium up --verification, and
+--no-record) running; with --baseline CHECKOUT, that checkout's ./robotarium verify too (e.g. a worktree
+of main before a change), and each row's ratio to the baseline's row of the same flags.
+Run: ./robotarium bench verify --wall [--repeat 5] [--baseline CHECKOUT]
 """
 import json
 import os
@@ -35,7 +45,93 @@ def cli(env, *args):
                           text=True, timeout=900)
 
 
+GOAL = 3.0   # s, issue 40 goal 2: verify of a 300-step script
+
+
+def wall(argv):
+    """--wall: the table and the goal's verdict (see the module's doc)."""
+    import argparse
+    import shutil
+    import statistics
+
+    from bench_wall_to_prompt import SCRIPT, Up, timed
+
+    from devtools.reference import REFERENCE_PYTHON, _reference_env
+    parser = argparse.ArgumentParser(prog="bench verify --wall")
+    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--baseline", metavar="CHECKOUT")
+    args = parser.parse_args(argv)
+    print("a verdict in seconds, %s, %s, %d cores, Python %s, load average %.2f %.2f %.2f" % (
+        time.strftime("%Y-%m-%d %H:%M"), platform.machine(), os.cpu_count(), platform.python_version(),
+        *os.getloadavg()), flush=True)
+    robotarium = os.path.join(REPO, "robotarium")
+    checkouts = [robotarium] + ([os.path.join(os.path.abspath(args.baseline), "robotarium")] if args.baseline else [])
+    for each in checkouts:
+        subprocess.run([each, "setup"], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    work = tempfile.mkdtemp(prefix="bench-verify-")
+    env = {k: v for k, v in os.environ.items() if k not in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOCALHOST_ONLY")}
+
+    def on(domain, **more):
+        return dict(env, ROS_DOMAIN_ID=str(domain), **more)
+    own, warm, warm_unrecorded = (on(unique_domain_id()) for _ in range(3))
+    ups = []
+    # (row, command, environment, the baseline's row of the same flags)
+    plans = []
+    for name, command_of in (("", robotarium), ("baseline ", checkouts[-1] if args.baseline else None)):
+        if command_of is None:
+            continue
+        verify = [command_of, "verify", "--bags-dir", os.path.join(work, "bags"), "--results-dir",
+                  os.path.join(work, "results")]
+        plans += [(name + "own", verify + [SCRIPT], own), (name + "own --no-record", verify + ["--no-record", SCRIPT], own)]
+    try:
+        ups.append(Up(robotarium, warm, os.path.join(work, "bags"), ["--verification"]))
+        ups.append(Up(robotarium, warm_unrecorded, os.path.join(work, "bags"), ["--verification", "--no-record"]))
+        verify = [robotarium, "verify", "--bags-dir", os.path.join(work, "bags"), "--results-dir",
+                  os.path.join(work, "results")]
+        plans += [("warm", verify + [SCRIPT], warm), ("warm --no-record", verify + ["--no-record", SCRIPT], warm_unrecorded)]
+        rows = {"peer": []}
+        rows.update({name: [] for name, _, _ in plans})
+        for _ in range(args.repeat):   # interleaved: every row sees the same load
+            rows["peer"].append(timed([REFERENCE_PYTHON, SCRIPT], _reference_env(), tempfile.gettempdir()))
+            for name, command, row_env in plans:
+                rows[name].append(timed(command, row_env, work))
+    finally:
+        for up in ups:
+            up.stop()
+        shutil.rmtree(work, ignore_errors=True)
+    labels = {"peer": "Robotarium simulator 0.0.0 (one process, its debug report)",
+              "own": "`./robotarium verify`, a testbed of its own, recorded (the default)",
+              "own --no-record": "same, `--no-record` (the portal's)",
+              "warm": "`./robotarium verify`, `up --verification` running, recorded",
+              "warm --no-record": "same, `--no-record`, `up --verification --no-record` running"}
+    same_flags = {"own": "baseline own", "own --no-record": "baseline own --no-record",
+                  "warm": "baseline own", "warm --no-record": "baseline own --no-record"}
+    median = {name: statistics.median(r[0] for r in runs) for name, runs in rows.items()}
+    print("3 robots, 300 lockstep steps (bench/wall_script.py); median of %d runs, interleaved; load average after: "
+          "%.2f %.2f %.2f" % (args.repeat, *os.getloadavg()))
+    print("| | wall (s) | CPU (s) | runs (s) |%s" % (" baseline, same flags: wall (s) | ratio |" if args.baseline else ""))
+    print("|---|---|---|---|%s" % ("---|---|" if args.baseline else ""))
+    for name, runs in rows.items():
+        base = name.replace("baseline ", "")
+        label = labels[base] + (" (baseline checkout)" if name != base else "")
+        paired = same_flags.get(name) if args.baseline else None
+        print("| %s | %.2f | %.2f | %s |%s" % (
+            label, median[name], statistics.median(r[4] for r in runs), " ".join("%.2f" % r[0] for r in runs),
+            " %.2f | %.2f |" % (median[paired], median[name] / median[paired]) if paired else
+            (" | |" if args.baseline else "")))
+    print("CPU: user + system time of the command's processes (the script, a testbed it started; not that of "
+          "`up --verification`'s testbed)")
+    goals = {"warm": "verify, up --verification running, recorded", "warm --no-record": "the same, --no-record",
+             "own": "verify, a testbed of its own, recorded", "own --no-record": "the same, --no-record"}
+    for name, label in goals.items():
+        print("goal: %s <= %.1f s: %.2f s (%.1f x the peer's %.2f s) -> %s" % (
+            label, GOAL, median[name], median[name] / median["peer"], median["peer"],
+            "met" if median[name] <= GOAL else "not met"))
+
+
 def main(argv):
+    if argv[:1] == ["--wall"]:
+        return wall(argv[1:])
     cases = argv or CASES
     env = node_env(unique_domain_id())
     print("verdicts, %s, %s, %d cores, load average %.1f" % (time.strftime("%Y-%m-%d %H:%M"), platform.machine(),

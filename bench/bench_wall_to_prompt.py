@@ -65,8 +65,8 @@ def results_of(output):
 class Up:
     """./robotarium up (of the checkout `robotarium` names) on the domain, until stop()."""
 
-    def __init__(self, robotarium, env, bags):
-        self.process = subprocess.Popen([robotarium, "up", "--bags-dir", bags], env=env, stdout=subprocess.DEVNULL,
+    def __init__(self, robotarium, env, bags, flags=()):
+        self.process = subprocess.Popen([robotarium, "up", "--bags-dir", bags, *flags], env=env, stdout=subprocess.DEVNULL,
                                         stderr=subprocess.PIPE, text=True, start_new_session=True)
         for line in self.process.stderr:
             if "testbed up" in line:

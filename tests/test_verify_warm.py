@@ -220,3 +220,20 @@ def test_a_warm_testbed_that_dies_mid_verification_costs_a_second_run_not_the_ve
     code, document, out = finished(process, tmp_path)
     assert "the warm verification testbed failed" in out and "on a testbed of its own" in out, out
     assert code == outcomes.VERIFY_ACCEPTED and document["iterations"] == 2000, out
+
+
+@pytest.mark.e2e   # ./robotarium verify, whole
+def test_verify_makes_a_video_only_when_asked(env, tmp_path):
+    script = os.path.join(DATA, "two_robots_to_goals.py")
+    refused = subprocess.run([sys.executable, "-m", "robotarium_cli", "verify", "--video", "--no-record", script],
+                             env=env, cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert refused.returncode == outcomes.USAGE_ERROR and "not with --no-record" in refused.stderr
+    for flags in ([], ["--video"]):
+        bags = tmp_path / ("bags%d" % len(flags))
+        completed = subprocess.run([sys.executable, "-m", "robotarium_cli", "verify", "--bags-dir", str(bags),
+                                    "--results-dir", str(tmp_path / "results"), *flags, script],
+                                   env=env, cwd=REPO, capture_output=True, text=True, timeout=300)
+        assert completed.returncode == outcomes.VERIFY_ACCEPTED, completed.stdout + completed.stderr
+        (folder,) = os.listdir(bags)
+        files = os.listdir(bags / folder)
+        assert "report.txt" in files and ("run.mp4" in files) == bool(flags), files
