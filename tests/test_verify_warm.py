@@ -237,3 +237,10 @@ def test_verify_makes_a_video_only_when_asked(env, tmp_path):
         (folder,) = os.listdir(bags)
         files = os.listdir(bags / folder)
         assert "report.txt" in files and ("run.mp4" in files) == bool(flags), files
+
+
+def test_a_warm_verification_testbed_is_neither_hardware_like_nor_a_fleet(env):
+    for flag in (["--hardware"], ["--fleet", os.path.join(REPO, "tests", "data", "missing_fleet.yaml")]):
+        completed = subprocess.run([sys.executable, "-m", "robotarium_cli", "up", "--verification", *flag], env=env,
+                                   cwd=REPO, capture_output=True, text=True, timeout=60)
+        assert completed.returncode == 2 and "not with --hardware or --fleet" in completed.stderr, completed.stderr
