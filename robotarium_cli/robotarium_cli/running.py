@@ -409,7 +409,7 @@ class Run:
             return record.exit_code, record, None
         saved = [p for p, mtime in snapshot_files(pending.cwd).items()
                  if pending.before.get(p) != mtime and mtime / 1e9 >= pending.started - 1]
-        run_dir, bag_dir, stopped = self._run_folder(record)
+        run_dir, bag_dir, stopped, not_here = self._run_folder(record)
         if (self.request.judge and record.safety_interventions
                 and record.outcome == outcomes.NAMES[outcomes.COMPLETED]):
             record.verdict = _judge(self.request, record)
@@ -418,7 +418,7 @@ class Run:
         if bag_dir:
             self._results(record, run_dir, bag_dir, stopped, died)
         else:
-            write_unrecorded_results(run_dir, record, record.last.report if record.last else "")
+            write_unrecorded_results(run_dir, record, record.last.report if record.last else "", not_here)
         shutil.rmtree(self.work, ignore_errors=True)   # last: a run whose folder is finished is no longer pending
         if not self.quiet:
             print_summary(run_dir, record, pending.cwd)
@@ -452,10 +452,12 @@ class Run:
         return record, died
 
     def _run_folder(self, record):
-        """(run folder, its bag's folder or "", "recording stopped at step k: why" or ""): the bag's
-        folder where the recorder kept the run here, else results/<run id>/."""
+        """(run folder, its bag's folder or "", "recording stopped at step k: why" or "", why the results
+        are not made here or ""): the bag's folder where the recorder kept the run here, else
+        results/<run id>/."""
         pending, last = self.pending, record.last
         run_dir = last.recording if last else ""
+        announced = bool(run_dir)
         if record.run_id and not run_dir:
             # A very short run can end before the recorder's announcement of its folder arrived.
             guess = os.path.join(pending.bags_dir or os.path.join(repository_root(), "bags"), record.run_id)
@@ -467,7 +469,9 @@ class Run:
                     say("asking the testbed's recorder where run %s is recorded (up to %.0f s)"
                         % (record.run_id, RECORDING_LOOKUP_WAIT))
                 run_dir = announced_recording(record.run_id, self.ns)
+                announced = bool(run_dir)
         recorded = bool(run_dir) and os.path.isdir(run_dir) and pending.results
+        not_here = _not_recorded_here(announced, run_dir, pending.results) if not recorded else ""
         bag_dir = run_dir if recorded else ""
         if recorded and record.recording_stopped_because == outcomes.RECORDER_GONE and _recorded_whole(record, bag_dir):
             # The client lost sight of the recorder (frozen, or starved on a busy machine, for longer than it
@@ -491,7 +495,7 @@ class Run:
             run_dir = (os.path.join(pending.results_dir, record.run_id) if record.run_id
                        else new_run_folder(pending.results_dir, pending.name))
             os.makedirs(run_dir, exist_ok=True)
-        return run_dir, bag_dir, stopped
+        return run_dir, bag_dir, stopped, not_here
 
     def _tidy_stopped_recording(self, record, bag_dir, write_error):
         """Nothing will close the bag (its recorder is gone, or stopped writing it): make its metadata
@@ -535,7 +539,18 @@ class Run:
         except Exception as error:   # noqa: BLE001 - say so, keep the folder
             say("could not make the results from the recording (%s); see %s"
                 % (session.describe_exception(error), run_dir))
-            write_unrecorded_results(run_dir, record, record.last.report if record.last else "")
+            write_unrecorded_results(run_dir, record, record.last.report if record.last else "",
+                                     "the results could not be made from the recording in %s" % bag_dir)
+
+
+def _not_recorded_here(announced, recording, results):
+    """Why a run's plot and video are not made here: what is known, not a guess."""
+    if not results:
+        return "no results were asked for"
+    if not announced:
+        return ("the testbed's recorder did not say where it recorded this run (it may be busy, or the testbed "
+                "runs without one); look in its bags/ folder")
+    return "the run was recorded on the testbed's machine, not here (%s)" % recording
 
 
 # s to wait for a recorder the client lost sight of to close the run's bag after all (it closes a bag half a
