@@ -482,7 +482,7 @@ class Run:
             record.exit_code = outcomes.EXIT_CODES[outcomes.TESTBED_LOST]
         # The recorder could not write (a full disk): the bag's disk takes nothing more, so the run's
         # folder is results/<run id>/, with the results of what the bag holds.
-        write_error = bool(stopped) and record.recording_stopped_because != outcomes.RECORDER_GONE
+        write_error = bool(stopped) and not outcomes.recorder_lost(record.recording_stopped_because)
         if recorded and stopped:
             stopped = self._tidy_stopped_recording(record, bag_dir, write_error)
         if not recorded or write_error:
