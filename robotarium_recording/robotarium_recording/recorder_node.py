@@ -104,6 +104,7 @@ class RunRecorder:
         self.run_id = None
         self.state = "idle"           # idle -> recording -> closing -> idle
         self.end_ns = None
+        self.start_ns = None
         self.grace_until = None
         self.finished = {}            # run id -> stamp of its last status (ns)
         # Statuses published before this are history handed over on matching, not live.
@@ -190,6 +191,12 @@ class RunRecorder:
             self.finish("the simulator went away without ending the experiment")
         self._prune(now_ns)
 
+    def simulator_restarted(self, restart):
+        """The simulator was restarted (robotarium_core.restarts): the run being recorded ended with its old
+        process (nothing else would close its bag until the next run's status, which would land in it)."""
+        if self.state == "recording" and restart.during(self.start_ns / 1e9):
+            self.finish("the simulator went away without ending the experiment: %s" % restart.describe())
+
     def finish(self, why):
         writer, self.writer = self.writer, None
         self.state = "idle"
@@ -214,7 +221,7 @@ class RunRecorder:
         self.on_finished(writer.path, writer)
 
     def _start(self, run_id, start_ns):
-        self.run_id, self.end_ns = run_id, start_ns
+        self.run_id, self.end_ns, self.start_ns = run_id, start_ns, start_ns
         self.end_step, self.poses_step = None, -1
         self.state = "recording"
         self.stopped_path, self.not_recorded = None, 0
@@ -353,6 +360,8 @@ class RecorderNode(Node):
             for topic, type_name in topics.items():
                 self.subscribe_kind("%s/%s" % (self.ns, topic), type_name, kind)
         self._sim_missing_since = None
+        self.create_subscription(String, "%s/%s" % (self.ns, restarts.topic(presence.SIMULATOR)),
+                                 self.on_simulator_restart, restarts.QOS)
         self.create_timer(0.2, self.tick)
         self.create_timer(0.5, self.discover)
         self.discover()
@@ -426,6 +435,11 @@ class RecorderNode(Node):
         pub = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec or recv
         self.session.on_status(self.status_topic, data, recv, pub,
                                msg.state == TestbedStatus.STATE_RUNNING, msg.run_id, msg.step)
+
+    def on_simulator_restart(self, msg):
+        restart = restarts.parse(msg.data)
+        if restart is not None:
+            self.session.simulator_restarted(restart)
 
     def poses_step_of(self, topic, data):
         """The step of a poses message of this namespace (RunRecorder.step_of); None for other topics."""
