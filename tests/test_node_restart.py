@@ -105,7 +105,11 @@ def run(testbed, cwd, kill=None, steps=STEPS):
             run_id, _ = testbed["watch"].started_since(began)
             status = testbed["watch"].get(run_id) if run_id else None
             if status and status["step"] >= KILL_AT:
-                os.kill(testbed["up"].nodes()[kill], signal.SIGKILL)
+                if kill == "script":   # the script's process frozen (SIGSTOP), never continued
+                    runner = [p for p in soak.proc_children(process.pid) if "robotarium_cli.runner" in soak.cmdline(p)]
+                    os.kill(runner[0], signal.SIGSTOP)
+                else:
+                    os.kill(testbed["up"].nodes()[kill], signal.SIGKILL)
                 killed_at = time.monotonic()
             time.sleep(0.01)
         out, _ = process.communicate(timeout=180)
@@ -139,8 +143,10 @@ def back_up(testbed, node, restart):
 
 
 def test_a_killed_recorder_is_restarted_and_its_run_goes_on_its_recording_stopped(testbed, tmp_path):
-    code, out, info, first, _ = run(testbed, tmp_path, kill="recorder")
+    code, out, info, first, took = run(testbed, tmp_path, kill="recorder")
     k = info["recording_stopped_at_step"]
+    print("recorder killed: the run exited %.1f s after the kill, code %d\n  run.json: %s / recording stopped at %s: "
+          "%s\n  report.txt: %s" % (took, code, info["outcome"], k, info["recording_stopped_because"], first))
     assert info["outcome"] == "completed" and info["exit_code"] == code == 4, out
     assert info["recording_stopped_because"] == ("the recorder was restarted: the recorder exited (killed by SIGKILL) "
                                                  "and ./robotarium up restarted it (restart 1)"), info
@@ -165,7 +171,25 @@ def test_a_killed_node_the_run_needs_is_restarted_and_its_run_ends_naming_the_re
     assert soak.NODE_WORDS["simulator"] not in first, first
     other = restarts.node_name("simulator" if node == "safety" else "safety")
     assert other not in first, first
-    print("%s killed: the run exited %.1f s after the kill" % (node, took))
+    print("%s killed: the run exited %.1f s after the kill\n  run.json: %s / %s\n  report.txt: %s"
+          % (node, took, info["outcome"], info["detail"], first))
     back_up(testbed, node, "%s exited (killed by SIGKILL); restarted it" % name)
     code, out, info, first, _ = run(testbed, tmp_path, steps=30)   # the next run on the same up
+    assert code == 0 and info["outcome"] == "completed", out
+
+
+def test_a_script_whose_process_stops_is_ended_by_the_testbed_and_run_does_not_wait_for_it_for_ever(testbed, tmp_path):
+    """Item 2's last sentence: a script's process that stops answering (SIGSTOP here: DDS and Python both stand
+    still) loses its run to the testbed's client lease, and ./robotarium run, which waited for its exit for ever,
+    kills it once it stayed stopped FROZEN_LIMIT s and makes the run's folder with that cause."""
+    from robotarium_cli.running import FROZEN_LIMIT
+    code, out, info, first, took = run(testbed, tmp_path, kill="script")
+    assert code == info["exit_code"] == 128 + signal.SIGKILL and info["outcome"] == "interrupted", out
+    assert "stayed stopped (SIGSTOP)" in info["detail"], info
+    assert first.startswith("Run did not complete: the testbed ended it at step") and "its client was gone" in first, \
+        first
+    assert FROZEN_LIMIT <= took < FROZEN_LIMIT + 30, took
+    print("script stopped: run exited %.1f s after the SIGSTOP\n  run.json: %s / %s\n  report.txt: %s"
+          % (took, info["outcome"], info["detail"], first))
+    code, out, info, first, _ = run(testbed, tmp_path, steps=30)   # the next run
     assert code == 0 and info["outcome"] == "completed", out
