@@ -277,6 +277,7 @@ class Run:
         self.work = None
         self.pending = None
         self.code = None      # the script's process's exit code (None: it never started)
+        self.frozen = None    # FrozenScript that killed a script stopped too long, once it did
 
     @property
     def record_path(self):
@@ -346,6 +347,7 @@ class Run:
                                                process_group=0, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                                **box_options)
                     self.interruption.watch(process)
+                    self.frozen = FrozenScript(process)
                     self.pending.runner = local_testbeds.process(process.pid)
                     self.pending.write(self.work)
                     # the log first: it never lags what was shown
@@ -434,6 +436,8 @@ class Run:
                 died, exit_code = "./robotarium run was killed", 128 + signal.SIGKILL
             elif interruption.signum is not None:
                 died, exit_code = "interrupted by %s and killed" % interruption.name, interruption.exit_code
+            elif self.frozen is not None and self.frozen.killed:
+                died, exit_code = self.frozen.killed, 128 - code if code < 0 else code
             elif code < 0:
                 died, exit_code = "killed by %s" % signal.Signals(-code).name, 128 - code
             else:
@@ -486,7 +490,7 @@ class Run:
             record.exit_code = outcomes.EXIT_CODES[outcomes.TESTBED_LOST]
         # The recorder could not write (a full disk): the bag's disk takes nothing more, so the run's
         # folder is results/<run id>/, with the results of what the bag holds.
-        write_error = bool(stopped) and record.recording_stopped_because != outcomes.RECORDER_GONE
+        write_error = bool(stopped) and not outcomes.recorder_lost(record.recording_stopped_because)
         if recorded and stopped:
             stopped = self._tidy_stopped_recording(record, bag_dir, write_error)
         if not recorded or write_error:
@@ -551,6 +555,45 @@ def _not_recorded_here(announced, recording, results):
         return ("the testbed's recorder did not say where it recorded this run (it may be busy, or the testbed "
                 "runs without one); look in its bags/ folder")
     return "the run was recorded on the testbed's machine, not here (%s)" % recording
+
+
+# s a script's process may stay stopped (SIGSTOP, a debugger) before `run` kills it: by then the testbed ended its
+# run (client_lease) and nothing would wake it; `run` would wait for its exit for ever
+FROZEN_LIMIT = 2 * DEFAULT.client_lease + 1.0
+
+
+class FrozenScript:
+    """Watches the script's process (started with process_group=0) from a daemon thread: stopped (state T in /proc)
+    for FROZEN_LIMIT s on end, its group is killed, and `killed` says how, for run.json."""
+
+    def __init__(self, process, limit=FROZEN_LIMIT, period=0.25):
+        self.process, self.limit, self.period = process, limit, period
+        self.killed = ""
+        threading.Thread(target=self._watch, daemon=True).start()
+
+    def _watch(self):
+        since = None
+        while self.process.poll() is None:
+            stopped = _process_state(self.process.pid) in ("T", "t")
+            since = (since or time.monotonic()) if stopped else None
+            if since is not None and time.monotonic() - since >= self.limit:
+                self.killed = ("killed by ./robotarium run after it stayed stopped (SIGSTOP) for %.0f s; the testbed had "
+                               "ended its run when its client stopped answering" % self.limit)
+                try:
+                    os.killpg(self.process.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+                return
+            time.sleep(self.period)
+
+
+def _process_state(pid):
+    """The state letter of process `pid` (/proc/<pid>/stat: R, S, T, Z, ...), "" when unknown."""
+    try:
+        with open("/proc/%d/stat" % pid) as f:
+            return f.read().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return ""
 
 
 # s to wait for a recorder the client lost sight of to close the run's bag after all (it closes a bag half a
