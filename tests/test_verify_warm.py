@@ -109,6 +109,16 @@ def test_only_the_warm_testbeds_own_failures_send_the_script_to_a_testbed_of_its
     assert running.warm_testbed_failure(2, None) is None   # nothing ran (a bad command line)
 
 
+def test_a_warm_testbed_that_does_not_answer_the_scripts_client_is_its_failure_not_the_scripts():
+    from robotarium_core.run_record import RunRecord
+    silent = "the script raised RuntimeError: %s in namespace /robotarium_verify on ROS_DOMAIN_ID 7. Start one " \
+             "with './robotarium up' at step 0" % outcomes.NO_TESTBED_ANSWERS
+    assert running.warm_testbed_failure(1, RunRecord(outcome="script_error", detail=silent)) == "does not answer"
+    # the script's own error, or one raised after its experiment started, is the script's
+    assert running.warm_testbed_failure(1, RunRecord(outcome="script_error", detail="the script raised KeyError")) is None
+    assert running.warm_testbed_failure(1, RunRecord(outcome="script_error", detail=silent, run_id="r1")) is None
+
+
 # -- a real warm testbed ---------------------------------------------------------------------------------
 
 @pytest.fixture(scope="module")

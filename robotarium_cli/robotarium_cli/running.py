@@ -693,12 +693,15 @@ def find_warm_verification_testbed(config_file, record, bags_dir):
 
 def warm_testbed_failure(code, run):
     """Why a verification on the warm testbed gave no verdict through the testbed's doing (it was busy,
-    lost, stopped or incomplete), or None: the run judges the script (or fails as one on verify's own
-    testbed would). `code` and `run`: run_script's exit code and run_record.RunRecord."""
+    did not answer, was lost, stopped or incomplete), or None: the run judges the script (or fails as
+    one on verify's own testbed would). `code` and `run`: run_script's exit code and run_record.RunRecord."""
     if run is None:
         return None
     if run.outcome == outcomes.NAMES[outcomes.TESTBED_BUSY]:
         return "is busy"
+    if (run.outcome == outcomes.NAMES[outcomes.SCRIPT_ERROR] and not run.run_id
+            and outcomes.NO_TESTBED_ANSWERS in str(run.detail)):   # the client's error, not the script's
+        return "does not answer"
     if run.outcome in ("testbed_lost", "unfinished", "testbed_incomplete") or (
             run.outcome == "interrupted" and 0 < code < 128):   # ended by the testbed, not by a signal to verify
         return "failed (%s)" % (run.detail or run.outcome)

@@ -170,9 +170,9 @@ class TestbedLink:
         if not local_allowed:
             self.shutdown()
             raise RuntimeError(
-                "No Robotarium testbed answers in namespace %s on ROS_DOMAIN_ID %s. Start one with "
+                "%s in namespace %s on ROS_DOMAIN_ID %s. Start one with "
                 "'./robotarium up' (here or on another machine of the domain)."
-                % (self.ns, os.environ.get("ROS_DOMAIN_ID", "0")))
+                % (outcomes.NO_TESTBED_ANSWERS, self.ns, os.environ.get("ROS_DOMAIN_ID", "0")))
         print("[robotarium] no testbed answers in %s: starting one on this machine" % self.ns, file=sys.stderr)
         self.local_testbed = LocalTestbed(ns=self.ns).start()
         if not wait_for_service(self._start_client, STARTUP_WAIT):

@@ -81,6 +81,7 @@ ENDED_BY_ITS_CLIENT = "ended by its client"   # the simulator's end_reason for a
 ENDED_BY_TESTBED = "The experiment was ended by the testbed: "   # the client's words for a run the testbed ended
 ENDED_BY_ITS_USER = "ended by its user"   # ./robotarium end by the user who runs the experiment (end_reason)
 RECORDER_GONE = "the recorder is gone"   # why a recording stopped, when its recorder is lost
+NO_TESTBED_ANSWERS = "No Robotarium testbed answers"   # how the client's error begins when none answered it
 RECORDER_RESTARTED = "the recorder was restarted"   # ... when it was restarted mid-run (robotarium_core.restarts)
 
 
