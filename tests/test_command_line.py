@@ -3,6 +3,7 @@ all, `shell -c CMD` runs CMD, and `report` on the committed sample leaves nothin
 import os
 import shutil
 import subprocess
+import sys
 
 import pytest
 
@@ -41,6 +42,18 @@ def test_every_command_has_help(capsys):
             cli.main([command, "--help"])
         assert exit_.value.code == 0, command
         assert "usage" in capsys.readouterr().out, command
+
+
+def test_a_command_loads_its_own_verb_only():
+    """`./robotarium verify ...` builds verify's parser alone: the other verbs' modules (the Foxglove view's,
+    the simulated fleet's) are not imported on its way to the script (~0.1 s of every command's start)."""
+    probe = ("import sys\nfrom robotarium_cli import main\ntry:\n    main.main(['verify', '--help'])\n"
+             "except SystemExit:\n    pass\nprint(sorted(m for m in ('foxglove', 'robotarium_hardware.sim_fleet', "
+             "'robotarium_cli.verb.view', 'robotarium_cli.verb.verify') if m in sys.modules))")
+    from devtools.rosutil import node_env
+    completed = subprocess.run([sys.executable, "-c", probe], env=node_env(0), capture_output=True, text=True,
+                               timeout=60, cwd=REPO)
+    assert completed.stdout.strip().splitlines()[-1] == "['robotarium_cli.verb.verify']", completed.stdout
 
 
 @pytest.mark.parametrize("module, executable", [("robotarium_sim.simulator_node", "simulator"),

@@ -40,7 +40,10 @@ def main(argv=None):
         return verbs.load(argv[0]).main_argv(argv[1:]) or 0   # it parses its arguments, --help included
     parser = argparse.ArgumentParser(prog="./robotarium", description="The Robotarium testbed on ROS 2.")
     subparsers = parser.add_subparsers(dest="command", required=True)
-    parsers = {name: add_verb_parser(subparsers, name) for name in verbs.VERBS}
+    # A verb named: its parser only (the others' modules and what they import, ~0.1 s, are not needed);
+    # none, or an unknown one: every verb's, for the list of them.
+    named = [argv[0]] if argv and argv[0] in verbs.VERBS else verbs.VERBS
+    parsers = {name: add_verb_parser(subparsers, name) for name in named}
     args = parser.parse_args(argv)
     verb_parser, module = parsers[args.command]
     return run_verb(module, args, verb_parser.error)
