@@ -260,6 +260,12 @@ class Experiment(models.Model):
                 "estimated_duration": self.estimated_duration, "number_of_robots": self.number_of_robots,
                 "main_file": self.main_file, "files": self.file_names()}
 
+    @property
+    def verified_api(self):
+        """The Robotarium API its verification ran the script with: "guide", "2" (the 2.x simulator's), or ""
+        (not verified, or verified before the verdict named it)."""
+        return (self.verification or {}).get("api") or ""
+
     def place_in_queue(self):
         """1 for the next to run; None when not queued."""
         if self.state != self.QUEUED:
@@ -311,3 +317,4 @@ class Worker(models.Model):
 
     def __str__(self):
         return "%s pid %d (%s, domain %s)" % (self.host, self.pid, self.kind, self.domain)
+

@@ -1,0 +1,75 @@
+"""What the service soak (`./robotarium bench soak --service`) found, on the service's real stack: PostgreSQL of
+the test's own, the portal (`./robotarium serve --database ... --jobs 0`) and one `./robotarium worker` on this
+machine (devtools.service, as tests/test_service.py starts them; no second host here).
+
+- A 2.x script is verified and then run in real time on the simulator's 2.x model, not hardware-like (which
+  models the guide's API only, and the simulator refuses for a 2.x script): it completes, and its page says
+  how it ran. A guide script still runs hardware-like.
+
+No timing assertions: every wait is for a state, with a generous deadline and the logs on failure.
+"""
+import html
+import json
+import os
+import shutil
+import tempfile
+
+import pytest
+
+from devtools.postgres import PostgreSQL, server_binaries
+from devtools.rosutil import processes_with_env
+from devtools.service import Service
+
+pytestmark = pytest.mark.e2e
+
+# A 2.x script (r.debug(), the drive-on phase): a few steps, its numpy seeded.
+RPS2_SHORT = """import numpy as np
+import rps.robotarium as robotarium
+np.random.seed(3)
+N = 2
+r = robotarium.Robotarium(number_of_robots=N, show_figure=False, sim_in_real_time=False,
+                          initial_conditions=np.array([[-0.4, 0.4], [0.0, 0.0], [0.0, 0.0]]))
+for k in range(30):
+    r.get_poses()
+    r.set_velocities(np.arange(N), np.vstack([np.zeros(N), 0.5 * np.ones(N)]))
+    r.step()
+r.debug()
+"""
+
+
+@pytest.fixture(scope="module")
+def service():
+    if server_binaries() is None:
+        pytest.skip("no PostgreSQL server here (/usr/lib/postgresql/*/bin) and it could not be installed")
+    folder = tempfile.mkdtemp(prefix="robotarium-service-faults-")
+    service = Service(folder)
+    try:
+        service.postgres = PostgreSQL()
+        service.start_portal()
+        service.start_worker("here")
+        yield service
+    finally:
+        service.close()
+        shutil.rmtree(folder, ignore_errors=True)
+    assert processes_with_env("ROBOTARIUM_PORTAL_DATA", service.data) == {}
+
+
+def run_records(service, pk):
+    folder = os.path.join(service.data, "experiments", str(pk), "run-1", "results")
+    return [json.load(open(os.path.join(d, "run.json"))) for d, _, names in os.walk(folder) if "run.json" in names]
+
+
+def test_a_2x_script_runs_in_real_time_on_the_2x_model_and_its_page_says_so(service):
+    (pk,) = service.submit([{"title": "a 2.x script", "robots": 2, "script": RPS2_SHORT}])
+    row = service.wait_for(pk, ("completed", "failed", "rejected"), "(the 2.x script)")
+    assert row["state"] == "completed" and row["attempts"] == 1, row
+    (verdict,) = service.query("SELECT verification FROM robotarium_portal_experiment WHERE id = %s", pk)[0]
+    assert verdict["api"] == "2", verdict   # what its verification ran it with
+    (record,) = run_records(service, pk)
+    assert record["outcome"] == "completed" and record["api"] == "2", record
+    assert record["real_time"] is True and record["hardware"] is False, record
+    said = "It ran in real time on the simulator's 2.x model, not hardware-like"
+    assert said in row["detail"], row
+    page = html.unescape(service.page(pk))
+    assert 'id="state">completed<' in page and said in page
+
