@@ -5,6 +5,9 @@ machine (devtools.service, as tests/test_service.py starts them; no second host 
 - A 2.x script is verified and then run in real time on the simulator's 2.x model, not hardware-like (which
   models the guide's API only, and the simulator refuses for a 2.x script): it completes, and its page says
   how it ran. A guide script still runs hardware-like.
+- A verification that a worker took off the queue but had not begun when it was killed outright (SIGKILL to
+  everything it started) is handed out again once the worker is found lost, not after django-q2's `retry`
+  (1800 s).
 
 No timing assertions: every wait is for a state, with a generous deadline and the logs on failure.
 """
@@ -13,12 +16,13 @@ import json
 import os
 import shutil
 import tempfile
+import time
 
 import pytest
 
 from devtools.postgres import PostgreSQL, server_binaries
 from devtools.rosutil import processes_with_env
-from devtools.service import Service
+from devtools.service import HOLD, SHORT, TIMEOUT, Service
 
 pytestmark = pytest.mark.e2e
 
@@ -73,3 +77,33 @@ def test_a_2x_script_runs_in_real_time_on_the_2x_model_and_its_page_says_so(serv
     page = html.unescape(service.page(pk))
     assert 'id="state">completed<' in page and said in page
 
+
+def test_a_verification_taken_by_a_worker_killed_before_it_began_is_verified_again_at_once(service, tmp_path):
+    # The worker's one verification slot holds A (its script waits for its release file while verified);
+    # B, another person's, is submitted meanwhile: the slot's cluster takes B's job off the queue (its lock)
+    # while A's verification goes on.
+    release = str(tmp_path / "release-a")
+    (a,) = service.submit([{"title": "held in verification", "robots": 2, "owner": "a@example.org",
+                            "script": HOLD.format(release=release, hold_in="verify")}])
+    service.wait_for(a, ("verifying",))
+    (b,) = service.submit([{"title": "taken, not begun", "robots": 2, "owner": "b@example.org",
+                            "script": SHORT.format(robots=2, steps=10, name="b")}])
+    deadline = time.monotonic() + TIMEOUT
+    while service.query("SELECT COUNT(*) FROM django_q_ormq WHERE key = 'verify' AND lock > now()")[0][0] < 2:
+        assert time.monotonic() < deadline, service.logs()   # A's job and B's, both locked by the cluster
+        time.sleep(0.2)
+    assert service.experiment(a)["state"] == "verifying" and service.experiment(b)["state"] == "submitted"
+    # The worker killed outright (its machine gone); a new one starts. A's script would now finish.
+    service.workers.pop("here").kill()
+    open(release, "w").close()
+    service.start_worker("here")
+    # The new worker finds the old one lost: A is verified again (as before) and B, whose job the dead cluster
+    # still held locked for django-q2's retry (1800 s), is verified and run now.
+    row = service.wait_for(b, ("completed", "failed", "rejected"), "(B: verified once its worker was found lost)")
+    assert row["state"] == "completed" and row["attempts"] == 1, row
+    (record,) = run_records(service, b)
+    assert record["outcome"] == "completed" and record["hardware"] is True, record   # a guide script: hardware-like
+    row = service.wait_for(a, ("completed", "failed", "rejected"), "(A: verified again)")
+    assert row["state"] == "completed" and row["attempts"] == 1, row
+    lost = service.query("SELECT COUNT(DISTINCT pid) FROM robotarium_portal_worker WHERE state = 'lost'")[0][0]
+    assert lost == 1   # the killed worker (its two slots), nobody else
