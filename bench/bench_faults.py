@@ -192,7 +192,7 @@ def flood_memory(tb, seconds, rate="0", huge_every="50", settle=3.0):
     sent = json.loads(out[-1]) if out and out[-1].startswith("{") else {}
     on_requested = sent.get(NS + "/cmd_requested", {})
     rate_sent = (sum(on_requested.values()) - on_requested.get("refused", 0)) / seconds
-    return {name: (before[name], peak[name], after[name]) for name in names}, rate_sent, r.run_info["command_timeouts"]
+    return {name: (before[name], peak[name], after[name]) for name in names}, rate_sent, r.run_info.command_timeouts
 
 
 def flooded_real_time(tb):

@@ -105,7 +105,7 @@ def run(n, steps, config_file, processes, api=""):
     cpu.update({name: cpu_seconds(pid) - cpu0[name] for name, pid in processes.items()})
     with contextlib.redirect_stdout(io.StringIO()):
         r.call_at_scripts_end()
-    counts = {k: r.run_info[k] for k in ("collisions", "boundary_violations")}
+    counts = {k: getattr(r.run_info, k) for k in ("collisions", "boundary_violations")}
     return steps / wall, {name: seconds / steps * 1e3 for name, seconds in cpu.items()}, counts
 
 

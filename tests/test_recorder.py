@@ -423,7 +423,11 @@ def test_seen_samples_drop_copies_within_their_window_and_reader_kinds_cover_eve
     seen = samples.SeenSamples(window=3)
     assert [seen.first("/t", k) for k in (1, 2, 1, 3, 4, 1)] == [True, True, False, True, True, True]
     assert seen.first("/u", 2) and seen.copies == 1 and len(seen.topics["/t"][0]) == 3   # bounded, per topic
-    assert samples.identity({"source_timestamp": 5, "publication_sequence_number": 2}, b"abc") == (5, 2, 3)
+    one = samples.identity({"source_timestamp": 5, "publication_sequence_number": 2}, b"abc")
+    assert one == samples.identity({"source_timestamp": 5, "publication_sequence_number": 2}, b"xyz")   # a copy
+    assert len({one, samples.identity({"source_timestamp": 5, "publication_sequence_number": 3}, b"abc"),
+                samples.identity({"source_timestamp": 6, "publication_sequence_number": 2}, b"abc"),
+                samples.identity({"source_timestamp": 5, "publication_sequence_number": 2}, b"abcd")}) == 4
     assert samples.identity({}, b"abc") is None
     assert samples.reader_kinds([(True, True)]) == {samples.RELIABLE_LATCHED}
     assert samples.reader_kinds([(True, True), (True, False), (False, False)]) == {

@@ -7,7 +7,7 @@ best-effort writer. A single reader per topic therefore missed some publishers t
 per kind of writer it sees on a topic (`reader_kinds`): the transient-local one still gets a
 latched writer's history on matching, the volatile one every volatile writer. A writer that more
 than one of them matches delivers each sample to each: `SeenSamples` drops the later copies by the
-sample's identity (its writer's source timestamp and sequence number, and its length), remembering
+sample's identity (a hash of its writer's source timestamp and sequence number, and its length), remembering
 the last `window` identities per topic (the configuration's recorder_dedup_window).
 """
 from collections import deque
@@ -51,10 +51,12 @@ class SeenSamples:
 
 
 def identity(info, data):
-    """A sample's identity from rclpy's message info (dict) and its bytes; None when the middleware
-    gives neither a source timestamp nor a sequence number (then nothing is dropped)."""
+    """A sample's identity from rclpy's message info (dict) and its bytes: one 64-bit hash of its
+    writer's source timestamp, sequence number and its length (half the memory of keeping the three:
+    10,000 of them for each of a 2.x run's ~36 topics; two samples of a topic share it once in 2**64
+    draws). None when the middleware gives neither a stamp nor a sequence number (nothing is dropped)."""
     stamp = info.get("source_timestamp") if info else None
     sequence = info.get("publication_sequence_number") if info else None
     if not stamp and sequence is None:
         return None
-    return stamp, sequence, len(data)
+    return hash((stamp, sequence, len(data)))
