@@ -76,6 +76,15 @@ def test_a_2x_script_runs_in_real_time_on_the_2x_model_and_its_page_says_so(serv
     assert said in row["detail"], row
     page = html.unescape(service.page(pk))
     assert 'id="state">completed<' in page and said in page
+    assert 'id="video"' in page, page   # its results as any run's: the video, the files
+    # The live view's feed followed it (poses of both robots), and its owner's mail says how it ran.
+    with open(os.path.join(service.data, "experiments", str(pk), "run-1", "live.jsonl")) as f:
+        poses = [line for line in map(json.loads, f) if "x" in line]
+    assert poses and all(len(p["x"]) == 2 for p in poses), poses[:3]
+    mails = []
+    for folder, _, names in os.walk(os.path.join(service.data, "mail")):
+        mails += [open(os.path.join(folder, name), errors="replace").read() for name in names]
+    assert any("has completed" in m and "a 2.x script" in m and said in " ".join(m.split()) for m in mails), mails
 
 
 def test_a_verification_taken_by_a_worker_killed_before_it_began_is_verified_again_at_once(service, tmp_path):
