@@ -14,8 +14,9 @@ The faults, each logged with the run it went into:
   run_sigkill     SIGKILL to `./robotarium run` at a random step (the next `run` finishes its folder)
   flood           devtools/flood.py during the run: foreign, malformed and forged arrays (the run's token
                   copied off the wire) on both command topics
-  kill:NODE       SIGKILL to the simulator, the safety node or the recorder at a random step; `up` then stops
-                  the testbed, as it does, and the soak starts `up` again (a node restart, counted)
+  kill:NODE       SIGKILL to the simulator, the safety node or the recorder at a random step; `up` restarts the
+                  node (its supervisor) and the soak waits for it to be ready again (a node restart, counted); a
+                  testbed that stopped instead is started again, counted as unexpected
   freeze:NODE     SIGSTOP to the node for FREEZE seconds (longer than node_lease and client_lease), SIGCONT
   disk_full       the recorder's bags folder on a small tmpfs for one run (root only; else skipped, saying so)
 The node faults come about every `node_every` runs, the disk once, the others at random; each kind comes at
@@ -182,6 +183,9 @@ def plan(runs, seed, node_every=50, real_time=0.3, long=0.3, client_faults=0.16,
 # -- what ends a run, by fault ------------------------------------------------------------------------------
 
 NODE_WORDS = {"simulator": "The simulator is gone", "safety": "The safety node is gone"}
+RESTARTED = "testbed node restarted at step"   # a killed simulator's or safety node's run (robotarium_core.restarts)
+RECORDER_RESTARTED = "the recorder was restarted: the recorder exited (killed by SIGKILL)"
+NODE_RESTART_WAIT = 60.0   # s for up to restart a killed node and for it to say it is ready
 
 
 def expected(fault):
@@ -201,9 +205,14 @@ def expected(fault):
     if fault == "disk_full":
         return [("completed", 4, "", "disk full", "disk full")]
     kind, node = fault.split(":")
+    if node == "recorder" and kind == "kill":   # up restarts it; the run goes on, its recording stopped there
+        return [("completed", 4, "", RECORDER_RESTARTED, "the recorder was restarted")]
     if node == "recorder":   # the run goes on; its recording stops, or (frozen) the recorder comes back
-        return [("completed", 4, "", "the recorder is gone", "the recorder is gone")] + (
-            [("completed", 0, "", None, "Run completed.")] if kind == "freeze" else [])
+        return [("completed", 4, "", "the recorder is gone", "the recorder is gone"),
+                ("completed", 0, "", None, "Run completed.")]
+    if kind == "kill":   # up restarts it; the run ends naming the restart and the node
+        return [("testbed_lost", 4, "the %s exited (killed by SIGKILL) and ./robotarium up restarted it" % (
+            "safety node" if node == "safety" else node), None, RESTARTED)]
     return [("testbed_lost", 4, NODE_WORDS[node], None, NODE_WORDS[node])]
 
 
@@ -220,7 +229,8 @@ def wrong_causes(fault, record, report_line, whole):
             wrong.append("exit code %s, not %s" % (record.exit_code, code))
         if words and words not in record.detail:
             wrong.append("run.json's cause does not name %r" % words)
-        if (record.recording_stopped_because or None) != stopped:
+        if not (record.recording_stopped_because or "").startswith(stopped or "") or (
+                bool(record.recording_stopped_because) != bool(stopped)):
             wrong.append("recording stopped: %s, not %s" % (record.recording_stopped_because, stopped))
         elif stopped and whole:
             wrong.append("it says the recording stopped at step %s (%s), but its bag holds the whole run"
@@ -459,7 +469,8 @@ class Soak:
         self.up = Up(self.work, self.env)
         self.watch = None
         self.results = []
-        self.restarts = []          # (after run n, why, expected: a node was killed)
+        self.restarts = []          # (after run n, why, expected: False) ./robotarium up started again: it stopped
+        self.node_restarts = []     # (after run n, up's line) a node up restarted (its supervisor)
         self.samples = []           # (label, {node: (pid, (rss, fds, threads))})
         self.unfinished = []        # Results whose folder the next run finishes (run_sigkill)
         self.disk_note = ""
@@ -473,9 +484,15 @@ class Soak:
         return self
 
     def ensure_testbed(self, after, expected_restart):
-        """Start `up` again where it stopped (a node killed: it stops the testbed), counting it."""
+        """After a node was killed, wait until up restarted it and it is ready again (counted); start `up` again
+        where it stopped (never expected: counted as a testbed restart)."""
+        if expected_restart:
+            line = self._node_restarted()
+            if line:
+                self.node_restarts.append((after, line))
         if self.up.healthy():
             return
+        expected_restart = False
         why = ""
         if self.up.process.poll() is None:   # up runs but a node is missing: stop it first
             why = "a node is missing (%s) while up runs" % sorted(set(NODES) - set(self.up.nodes()))
@@ -485,6 +502,19 @@ class Soak:
         self.restarts.append((after, why, expected_restart))
         self.say("  [testbed] restarting ./robotarium up after run %d: %s" % (after, why))
         self.up.start()
+
+    def _node_restarted(self):
+        """up's line saying it restarted a node, once the node said it is ready again ("" if not within
+        NODE_RESTART_WAIT s, or up stopped)."""
+        deadline = time.monotonic() + NODE_RESTART_WAIT
+        while time.monotonic() < deadline and self.up.process.poll() is None:
+            log = self.up.log()
+            lines = [line for line in log.splitlines() if "; restarted it (restart" in line]
+            done = lines and log[log.rindex(lines[-1]):].count(" ready") >= 1
+            if done and lines[-1].strip() not in [x for _, x in self.node_restarts]:
+                return lines[-1].strip()
+            time.sleep(0.1)
+        return ""
 
     def sample(self, label):
         self.samples.append((label, {name: (pid, sizes(pid)) for name, pid in sorted(self.up.nodes().items())}))
@@ -827,11 +857,12 @@ def summary(soak, plans):
                          r.injected_at_step, r.why_lost, r.outcome, r.exit_code, r.detail[:300],
                          (", recording stopped: %s" % r.recording_stopped) if r.recording_stopped else "",
                          r.report_first_line[:300]))
-    expected_restarts = [x for x in soak.restarts if x[2]]
-    lines.append("node restarts: ./robotarium up started again %d time(s) (%d after a node killed on purpose, "
-                 "%d not)" % (len(soak.restarts), len(expected_restarts), len(soak.restarts) - len(expected_restarts)))
-    for after, why, planned in soak.restarts:
-        lines.append("  after run %d (%s): %s" % (after, "a node killed" if planned else "UNEXPECTED", why[:200]))
+    lines.append("node restarts by ./robotarium up (its supervisor): %d%s" % (
+        len(soak.node_restarts), "".join("\n  after run %d: %s" % (after, line[:200])
+                                         for after, line in soak.node_restarts)))
+    lines.append("testbed restarts (./robotarium up stopped and the soak started it again): %d" % len(soak.restarts))
+    for after, why, _ in soak.restarts:
+        lines.append("  after run %d (UNEXPECTED): %s" % (after, why[:200]))
     in_place = soak.in_place_restarts()
     lines.append("  nodes that restarted in place (DDS stall watch): %d%s" % (
         len(in_place), "".join("\n    " + line[:200] for line in in_place)))

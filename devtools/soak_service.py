@@ -227,7 +227,8 @@ def summary(run):
         lines.append("  %-10s %d" % (verdict, len(chosen)))
         causes = {}
         for i in chosen if verdict != "completed" else ():
-            cause = re.sub(r"\d+", "n", " ".join(i.detail.split())[:160]) + ((" [%s]" % re.sub(r"\d+", "n", i.why_lost)) if i.why_lost else "")
+            words = " ".join(i.detail.split())[:160]   # one line: a detail may hold a traceback's
+            cause = re.sub(r"\d+", "n", words) + ((" [%s]" % re.sub(r"\d+", "n", i.why_lost)) if i.why_lost else "")
             causes.setdefault(cause, []).append("%d %s" % (i.n, os.path.basename(i.script)))
         for cause, which in causes.items():
             lines.append("      %d x %s\n          (%s)" % (len(which), cause, ", ".join(which)))

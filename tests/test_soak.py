@@ -2,13 +2,13 @@
 `./robotarium up` of its own, with the same faults: the script's process killed (SIGKILL) and `run`
 interrupted (SIGINT) or killed (SIGKILL) mid-run, a flood of foreign and forged arrays, the recorder's disk
 full (a 256 KiB tmpfs: as root), a recorder and a simulator frozen (SIGSTOP for 3 s, longer than their lease,
-then SIGCONT) and a safety node killed (`up` stops the testbed; the soak starts it again). Mostly short
+then SIGCONT) and a safety node killed (`up` restarts it; the soak waits for it to be ready). Mostly short
 lockstep runs of the guide's listings and the 2.x examples; the runs a fault goes into run long enough for it.
 
 Every run must complete or end with the true cause of the fault that hit it, in run.json and in its
-report.txt, with its results; a killed node's runs do not yet (issue 41, item 2: `up` stops the whole testbed
-at once, so the run names the testbed's stop, or another node): that test is an expected failure. Nothing the
-soak started may stay running.
+report.txt, with its results: a killed safety node's run "testbed node restarted at step k: the safety node
+exited (killed by SIGKILL) and ./robotarium up restarted it" (issue 41, item 2), and `up` never stops. Nothing
+the soak started may stay running.
 """
 import os
 
@@ -46,28 +46,26 @@ def killed(result):
 def test_no_run_is_lost_and_each_fault_is_named_with_its_true_cause(soaked):
     run, plans, text = soaked
     assert len(run.results) == RUNS, text
-    lost = [r for r in run.results if r.verdict not in ("completed", "by fault", "time limit") and not killed(r)]
+    lost = [r for r in run.results if r.verdict not in ("completed", "by fault", "time limit")]
     assert not lost, text
     # every fault went into its run: injected mid-run, the flood heard by the testbed, the disk full
     faults = {p.fault for p in plans if p.fault}
     assert faults == set(soak.CLIENT_FAULTS) | set(NODE_FAULTS) | ({"disk_full"} if os.geteuid() == 0 else set()), text
     for r in run.results:
-        if r.fault and not killed(r):
+        if r.fault:
             assert r.injected and (r.verdict == "by fault" or r.fault == "flood"), text
     flood = [r for r in run.results if r.fault == "flood"]
     assert flood and all("arrays dropped by the testbed" in r.injected for r in flood), text
-    # a killed node: up stopped the testbed, the soak started it again (and nothing else restarted it)
-    assert [after for after, _, expected in run.restarts] == [r.n for r in run.results if killed(r)], text
-    assert all(expected for _, _, expected in run.restarts), text
+    # a killed node: up restarted it (its supervisor), and never stopped
+    assert [after for after, _ in run.node_restarts] == [r.n for r in run.results if killed(r)], text
+    assert not run.restarts, text
 
 
-@pytest.mark.xfail(strict=True, reason="issue 41, item 2: a killed node makes ./robotarium up stop the whole testbed "
-                                       "at once; the run in progress names the testbed's stop ('received SIGINT') or, "
-                                       "for a killed simulator, the safety node up stopped first")
 def test_a_run_whose_node_was_killed_names_that_node(soaked):
     run, _, text = soaked
     hit = [r for r in run.results if killed(r) and r.injected]
     assert hit and all(r.verdict == "by fault" for r in hit), text
+    assert all(r.report_first_line.startswith("Run did not complete: " + soak.RESTARTED) for r in hit), text
 
 
 def test_the_soak_leaves_nothing_running(soaked):

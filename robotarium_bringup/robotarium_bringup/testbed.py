@@ -26,7 +26,7 @@ from rclpy.node import Node
 from std_msgs.msg import String
 
 from robotarium_bringup import local_testbeds
-from robotarium_core import claim, lifeline, presence
+from robotarium_core import claim, lifeline, presence, restarts
 from robotarium_core.config import DEFAULT, DEFAULT_FILE
 from robotarium_core.dds_settings import init_context
 from robotarium_core.discovery import wait_for_quiet_discovery, wait_for_service
@@ -153,6 +153,7 @@ class LocalTestbed:
         self.quiet = quiet
         self.processes = {}
         self.registry_entry = None
+        self._env, self._pass_fds = None, ()
 
     def start(self, gated=False):
         """Start the nodes. gated: they import and then wait at a start gate before joining DDS,
@@ -166,26 +167,44 @@ class LocalTestbed:
         env = dict(env, **{claim.ENV_SINCE: repr(time.time()), claim.ENV_TESTBED: str(os.getpid()),
                            claim.ENV_OWNER: "%s (pid %d)" % (owner_command(), os.getpid()),
                            claim.ENV_CHECKED: "1" if self.looked else "0"})
+        self._env, self._pass_fds = env, pass_fds   # a node restarted later starts as its siblings did (restart)
         self.gate = lifeline.StartGate() if gated else None
         if self.gate is not None:
             env, pass_fds = self.gate.for_child(env, pass_fds)
         for name in self.names:
-            extra = ["-p", "bags_dir:=%s" % self.bags_dir] if name == "recorder" and self.bags_dir else []
-            if name in ("simulator", "arena"):   # a run's first steps wait for the recorder's readers where it records
-                extra = (["-p", "hardware:=true"] if self.hardware else []) + (
-                    ["-p", "wait_for_recorder:=true"] if "recorder" in self.names else [])
-            if name in ("arena", "tag_tracker"):
-                extra += ["-p", "fleet_file:=%s" % self.fleet_file]
-            log = open(os.path.join(self.log_dir, name + ".log"), "wb") if self.quiet else None
-            self.processes[name] = (subprocess.Popen(
-                node_command(name, self.ns, extra, self.config_file), stdout=log, stderr=subprocess.STDOUT if log else None,
-                env=env, pass_fds=pass_fds, start_new_session=True,
-                preexec_fn=_real_time_priority if name in REAL_TIME_NODES else None), log)
+            self.processes[name] = self._spawn(name, env, pass_fds, "wb")
         if self.gate is None:
             self.registry_entry = local_testbeds.register(self, owner_command())
         else:
             self.gate.close_read_end()
         return self
+
+    def _spawn(self, name, env, pass_fds, log_mode):
+        """Start node `name`: (its Popen, its log file or None)."""
+        extra = ["-p", "bags_dir:=%s" % self.bags_dir] if name == "recorder" and self.bags_dir else []
+        if name in ("simulator", "arena"):   # a run's first steps wait for the recorder's readers where it records
+            extra = (["-p", "hardware:=true"] if self.hardware else []) + (
+                ["-p", "wait_for_recorder:=true"] if "recorder" in self.names else [])
+        if name in ("arena", "tag_tracker"):
+            extra += ["-p", "fleet_file:=%s" % self.fleet_file]
+        log = open(os.path.join(self.log_dir, name + ".log"), log_mode) if self.quiet else None
+        return subprocess.Popen(
+            node_command(name, self.ns, extra, self.config_file), stdout=log, stderr=subprocess.STDOUT if log else None,
+            env=env, pass_fds=pass_fds, start_new_session=True,
+            preexec_fn=_real_time_priority if name in REAL_TIME_NODES else None), log
+
+    def restart(self, name, restart):
+        """Start node `name`, which exited, again (./robotarium up's supervisor: robotarium_bringup.supervisor):
+        the same command line, lifeline and claim (it takes its place again at once), `restart` (a
+        robotarium_core.restarts.Restart) in its environment; its log goes on. The registry names its new pid."""
+        old, log = self.processes[name]
+        old.wait()
+        if log:
+            log.close()
+        env = dict(self._env, **{restarts.ENV: restart.to_json(), claim.ENV_CHECKED: "1"})
+        self.processes[name] = self._spawn(name, env, self._pass_fds, "ab")
+        if self.registry_entry is not None:
+            self.registry_entry = local_testbeds.register(self, owner_command())
 
     def open(self):
         """Let the nodes of a gated start go on (they join DDS now)."""
@@ -361,6 +380,12 @@ def _probe_context(domain=None, discovery_range=None):
                   start_parameter_services=False)
     _probe_contexts[key] = (context, anchor)
     return context
+
+
+def probe_context():
+    """The probe context of this process's domain (see _probe_context): for a node a command keeps for its life
+    (./robotarium up's restart announcements)."""
+    return _probe_context()
 
 
 def close_probe_contexts():

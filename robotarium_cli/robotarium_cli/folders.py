@@ -238,16 +238,20 @@ def modified_time(path):
         return time.time()
 
 
-def write_unrecorded_results(run_dir, run, testbed_report=""):
+def write_unrecorded_results(run_dir, run, testbed_report="", not_here=""):
     """report.txt and index.html for a run (a run_record.RunRecord) with no recording here (it never
-    started, or it was recorded on another machine): how it ended, and the testbed's debug report if
-    there is one."""
+    started, or it was recorded on another machine): how it ended, the testbed's debug report if
+    there is one, and `not_here`: why its recording is not here."""
     outcome = {name: value for value, name in outcomes.NAMES.items()}.get(run.outcome, outcomes.UNFINISHED)
     lines = [outcomes.first_line(outcome, run.detail), ""]
     if testbed_report:
         verdict = (run.verdict or {}).get("text", "")
         lines += [testbed_report.rstrip("\n")] + ([verdict.strip("\n")] if verdict else []) + [
-            "", "(the run was recorded on the testbed's machine, not here)"]
+            "", "(%s)" % (not_here or "no recording of the run is here")]
+    elif run.run_id or run.experiments:
+        lines.append("The testbed sent no debug report for this run.")
+        if not_here:
+            lines += ["", "(%s)" % not_here]
     else:
         lines.append("No experiment ran on a testbed, so there is no debug report.")
     notes = outcomes.run_notes(run)

@@ -277,6 +277,7 @@ class Run:
         self.work = None
         self.pending = None
         self.code = None      # the script's process's exit code (None: it never started)
+        self.frozen = None    # FrozenScript that killed a script stopped too long, once it did
 
     @property
     def record_path(self):
@@ -346,6 +347,7 @@ class Run:
                                                process_group=0, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                                **box_options)
                     self.interruption.watch(process)
+                    self.frozen = FrozenScript(process)
                     self.pending.runner = local_testbeds.process(process.pid)
                     self.pending.write(self.work)
                     # the log first: it never lags what was shown
@@ -409,7 +411,7 @@ class Run:
             return record.exit_code, record, None
         saved = [p for p, mtime in snapshot_files(pending.cwd).items()
                  if pending.before.get(p) != mtime and mtime / 1e9 >= pending.started - 1]
-        run_dir, bag_dir, stopped = self._run_folder(record)
+        run_dir, bag_dir, stopped, not_here = self._run_folder(record)
         if (self.request.judge and record.safety_interventions
                 and record.outcome == outcomes.NAMES[outcomes.COMPLETED]):
             record.verdict = _judge(self.request, record)
@@ -418,7 +420,7 @@ class Run:
         if bag_dir:
             self._results(record, run_dir, bag_dir, stopped, died)
         else:
-            write_unrecorded_results(run_dir, record, record.last.report if record.last else "")
+            write_unrecorded_results(run_dir, record, record.last.report if record.last else "", not_here)
         shutil.rmtree(self.work, ignore_errors=True)   # last: a run whose folder is finished is no longer pending
         if not self.quiet:
             print_summary(run_dir, record, pending.cwd)
@@ -434,6 +436,8 @@ class Run:
                 died, exit_code = "./robotarium run was killed", 128 + signal.SIGKILL
             elif interruption.signum is not None:
                 died, exit_code = "interrupted by %s and killed" % interruption.name, interruption.exit_code
+            elif self.frozen is not None and self.frozen.killed:
+                died, exit_code = self.frozen.killed, 128 - code if code < 0 else code
             elif code < 0:
                 died, exit_code = "killed by %s" % signal.Signals(-code).name, 128 - code
             else:
@@ -452,10 +456,12 @@ class Run:
         return record, died
 
     def _run_folder(self, record):
-        """(run folder, its bag's folder or "", "recording stopped at step k: why" or ""): the bag's
-        folder where the recorder kept the run here, else results/<run id>/."""
+        """(run folder, its bag's folder or "", "recording stopped at step k: why" or "", why the results
+        are not made here or ""): the bag's folder where the recorder kept the run here, else
+        results/<run id>/."""
         pending, last = self.pending, record.last
         run_dir = last.recording if last else ""
+        announced = bool(run_dir)
         if record.run_id and not run_dir:
             # A very short run can end before the recorder's announcement of its folder arrived.
             guess = os.path.join(pending.bags_dir or os.path.join(repository_root(), "bags"), record.run_id)
@@ -467,7 +473,9 @@ class Run:
                     say("asking the testbed's recorder where run %s is recorded (up to %.0f s)"
                         % (record.run_id, RECORDING_LOOKUP_WAIT))
                 run_dir = announced_recording(record.run_id, self.ns)
+                announced = bool(run_dir)
         recorded = bool(run_dir) and os.path.isdir(run_dir) and pending.results
+        not_here = _not_recorded_here(announced, run_dir, pending.results) if not recorded else ""
         bag_dir = run_dir if recorded else ""
         if recorded and record.recording_stopped_because == outcomes.RECORDER_GONE and _recorded_whole(record, bag_dir):
             # The client lost sight of the recorder (frozen, or starved on a busy machine, for longer than it
@@ -482,7 +490,7 @@ class Run:
             record.exit_code = outcomes.EXIT_CODES[outcomes.TESTBED_LOST]
         # The recorder could not write (a full disk): the bag's disk takes nothing more, so the run's
         # folder is results/<run id>/, with the results of what the bag holds.
-        write_error = bool(stopped) and record.recording_stopped_because != outcomes.RECORDER_GONE
+        write_error = bool(stopped) and not outcomes.recorder_lost(record.recording_stopped_because)
         if recorded and stopped:
             stopped = self._tidy_stopped_recording(record, bag_dir, write_error)
         if not recorded or write_error:
@@ -491,7 +499,7 @@ class Run:
             run_dir = (os.path.join(pending.results_dir, record.run_id) if record.run_id
                        else new_run_folder(pending.results_dir, pending.name))
             os.makedirs(run_dir, exist_ok=True)
-        return run_dir, bag_dir, stopped
+        return run_dir, bag_dir, stopped, not_here
 
     def _tidy_stopped_recording(self, record, bag_dir, write_error):
         """Nothing will close the bag (its recorder is gone, or stopped writing it): make its metadata
@@ -535,7 +543,57 @@ class Run:
         except Exception as error:   # noqa: BLE001 - say so, keep the folder
             say("could not make the results from the recording (%s); see %s"
                 % (session.describe_exception(error), run_dir))
-            write_unrecorded_results(run_dir, record, record.last.report if record.last else "")
+            write_unrecorded_results(run_dir, record, record.last.report if record.last else "",
+                                     "the results could not be made from the recording in %s" % bag_dir)
+
+
+def _not_recorded_here(announced, recording, results):
+    """Why a run's plot and video are not made here: what is known, not a guess."""
+    if not results:
+        return "no results were asked for"
+    if not announced:
+        return ("the testbed's recorder did not say where it recorded this run (it may be busy, or the testbed "
+                "runs without one); look in its bags/ folder")
+    return "the run was recorded on the testbed's machine, not here (%s)" % recording
+
+
+# s a script's process may stay stopped (SIGSTOP, a debugger) before `run` kills it: by then the testbed ended its
+# run (client_lease) and nothing would wake it; `run` would wait for its exit for ever
+FROZEN_LIMIT = 2 * DEFAULT.client_lease + 1.0
+
+
+class FrozenScript:
+    """Watches the script's process (started with process_group=0) from a daemon thread: stopped (state T in /proc)
+    for FROZEN_LIMIT s on end, its group is killed, and `killed` says how, for run.json."""
+
+    def __init__(self, process, limit=FROZEN_LIMIT, period=0.25):
+        self.process, self.limit, self.period = process, limit, period
+        self.killed = ""
+        threading.Thread(target=self._watch, daemon=True).start()
+
+    def _watch(self):
+        since = None
+        while self.process.poll() is None:
+            stopped = _process_state(self.process.pid) in ("T", "t")
+            since = (since or time.monotonic()) if stopped else None
+            if since is not None and time.monotonic() - since >= self.limit:
+                self.killed = ("killed by ./robotarium run after it stayed stopped (SIGSTOP) for %.0f s; the testbed had "
+                               "ended its run when its client stopped answering" % self.limit)
+                try:
+                    os.killpg(self.process.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+                return
+            time.sleep(self.period)
+
+
+def _process_state(pid):
+    """The state letter of process `pid` (/proc/<pid>/stat: R, S, T, Z, ...), "" when unknown."""
+    try:
+        with open("/proc/%d/stat" % pid) as f:
+            return f.read().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return ""
 
 
 # s to wait for a recorder the client lost sight of to close the run's bag after all (it closes a bag half a

@@ -14,6 +14,12 @@ class TestbedLost(RuntimeError):
     __test__ = False  # not a pytest class
 
 
+class NodeRestarted(TestbedLost):
+    """A node of the testbed that the experiment needs (the simulator, the safety node) was restarted mid-run (by
+    ./robotarium up, or in place after its DDS stalled): the run's state on it is gone. Its message is the run's
+    cause, "testbed node restarted at step k: ..." (robotarium_core.restarts.ended_run)."""
+
+
 class TestbedBusy(RuntimeError):
     """The testbed is busy with another experiment and this client would not wait (--no-wait)."""
 

@@ -13,7 +13,14 @@ import os
 import re
 import sys
 
-from robotarium_client.errors import EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete, TestbedLost
+from robotarium_client.errors import (
+    EndedByTestbed,
+    EndedByUnsentRequest,
+    NodeRestarted,
+    TestbedBusy,
+    TestbedIncomplete,
+    TestbedLost,
+)
 from robotarium_core import outcomes
 from robotarium_core.model import RobotariumError
 from robotarium_core.topics import namespace_from_environment
@@ -154,6 +161,8 @@ def failure_of(exc, step, where=""):
         return outcomes.TESTBED_BUSY, str(exc).rstrip(".")
     if isinstance(exc, TestbedIncomplete):
         return outcomes.TESTBED_INCOMPLETE, str(exc).split(", and without")[0].rstrip(".")
+    if isinstance(exc, NodeRestarted):   # its words name the node, the restart and the step
+        return outcomes.TESTBED_LOST, str(exc).rstrip(".")
     if isinstance(exc, TestbedLost):
         return outcomes.TESTBED_LOST, "the testbed was lost %s: %s" % (at, str(exc).split(". ")[0])
     return outcomes.SCRIPT_ERROR, "the script raised %s %s" % (describe_exception(exc), at)

@@ -29,8 +29,16 @@ from std_msgs.msg import String
 
 import robotarium_recording as recording
 from robotarium_bringup.testbed import LocalTestbed, security_enabled
-from robotarium_client.errors import EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete, TestbedLost
-from robotarium_core import cdr, outcomes, presence
+from robotarium_client.errors import (
+    EndedByTestbed,
+    EndedByUnsentRequest,
+    NodeRestarted,
+    TestbedBusy,
+    TestbedIncomplete,
+    TestbedLost,
+)
+from robotarium_core import cdr, claim, outcomes, presence, restarts
+from robotarium_core.dds_health import DDS_STALL_LIMIT
 from robotarium_core.dds_settings import init_context
 from robotarium_core.discovery import wait_for_quiet_discovery, wait_for_service
 from robotarium_core.executor import LeanExecutor
@@ -72,6 +80,10 @@ CONFIG_WAIT = 2.0     # s for the testbed's latched configuration once its servi
 GRAPH_POLL = 0.01     # s between looks at what only the DDS graph says (a reader matched) while waiting
 LINE_POLL = 0.5       # s between a waiting client's asks (well within the testbed's line_lease)
 LINE_REPORT = 10.0    # s between lines saying who holds the testbed, when nothing else changed
+# s, after its loss was confirmed, to wait for the restart of a node whose process lives on here, deaf to DDS (its
+# DdsStallWatch restarts it in place DDS_STALL_LIMIT after its DDS stopped, then it starts: seconds of imports)
+STALL_RESTART_WAIT = DDS_STALL_LIMIT + 5.0
+BACK_WITHOUT_RESTART = 1.0   # s a node back after its loss has to announce a restart (its presence may come first)
 
 
 def incomplete_testbed_message(ns: str) -> str:
@@ -118,6 +130,10 @@ class TestbedLink:
         self.on_recording_announced = None      # called when the recorder names this run's folder
         self._recording = ""          # the recorder's folder, from its announcement
         self.local_testbed = None     # one started here for this client (no ./robotarium around it)
+        self.started_at = None        # epoch s this client asked to start its run: restarts from then on are its
+        self.restarts_heard = set()   # robotarium_core.restarts.Restart records acted on
+        self.awaiting_restart = {}    # {node: (monotonic deadline, step)}: lost, its process alive here (a DDS stall)
+        self.claims = {}              # {node: its claim's identity (host, pid)}: robotarium_core.claim
         # The testbed's Fast DDS settings for the script's participant too (dds_settings.init_context): UDP
         # only; its writers' heartbeat every 0.1 s, so a lost packet of cmd_requested is sent again at once.
         self._context = Context()
@@ -137,6 +153,9 @@ class TestbedLink:
         self.node.create_subscription(String, CONFIG, self._on_config, LATCHED)
         self.node.create_subscription(String, RECORDING, self._on_recording, LATCHED)
         self.node.create_subscription(String, RECORDING_ERROR, self._on_recording_error, LATCHED)
+        for who in (presence.SIMULATOR, presence.SAFETY, presence.RECORDER):
+            self.node.create_subscription(String, restarts.topic(who), self._on_restart, restarts.QOS)
+            self.node.create_subscription(String, claim.claim_topic(who), self._on_claim, claim.QOS)
         self._start_client = self.node.create_client(StartExperiment, START_EXPERIMENT)
         self._end_client = self.node.create_client(EndExperiment, END_EXPERIMENT)
         self._number_of_robots = 0
@@ -177,6 +196,7 @@ class TestbedLink:
         # 100 ms (a testbed found a moment ago, a loaded machine), and a start must not be sent twice:
         # first a start it refuses however often it comes, sent until answered; then the real one.
         self.call(self._start_client, StartExperiment.Request(name="!"), resend=1.0)
+        self.started_at = time.time()
         response = self._wait_in_line(request)
         if not response.success:
             self.shutdown()
@@ -342,6 +362,49 @@ class TestbedLink:
               "what was recorded until then stays readable%s." % (why, self.recorder_lost_at,
                                                                  " in %s" % path if path else ""), file=sys.stderr)
 
+    def _on_claim(self, msg: String) -> None:
+        ident = claim.parse(msg.data)
+        if ident is not None:
+            self.claims[ident["who"]] = ident
+
+    def _on_restart(self, msg: String) -> None:
+        """A node of the testbed was restarted (robotarium_core.restarts): during this run, the recorder's restart
+        stops its recording (the run goes on); the simulator's or the safety node's ends the run, named so."""
+        restart = restarts.parse(msg.data)
+        if (restart is None or self.run_id is None or self.end_sent or restart in self.restarts_heard
+                or not restart.during(self.started_at)):
+            return
+        self.restarts_heard.add(restart)
+        # where its presence lapsed, if it did
+        step = (self.suspects.get(restart.who) or self.awaiting_restart.get(restart.who) or (None, self.step))[1]
+        if restart.who == presence.RECORDER:
+            if self.recorder_lost_at is not None and not outcomes.recorder_lost(self.recording_stopped_because):
+                return   # its recording stopped already, for a cause it named (a full disk): keep that one
+            self.suspects.pop(presence.RECORDER, None)
+            said = self.recorder_lost_at is not None
+            self.recorder_lost_at = step if self.recorder_lost_at is None else self.recorder_lost_at
+            self.recording_stopped_because = restarts.recording_stopped(restart)
+            print("[robotarium] %s: recording %s at step %d. The experiment goes on; what was recorded until then "
+                  "stays readable." % (restart.describe(), "stopped" if not said else "had stopped",
+                                       self.recorder_lost_at), file=sys.stderr)
+            return
+        self.awaiting_restart.pop(restart.who, None)
+        if self.failure is None:
+            self.failure_kind, self.failure = NodeRestarted, restarts.ended_run(restart, step)
+
+    def _alive_here(self, who: str) -> bool:
+        """Whether the process of node `who` (its claim) runs on this machine, neither stopped nor a zombie: a
+        node alive but deaf to DDS, which its DdsStallWatch restarts in place."""
+        ident = self.claims.get(who)
+        if ident is None or ident["host"] != socket.gethostname():
+            return False
+        try:
+            with open("/proc/%d/stat" % ident["pid"]) as f:
+                state = f.read().rsplit(")", 1)[1].split()[0]
+        except (OSError, IndexError):
+            return False
+        return state not in ("T", "t", "Z", "X")
+
     def _on_status(self, msg: TestbedStatus) -> None:
         if msg.run_id != self.run_id or msg.state != TestbedStatus.STATE_IDLE:
             return
@@ -396,20 +459,38 @@ class TestbedLink:
                 self.recording_stopped_because = outcomes.RECORDER_GONE
                 print("[robotarium] the recorder is gone: recording stopped at step %d. The experiment goes on; "
                       "what was recorded until then stays readable." % step, file=sys.stderr)
-            elif self.failure is None:
-                what = {"simulator": "The simulator", "safety": "The safety node"}[who]
-                self.failure_kind = TestbedLost
-                self.failure = (
-                    "%s is gone (no sign of it for %g s) at step %d: the experiment cannot go on%s. Node logs are in "
-                    "log/testbed/ when ./robotarium started the testbed." % (
-                        what, 2 * self.config.node_lease, step,
-                        ", and the simulator stopped every robot" if who == "safety" else ""))
-        return self.failure is not None
+            elif self.failure is None and who not in self.awaiting_restart:
+                del self.suspects[who]
+                if self._alive_here(who):   # deaf, not dead: its restart in place will say so
+                    self.awaiting_restart[who] = (time.monotonic() + STALL_RESTART_WAIT, step)
+                else:
+                    self._lost(who, step)
+        for who, (deadline, step) in list(self.awaiting_restart.items()):
+            watch = self.watches.get(who)
+            if watch is not None and watch.alive:   # back: a restart it announces comes at once, if it was one
+                deadline = min(deadline, time.monotonic() + BACK_WITHOUT_RESTART)
+                self.awaiting_restart[who] = (deadline, step)
+            if self.failure is None and time.monotonic() >= deadline:
+                del self.awaiting_restart[who]
+                self._lost(who, step)
+        return self.failure is not None or bool(self.awaiting_restart)
+
+    def _lost(self, who: str, step: int) -> None:
+        what = {"simulator": "The simulator", "safety": "The safety node"}[who]
+        self.failure_kind = TestbedLost
+        self.failure = (
+            "%s is gone (no sign of it for %g s) at step %d: the experiment cannot go on%s. Node logs are in "
+            "log/testbed/ when ./robotarium started the testbed." % (
+                what, 2 * self.config.node_lease, step,
+                ", and the simulator stopped every robot" if who == "safety" else ""))
 
     def check(self) -> None:
         """Raise what ended the run (a node lost, ended by someone else) where it cannot go on."""
         if self.confirm_losses():
-            raise self.failure_kind(self.failure)
+            if self.failure is None:   # a node deaf to DDS: its restart in place names the cause, or its wait ends
+                self.spin_until(lambda: self.confirm_losses() and self.failure is not None, STALL_RESTART_WAIT + 1.0)
+            if self.failure is not None:
+                raise self.failure_kind(self.failure)
 
     # -- plumbing --------------------------------------------------------------------------------------
 

@@ -60,7 +60,10 @@ def order(ident):
 def is_older(other, mine):
     """Whether `other` (another process's identity) came first: then `mine` must give way."""
     same_process = (other["host"], other["pid"]) == (mine["host"], mine["pid"])
-    return not same_process and order(other) < order(mine)
+    # A node of the same testbed and kind is this node's earlier process, restarted (./robotarium up's
+    # supervisor): its claim may still be in discovery's hands for a moment; it never refuses the new one.
+    same_testbed = (other["host"], other["testbed"], other["since"]) == (mine["host"], mine["testbed"], mine["since"])
+    return not same_process and not same_testbed and order(other) < order(mine)
 
 
 def describe(ident, ns, domain):

@@ -155,7 +155,8 @@ class DdsStallWatch:
         if stuck is not None:
             # At once and without touching DDS: winding down would wait for the stuck threads.
             stop.restart_now("Fast DDS stopped in this process: %s (a deadlock inside Fast DDS, docs/faults.md); "
-                             "starting afresh in the same process; a run it held is lost" % stuck)
+                             "starting afresh in the same process; a run it held is lost" % stuck,
+                             cause="its Fast DDS stopped: %s" % stuck)
 
 
 def fast_dds_watchdogs():

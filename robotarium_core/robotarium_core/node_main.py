@@ -16,7 +16,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.signals import SignalHandlerOptions
 
 from robotarium_core import claim as claims
-from robotarium_core import lifeline
+from robotarium_core import lifeline, restarts
 from robotarium_core.config import DEFAULT, FIELDS
 from robotarium_core.dds_settings import init_context, return_freed_memory
 from robotarium_core.executor import LeanExecutor
@@ -63,20 +63,26 @@ class StopRequest:
         if self._wake is not None:
             self._wake.trigger()
 
-    def restart_now(self, reason):
+    def restart_now(self, reason, cause=None):
         """Start afresh at once (a watchdog found DDS stuck), destroying nothing of DDS: that would wait
         for the stuck threads. Says why on stderr (the node's log; the logger would publish to /rosout,
-        through the stuck participant). Never returns."""
+        through the stuck participant); `cause`, in short, is what the restarted node announces
+        (robotarium_core.restarts). Never returns."""
         print("[%s] %s" % (self.name, reason), file=sys.stderr, flush=True)
-        restart_in_place(self.claim_node)
+        restart_in_place(self.claim_node, cause or reason)
 
 
-def restart_in_place(claim_node=None):
+def restart_in_place(claim_node=None, cause=None):
     """Start this node afresh in the same process: same pid (so `up`, a launch file or a test still
     holds it), arguments, log and lifeline; a new DDS participant with new ports. Its claim keeps
-    its `since`, and it does not wait for older claims again (it was the one running)."""
+    its `since`, and it does not wait for older claims again (it was the one running). A node that
+    claims a place announces, once back, that it restarted and why (`cause`; robotarium_core.restarts):
+    a client whose run it served names that as the run's end."""
     if claim_node is not None:
         os.environ[claims.ENV_SINCE] = repr(claim_node.claim.mine["since"])
+        if cause:
+            os.environ[restarts.ENV] = restarts.in_place(
+                claim_node.claim.mine["who"], cause, restarts.of_this_process()).to_json()
     os.environ[claims.ENV_CHECKED] = "1"
     keep = lifeline.hand_on(os.environ)
     sys.stdout.flush()
@@ -186,6 +192,9 @@ def run_node(make_node, name, args=None, before_destroy=None, claim=None, watchd
     executor.add_node(node)
     if claim_node is not None:
         executor.add_node(claim_node)
+        restarted = restarts.of_this_process()
+        if restarted is not None and restarted.by == restarts.IN_PLACE:   # (up announces its own restarts)
+            claim_node.restart_announcement = restarts.announce(claim_node, restarted)
     stop.attach(node, claim_node)
     watchdogs = list(watchdogs)
     due = [time.monotonic()] * len(watchdogs)   # when each watchdog is called next
@@ -218,5 +227,5 @@ def run_node(make_node, name, args=None, before_destroy=None, claim=None, watchd
         print("%s: %s" % (name, claim_node.refusal), file=sys.stderr, flush=True)
         return claims.REFUSED
     if stop.restart:
-        restart_in_place(claim_node)
+        restart_in_place(claim_node, stop.reason)
     return 0

@@ -81,6 +81,13 @@ ENDED_BY_ITS_CLIENT = "ended by its client"   # the simulator's end_reason for a
 ENDED_BY_TESTBED = "The experiment was ended by the testbed: "   # the client's words for a run the testbed ended
 ENDED_BY_ITS_USER = "ended by its user"   # ./robotarium end by the user who runs the experiment (end_reason)
 RECORDER_GONE = "the recorder is gone"   # why a recording stopped, when its recorder is lost
+RECORDER_RESTARTED = "the recorder was restarted"   # ... when it was restarted mid-run (robotarium_core.restarts)
+
+
+def recorder_lost(because):
+    """Whether a recording stopped because its recorder went (gone, or restarted: the bag it wrote is left
+    as it was, closed by nobody), rather than for an error the recorder named (a full disk)."""
+    return because == RECORDER_GONE or str(because or "").startswith(RECORDER_RESTARTED)
 
 
 def recording_stopped(run):

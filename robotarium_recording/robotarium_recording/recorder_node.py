@@ -23,7 +23,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProf
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
 
-from robotarium_core import cdr, presence
+from robotarium_core import cdr, presence, restarts
 from robotarium_core.config import DEFAULT, FIELDS
 from robotarium_core.dds_health import fast_dds_watchdogs
 from robotarium_core.node_main import run_node
@@ -86,7 +86,7 @@ class RunRecorder:
 
     def __init__(self, bags_dir, describe, on_started=None, on_finished=None, log=None,
                  preroll_ns=3_000_000_000, grace_ns=500_000_000, chunk_seconds=1.0, live_after_ns=None,
-                 on_write_error=None, step_of=None, catch_up_ns=4_000_000_000):
+                 on_write_error=None, step_of=None, catch_up_ns=4_000_000_000, restarted=False):
         self.bags_dir = os.path.abspath(bags_dir)
         self.describe = describe
         self.on_started = on_started or (lambda path: None)
@@ -104,6 +104,7 @@ class RunRecorder:
         self.run_id = None
         self.state = "idle"           # idle -> recording -> closing -> idle
         self.end_ns = None
+        self.start_ns = None
         self.grace_until = None
         self.finished = {}            # run id -> stamp of its last status (ns)
         # Statuses published before this are history handed over on matching, not live.
@@ -117,6 +118,11 @@ class RunRecorder:
         self.write_errors = 0         # failed writes, over the recorder's life
         self.not_recorded = 0         # messages of the current run after its recording stopped
         self.stopped_path = None      # the bag of the current run whose recording stopped ("" if none was made)
+        # A recorder restarted mid-run (robotarium_core.restarts) leaves the run it finds running alone: its bag is
+        # the one the recorder before it wrote (the client names the restart as where its recording stopped); a
+        # second bag of the run's rest would be taken for it. A run first heard at a step past 0 is such a run.
+        self.restarted = restarted
+        self.left_alone = set()       # run ids
 
     def on_message(self, topic, data, recv_ns, pub_ns, log_line=False):
         if self.state == "recording" or (self.state == "closing" and (log_line or pub_ns <= self.end_ns)):
@@ -126,6 +132,14 @@ class RunRecorder:
             self._prune(recv_ns)
 
     def on_status(self, topic, data, recv_ns, pub_ns, running, run_id, step=None):
+        if self.restarted and running and run_id and step and self.run_id is None and run_id not in self.pending \
+                and run_id not in self.left_alone:
+            self.left_alone.add(run_id)
+            self.log("run %s was running at step %d when this recorder was restarted: its recording is the bag the "
+                     "recorder before wrote; the rest of the run is not recorded" % (run_id, step))
+        if run_id in self.left_alone:
+            self.on_message(topic, data, recv_ns, pub_ns)
+            return
         if running and self._is_new_run(run_id, pub_ns):
             if pub_ns < self.live_after_ns:   # history: wait for a live status of this run
                 self.pending[run_id] = min(pub_ns, self.pending.get(run_id, pub_ns))
@@ -177,6 +191,12 @@ class RunRecorder:
             self.finish("the simulator went away without ending the experiment")
         self._prune(now_ns)
 
+    def simulator_restarted(self, restart):
+        """The simulator was restarted (robotarium_core.restarts): the run being recorded ended with its old
+        process (nothing else would close its bag until the next run's status, which would land in it)."""
+        if self.state == "recording" and restart.during(self.start_ns / 1e9):
+            self.finish("the simulator went away without ending the experiment: %s" % restart.describe())
+
     def finish(self, why):
         writer, self.writer = self.writer, None
         self.state = "idle"
@@ -201,7 +221,7 @@ class RunRecorder:
         self.on_finished(writer.path, writer)
 
     def _start(self, run_id, start_ns):
-        self.run_id, self.end_ns = run_id, start_ns
+        self.run_id, self.end_ns, self.start_ns = run_id, start_ns, start_ns
         self.end_step, self.poses_step = None, -1
         self.state = "recording"
         self.stopped_path, self.not_recorded = None, 0
@@ -319,7 +339,8 @@ class RecorderNode(Node):
         self.topics = {}            # full name -> type name (None: cannot be recorded)
         self.session = RunRecorder(bags_dir, self.describe, self.announce_start, self.announce_end,
                                    self.get_logger().info, chunk_seconds=chunk_seconds,
-                                   on_write_error=self.announce_write_error, step_of=self.poses_step_of)
+                                   on_write_error=self.announce_write_error, step_of=self.poses_step_of,
+                                   restarted=restarts.of_this_process() is not None)
         self.session.namespace = self.ns or "/"
         self.recording_pub = self.create_publisher(String, RECORDING, LATCHED)
         self.recording_error_pub = self.create_publisher(String, RECORDING_ERROR, LATCHED)
@@ -339,6 +360,8 @@ class RecorderNode(Node):
             for topic, type_name in topics.items():
                 self.subscribe_kind("%s/%s" % (self.ns, topic), type_name, kind)
         self._sim_missing_since = None
+        self.create_subscription(String, "%s/%s" % (self.ns, restarts.topic(presence.SIMULATOR)),
+                                 self.on_simulator_restart, restarts.QOS)
         self.create_timer(0.2, self.tick)
         self.create_timer(0.5, self.discover)
         self.discover()
@@ -412,6 +435,11 @@ class RecorderNode(Node):
         pub = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec or recv
         self.session.on_status(self.status_topic, data, recv, pub,
                                msg.state == TestbedStatus.STATE_RUNNING, msg.run_id, msg.step)
+
+    def on_simulator_restart(self, msg):
+        restart = restarts.parse(msg.data)
+        if restart is not None:
+            self.session.simulator_restarted(restart)
 
     def poses_step_of(self, topic, data):
         """The step of a poses message of this namespace (RunRecorder.step_of); None for other topics."""

@@ -1,14 +1,41 @@
-"""robotarium up: start the testbed nodes; they run as long as this command does."""
+"""robotarium up: start the testbed nodes; they run as long as this command does, each restarted where it exits
+on its own (robotarium_bringup.supervisor), the restart announced to the run in progress (robotarium_core.restarts)."""
 import os
 import time
 
 import robotarium_recording as recording
+from robotarium_bringup import supervisor
 from robotarium_bringup.testbed import LocalTestbed, running_testbed
 from robotarium_cli.console import Interruption, say
 from robotarium_cli.running import PROBE_WAIT, discovery_is_local
 from robotarium_core.topics import namespace_from_environment as namespace
 
-HELP = "start the testbed nodes; they run as long as this command does (Ctrl-C stops)"
+HELP = "start the testbed nodes; they run as long as this command does (Ctrl-C stops); a node that exits is restarted"
+# The node kinds whose restart a run in progress hears of (the arena takes the simulator's place).
+ANNOUNCED = {"simulator": "simulator", "arena": "simulator", "safety": "safety", "recorder": "recorder"}
+
+
+class RestartAnnouncer:
+    """up's own node (on its probe context, kept for its life), with a latched writer on each announced kind's
+    restart topic, made at the start so that clients have matched them before anything restarts."""
+
+    def __init__(self, ns, names):
+        from rclpy.node import Node
+        from std_msgs.msg import String
+
+        from robotarium_bringup.testbed import probe_context
+        from robotarium_core import restarts
+        self.node = Node("robotarium_up_%d" % os.getpid(), namespace=ns, context=probe_context(),
+                         start_parameter_services=False)
+        self.publishers = {ANNOUNCED[name]: self.node.create_publisher(String, restarts.topic(ANNOUNCED[name]),
+                                                                        restarts.QOS)
+                           for name in names if name in ANNOUNCED}
+        self.message = String
+
+    def announce(self, restart):
+        publisher = self.publishers.get(restart.who)
+        if publisher is not None:
+            publisher.publish(self.message(data=restart.to_json()))
 
 
 def add_arguments(parser):
@@ -62,6 +89,8 @@ def main(args):
     interruption = Interruption()
     testbed = LocalTestbed(record=not args.no_record, quiet=False, bags_dir=args.bags_dir,
                            config_file=args.config, hardware=args.hardware, looked=True, fleet_file=args.fleet).start()
+    announcer = RestartAnnouncer(ns, testbed.names)
+    watcher = supervisor.Supervisor()
     code = 0
     try:
         arena = "hardware arena of fleet %s (%d robots, %s)" % (fleet.name, len(fleet.robots), fleet.tracking) \
@@ -77,8 +106,8 @@ def main(args):
                     % (ns, domain))
                 code = claim.REFUSED
                 break
-            if failed:
-                say("node(s) exited: %s; stopping the testbed" % failed)
+            if failed and not _restarted(testbed, failed, watcher, announcer):
+                code = 1
                 break
             if view is not None and view.failed():
                 say("the Foxglove view exited (its message is above); the testbed runs on")
@@ -91,3 +120,17 @@ def main(args):
         interruption.restore()
     say("testbed stopped" + (" (%s)" % interruption.name if interruption.signum else ""))
     return code
+
+
+def _restarted(testbed, failed, watcher, announcer):
+    """Restart each node that exited (announcing it), as the supervisor decides; False where one keeps exiting
+    (then up stops the testbed: the supervisor's line says which node and how it ended)."""
+    for name, returncode in sorted(failed.items()):
+        pid = testbed.processes[name][0].pid
+        decision = watcher.exited(ANNOUNCED.get(name, name), returncode, pid)
+        say(decision.line)
+        if decision.restart is None:
+            return False
+        announcer.announce(decision.restart)   # at once: a run in progress names it as its end (or its recording's)
+        testbed.restart(name, decision.restart)
+    return True

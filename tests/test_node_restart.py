@@ -1,0 +1,198 @@
+"""A testbed node restarted mid-run (issue 41, item 2), with real processes: one `./robotarium up` on a domain of
+its own; a run (`./robotarium run --no-local-testbed`, tests/data/turns_and_saves.py in lockstep) whose recorder,
+safety node or simulator gets SIGKILL at a step of its run. `up` restarts the node (its supervisor,
+robotarium_bringup.supervisor) and stays up; the run says the true cause (run.json, report.txt's first line, the exit
+code): the recorder's run goes on with its recording stopped at the restart, the others end as "testbed node
+restarted at step k"; the next run on the same `up` completes. The supervisor's bound (a node that keeps dying
+stops `up`, naming it) and the restart record are tested in plain Python.
+"""
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from devtools import soak
+from devtools.rosutil import node_env, processes_on_domain, unique_domain_id
+from robotarium_bringup import supervisor
+from robotarium_core import outcomes, restarts
+
+SCRIPT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "turns_and_saves.py")
+STEPS = 3000    # lockstep: 10-20 s on the 2-core machine, long enough to be hit mid-run
+KILL_AT = 600   # the step of the run at which the node is killed (its recorder has written chunks by then)
+
+
+# -- plain Python ------------------------------------------------------------------------------------
+
+def test_the_supervisor_restarts_a_node_a_bounded_number_of_times_then_gives_up_naming_it():
+    now = [1000.0]
+    watcher = supervisor.Supervisor(limit=2, window=60.0, clock=lambda: now[0])
+    first = watcher.exited("recorder", -signal.SIGKILL, pid=42)
+    assert first.line == "the recorder exited (killed by SIGKILL); restarted it (restart 1)"
+    assert first.restart == restarts.Restart("recorder", "exited (killed by SIGKILL)", restarts.BY_UP, 1, 1000.0, 42)
+    now[0] += 10
+    assert watcher.exited("recorder", 1).restart.count == 2
+    now[0] += 10
+    given_up = watcher.exited("recorder", -signal.SIGSEGV)
+    assert given_up.restart is None
+    assert given_up.line.startswith("the recorder keeps exiting: killed by SIGSEGV, its 3rd exit within 60 s"), \
+        given_up.line
+    # another node has its own count; exits older than the window are forgotten
+    assert watcher.exited("safety", 0).line == "the safety node exited (exited with code 0); restarted it (restart 1)"
+    now[0] += 100
+    assert watcher.exited("recorder", -signal.SIGKILL).restart.count == 3
+
+
+def test_a_restart_record_reads_back_and_says_what_a_run_makes_of_it():
+    up = restarts.Restart("safety", "exited (killed by SIGKILL)", restarts.BY_UP, 1, 2000.0, 7)
+    assert restarts.parse(up.to_json()) == up
+    assert restarts.parse("{") is None and restarts.parse('{"who": 1}') is None
+    assert restarts.ended_run(up, 31).startswith(
+        "testbed node restarted at step 31: the safety node exited (killed by SIGKILL) and ./robotarium up restarted "
+        "it (restart 1)")
+    assert up.during(2000.5) and not up.during(2005.0) and not up.during(None)
+    stall = restarts.in_place("simulator", "its Fast DDS stopped: dds.ev.0 has not run for 5.0 s", previous=up)
+    assert stall.count == 2 and stall.by == restarts.IN_PLACE
+    assert stall.describe().startswith("the simulator stopped answering (its Fast DDS stopped")
+    recorder = restarts.Restart("recorder", "exited (killed by SIGKILL)", restarts.BY_UP, 1, 0.0)
+    because = restarts.recording_stopped(recorder)
+    assert outcomes.recorder_lost(because) and outcomes.recorder_lost(outcomes.RECORDER_GONE)
+    assert not outcomes.recorder_lost("disk full")
+
+
+# -- real processes ------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def testbed(tmp_path_factory):
+    """`./robotarium up` in /robotarium on a domain of its own, and a status watch, until the module is done."""
+    domain = unique_domain_id()
+    root = tmp_path_factory.mktemp("node_restart")
+    bags = root / "bags"
+    bags.mkdir()
+    env = node_env(domain, ROBOTARIUM_NAMESPACE=soak.NAMESPACE, ROBOTARIUM_ROOT=str(root), ROBOTARIUM_PROGRESS="0")
+    up = soak.Up(str(root), env)
+    watch = None
+    try:
+        up.start()
+        watch = soak.StatusWatch(domain)
+        yield {"domain": domain, "root": root, "bags": bags, "env": env, "up": up, "watch": watch}
+    finally:
+        if watch is not None:
+            watch.close()
+        up.stop()
+        for pid in processes_on_domain(domain):   # only after a failure: never leave them running
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+
+def run(testbed, cwd, kill=None, steps=STEPS):
+    """./robotarium run turns_and_saves.py on the module's testbed, SIGKILL to node `kill` at step KILL_AT of its
+    run; (exit code, output, run.json, report.txt's first line, seconds from the kill to the run's exit)."""
+    command = [sys.executable, "-m", "robotarium_cli", "run", "--no-local-testbed", "--no-video", "--lockstep",
+               "--bags-dir", str(testbed["bags"]), "--results-dir", str(testbed["root"] / "results"), SCRIPT,
+               str(steps), "2"]
+    began, killed_at = time.monotonic(), None
+    process = subprocess.Popen(command, env=testbed["env"], cwd=str(cwd), stdout=subprocess.PIPE,
+                               stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    try:
+        while kill and killed_at is None and process.poll() is None and time.monotonic() < began + 120:
+            run_id, _ = testbed["watch"].started_since(began)
+            status = testbed["watch"].get(run_id) if run_id else None
+            if status and status["step"] >= KILL_AT:
+                if kill == "script":   # the script's process frozen (SIGSTOP), never continued
+                    runner = [p for p in soak.proc_children(process.pid) if "robotarium_cli.runner" in soak.cmdline(p)]
+                    os.kill(runner[0], signal.SIGSTOP)
+                else:
+                    os.kill(testbed["up"].nodes()[kill], signal.SIGKILL)
+                killed_at = time.monotonic()
+            time.sleep(0.01)
+        out, _ = process.communicate(timeout=180)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+    ended = time.monotonic()
+    folder = re.findall(r"results in (\S+) \(open", out)
+    folder = os.path.join(str(cwd), folder[-1]) if folder else None
+    assert folder, out
+    with open(os.path.join(folder, "run.json")) as f:
+        info = json.load(f)
+    with open(os.path.join(folder, "report.txt")) as f:
+        first = f.readline().strip()
+    assert os.path.isfile(os.path.join(folder, "index.html")), out   # the results were made
+    return process.returncode, out, info, first, (ended - killed_at) if killed_at else None
+
+
+def back_up(testbed, node, restart):
+    """up says it restarted `node` and the node is ready again (its log's " ready" line); up still runs."""
+    deadline = time.monotonic() + 60
+    log = ""
+    while time.monotonic() < deadline:
+        log = testbed["up"].log()
+        if restart in log and log[log.index(restart):].count(" ready") >= 1:
+            break
+        time.sleep(0.1)
+    assert restart in log and testbed["up"].process.poll() is None, log[-3000:]
+    assert testbed["up"].healthy(), log[-3000:]
+
+
+@pytest.mark.e2e   # whole runs through ./robotarium on an `up` testbed
+def test_a_killed_recorder_is_restarted_and_its_run_goes_on_its_recording_stopped(testbed, tmp_path):
+    code, out, info, first, took = run(testbed, tmp_path, kill="recorder")
+    k = info["recording_stopped_at_step"]
+    print("recorder killed: the run exited %.1f s after the kill, code %d\n  run.json: %s / recording stopped at %s: "
+          "%s\n  report.txt: %s" % (took, code, info["outcome"], k, info["recording_stopped_because"], first))
+    assert info["outcome"] == "completed" and info["exit_code"] == code == 4, out
+    assert info["recording_stopped_because"] == ("the recorder was restarted: the recorder exited (killed by SIGKILL) "
+                                                 "and ./robotarium up restarted it (restart 1)"), info
+    assert 0 < k < STEPS and info["steps"] == STEPS, info
+    assert first.startswith("Run completed. Recording stopped at step %d: the recorder was restarted" % k), out
+    back_up(testbed, "recorder", "the recorder exited (killed by SIGKILL); restarted it (restart 1)")
+    code, out, info, first, _ = run(testbed, tmp_path, steps=30)   # the next run, recorded whole by the new one
+    assert code == 0 and info["outcome"] == "completed" and not info.get("recording_stopped_because"), out
+    assert info["recording"].startswith(str(testbed["bags"])), info
+
+
+@pytest.mark.e2e   # whole runs through ./robotarium on an `up` testbed
+@pytest.mark.parametrize("node", ["safety", "simulator"])
+def test_a_killed_node_the_run_needs_is_restarted_and_its_run_ends_naming_the_restart(testbed, tmp_path, node):
+    code, out, info, first, took = run(testbed, tmp_path, kill=node)
+    name = restarts.node_name(node)
+    words = "testbed node restarted at step"
+    assert info["outcome"] == "testbed_lost" and code == info["exit_code"] == 4, out
+    assert info["detail"].startswith(words) and ("%s exited (killed by SIGKILL) and ./robotarium up restarted it"
+                                                 % name) in info["detail"], info
+    assert first.startswith("Run did not complete: " + words), first
+    assert "SIGINT" not in first and soak.NODE_WORDS["safety"] not in first, first
+    assert soak.NODE_WORDS["simulator"] not in first, first
+    other = restarts.node_name("simulator" if node == "safety" else "safety")
+    assert other not in first, first
+    print("%s killed: the run exited %.1f s after the kill\n  run.json: %s / %s\n  report.txt: %s"
+          % (node, took, info["outcome"], info["detail"], first))
+    back_up(testbed, node, "%s exited (killed by SIGKILL); restarted it" % name)
+    code, out, info, first, _ = run(testbed, tmp_path, steps=30)   # the next run on the same up
+    assert code == 0 and info["outcome"] == "completed", out
+
+
+@pytest.mark.e2e   # whole runs through ./robotarium on an `up` testbed
+def test_a_script_whose_process_stops_is_ended_by_the_testbed_and_run_does_not_wait_for_it_for_ever(testbed, tmp_path):
+    """Item 2's last sentence: a script's process that stops answering (SIGSTOP here: DDS and Python both stand
+    still) loses its run to the testbed's client lease, and ./robotarium run, which waited for its exit for ever,
+    kills it once it stayed stopped FROZEN_LIMIT s and makes the run's folder with that cause."""
+    from robotarium_cli.running import FROZEN_LIMIT
+    code, out, info, first, took = run(testbed, tmp_path, kill="script")
+    assert code == info["exit_code"] == 128 + signal.SIGKILL and info["outcome"] == "interrupted", out
+    assert "stayed stopped (SIGSTOP)" in info["detail"], info
+    assert first.startswith("Run did not complete: the testbed ended it at step") and "its client was gone" in first, \
+        first
+    assert FROZEN_LIMIT <= took < FROZEN_LIMIT + 30, took
+    print("script stopped: run exited %.1f s after the SIGSTOP\n  run.json: %s / %s\n  report.txt: %s"
+          % (took, info["outcome"], info["detail"], first))
+    code, out, info, first, _ = run(testbed, tmp_path, steps=30)   # the next run
+    assert code == 0 and info["outcome"] == "completed", out
