@@ -346,11 +346,13 @@ V2_NOTE = ("It ran in real time on the simulator's 2.x model, not hardware-like:
            "guide's API only, not the 2.x sensors and drive-on phase.")
 
 
-def run_mode(experiment):
+def run_mode(experiment, fleet=None):
     """The one place that decides how an experiment runs: hardware-like, in real time, as the Robotarium's
     robots would move it; but a 2.x script (its verification ran it with the 2.x API) in real time on the
     simulator's 2.x model, since the hardware-like mode models the guide's API only (the simulator refuses
-    it for a 2.x script)."""
+    it for a 2.x script). A worker of robots (`fleet`): its arena moves them, nothing to choose."""
+    if fleet:
+        return RunMode(hardware_like=False)
     if experiment.verified_api == V2_API:
         return RunMode(hardware_like=False, note=V2_NOTE)
     return RunMode(hardware_like=True)
@@ -367,12 +369,11 @@ def run_experiment(experiment):
     results.mkdir(parents=True)
     limit = time_limit()
     fleet = os.environ.get(FLEET_VARIABLE)
-    mode = RunMode(hardware_like=False)   # a worker of robots: its arena decides (real robots, real time)
+    mode = run_mode(experiment, fleet)
     if fleet:   # a worker of robots (./robotarium worker --fleet): its hardware arena's testbed, on its run domain
         run = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--no-local-testbed", "--no-verdict",
                "--time-limit", "%g" % limit, "--results-dir", str(results), experiment.main_file]
     else:
-        mode = run_mode(experiment)
         run = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", *(["--hardware"] * mode.hardware_like),
                "--no-verdict", "--time-limit", "%g" % limit, "--bags-dir", str(results), "--results-dir", str(results),
                experiment.main_file]
