@@ -106,6 +106,12 @@ def threshold_keeping_arc(dxu: np.ndarray, max_linear: float = MAX_LINEAR_VELOCI
     w_scaled = alpha w keeps the arc radius v/omega). Commands already within limits are
     returned unchanged, bit for bit."""
     v, w = np.abs(dxu[0]), np.abs(dxu[1])
+    # Most commands are within the limits (every step of a lockstep run passes here up to three
+    # times): that is alpha >= 1 for every robot below, checked without its divisions and errstate
+    # (for positive a and b, a / b < 1 exactly when b > a; NaN fails the check and goes the long way).
+    if (v.max(initial=0.0) <= max_linear and w.max(initial=0.0) <= max_angular
+            and fastest_wheel(v, w, wheel_radius, base_length).max(initial=0.0) <= max_wheel):
+        return dxu.copy()
     with np.errstate(divide="ignore", over="ignore"):
         wheel = fastest_wheel(v, w, wheel_radius, base_length)
         alpha = np.minimum(np.minimum(max_wheel / wheel, 1.0), np.minimum(max_linear / v, max_angular / w))
