@@ -2,7 +2,8 @@
 portal (`./robotarium serve --jobs 0`) and one `./robotarium worker`, as devtools/service.py starts them, driven
 for N experiments submitted as the portal's submit makes them, a few at a time (a class's steady stream): the
 guide's listings and the 2.x examples (the single-file ones), numpy seeded at their top, long loops read
-shorter (devtools.soak's sets), each verified and then run in real time, hardware-like, by the worker.
+shorter (devtools.soak's sets), each verified and then run in real time by the worker, hardware-like (a 2.x
+script on the simulator's 2.x model: the hardware-like mode covers the guide's API only; jobs.run_mode).
 
 Faults, logged: the worker killed outright (kill -9 of everything it started, its machine gone) while one of
 its experiments runs, about every `worker_every` experiments, and a new worker started; PostgreSQL restarted
@@ -34,7 +35,7 @@ WAIT = 900.0            # s an experiment may take from its submission to its en
 def scripts():
     """The single-file scripts of devtools.soak.catalog() (no image, no module of their own) with a robot count
     and an iteration count: a goal loop may never end hardware-like (pose noise keeps ten robots from all being
-    within 5 cm of their goals at once: 3_5_1 ran its whole 900 s slot), and the service runs hardware-like."""
+    within 5 cm of their goals at once: 3_5_1 ran its whole 900 s slot), and the service runs the guide's hardware-like."""
     found = []
     for script in soak.catalog():
         with open(os.path.join(soak.EXAMPLES, script.path)) as f:
@@ -218,8 +219,9 @@ class ServiceSoak:
 def summary(run):
     items = run.items
     lines = ["experiments: %d (%d guide listings, %d 2.x examples), each verified then run in real time, "
-             "hardware-like, by one worker" % (len(items), sum(i.script.startswith("guide") for i in items),
-                                                sum(i.script.startswith("rps2") for i in items))]
+             "hardware-like (the 2.x ones on the 2.x model), by one worker"
+             % (len(items), sum(i.script.startswith("guide") for i in items),
+                sum(i.script.startswith("rps2") for i in items))]
     for verdict in ("completed", "rejected", "by fault", "lost"):
         chosen = [i for i in items if i.verdict == verdict]
         lines.append("  %-10s %d" % (verdict, len(chosen)))

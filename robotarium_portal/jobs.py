@@ -5,6 +5,7 @@ claim_next_run, queue, reject, fail, complete): conditional UPDATEs, so a job ha
 workers, never verify or run one experiment twice, and an outcome is written only while its worker still
 holds the experiment. The experiment table is the truth; the broker's queue only says that there is work
 (reconcile() rebuilds it from the table). Each job's command runs in a box of its own (jobbox)."""
+import dataclasses
 import functools
 import json
 import logging
@@ -23,6 +24,7 @@ from django_q.tasks import async_task
 
 from robotarium_core import run_record
 from robotarium_core.config import TestbedConfig
+from robotarium_core.rps2 import API as V2_API
 from robotarium_portal import jobbox, mail
 from robotarium_portal.database import database_retry
 from robotarium_portal.files import copy_files
@@ -333,9 +335,33 @@ def bring_results(output_path, results):
         shutil.move(named[-1], Path(results) / Path(named[-1]).name)
 
 
+@dataclasses.dataclass(frozen=True)
+class RunMode:
+    """How the service runs an experiment on its simulator, and what the experiment's page then says of it."""
+    hardware_like: bool   # ./robotarium run --hardware: latency, pose noise, wheel dynamics
+    note: str = ""        # said on the page (and in the mail) below the run's outcome; "" when nothing
+
+
+V2_NOTE = ("It ran in real time on the simulator's 2.x model, not hardware-like: the hardware-like mode covers the "
+           "guide's API only, not the 2.x sensors and drive-on phase.")
+
+
+def run_mode(experiment, fleet=None):
+    """The one place that decides how an experiment runs: hardware-like, in real time, as the Robotarium's
+    robots would move it; but a 2.x script (its verification ran it with the 2.x API) in real time on the
+    simulator's 2.x model, since the hardware-like mode models the guide's API only (the simulator refuses
+    it for a 2.x script). A worker of robots (`fleet`): its arena moves them, nothing to choose."""
+    if fleet:
+        return RunMode(hardware_like=False)
+    if experiment.verified_api == V2_API:
+        return RunMode(hardware_like=False, note=V2_NOTE)
+    return RunMode(hardware_like=True)
+
+
 @failing_truthfully
 def run_experiment(experiment):
-    """./robotarium run in real time, hardware-like, in the experiment's own working folder; then the results."""
+    """./robotarium run in real time (hardware-like as run_mode says) in the experiment's own working folder;
+    then the results."""
     root = run_folder(experiment)
     shutil.rmtree(root, ignore_errors=True)
     work, results = root / "work", root / "results"
@@ -343,12 +369,13 @@ def run_experiment(experiment):
     results.mkdir(parents=True)
     limit = time_limit()
     fleet = os.environ.get(FLEET_VARIABLE)
+    mode = run_mode(experiment, fleet)
     if fleet:   # a worker of robots (./robotarium worker --fleet): its hardware arena's testbed, on its run domain
         run = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--no-local-testbed", "--no-verdict",
                "--time-limit", "%g" % limit, "--results-dir", str(results), experiment.main_file]
     else:
-        run = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--hardware", "--no-verdict",
-               "--time-limit", "%g" % limit, "--bags-dir", str(results), "--results-dir", str(results),
+        run = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", *(["--hardware"] * mode.hardware_like),
+               "--no-verdict", "--time-limit", "%g" % limit, "--bags-dir", str(results), "--results-dir", str(results),
                experiment.main_file]
     # The live view's feed beside the run, on its testbed (live_feed.py); the job's end ends it.
     command = ["sh", "-c", '"$0" -m robotarium_portal.live_feed "$1" & shift; exec "$@"', sys.executable,
@@ -364,6 +391,7 @@ def run_experiment(experiment):
     folders = sorted((p for p in results.iterdir() if (p / run_record.FILE).exists()), key=lambda p: p.stat().st_mtime)
     run = (run_record.read(str(folders[-1])) if folders else None) or run_record.RunRecord()
     outcome = run.outcome
+    how = "\n" + mode.note if mode.note else ""   # how it ran, where that needs saying (run_mode)
     # What the page said before the run (not verified; an earlier run cut short by a stop) stays said.
     earlier = "\n\n" + experiment.detail if experiment.detail else ""
     experiment.results = str(folders[-1].relative_to(experiment.folder)) if folders else ""
@@ -373,7 +401,7 @@ def run_experiment(experiment):
         differs = experiment.differs_from_verification()
         if differs is not None:
             mail.try_sending(mail.tell_administrators_of_a_difference, experiment, *differs)
-        return _finish(experiment, Experiment.COMPLETED, detail + earlier, results=experiment.results,
+        return _finish(experiment, Experiment.COMPLETED, detail + how + earlier, results=experiment.results,
                        run_outcome=outcome, timings=experiment.timings)
     if code is None:
         why = "the run did not end within %d s of its start" % (limit + RESULTS_GRACE)
@@ -381,6 +409,6 @@ def run_experiment(experiment):
         why = run.detail
     else:
         why = "./robotarium run ended with exit code %s and no results:\n%s" % (code, _tail(root / "output.txt"))
-    return _finish(experiment, Experiment.FAILED, "Failed: " + why + box_notes(root / "output.txt") + earlier,
+    return _finish(experiment, Experiment.FAILED, "Failed: " + why + box_notes(root / "output.txt") + how + earlier,
                    results=experiment.results,
                    run_outcome=outcome, timings=experiment.timings)

@@ -260,6 +260,12 @@ class Experiment(models.Model):
                 "estimated_duration": self.estimated_duration, "number_of_robots": self.number_of_robots,
                 "main_file": self.main_file, "files": self.file_names()}
 
+    @property
+    def verified_api(self):
+        """The Robotarium API its verification ran the script with: "guide", "2" (the 2.x simulator's), or ""
+        (not verified, or verified before the verdict named it)."""
+        return (self.verification or {}).get("api") or ""
+
     def place_in_queue(self):
         """1 for the next to run; None when not queued."""
         if self.state != self.QUEUED:
@@ -311,3 +317,22 @@ class Worker(models.Model):
 
     def __str__(self):
         return "%s pid %d (%s, domain %s)" % (self.host, self.pid, self.kind, self.domain)
+
+
+class TaskHold(models.Model):
+    """Which worker slot's cluster took a job off the queue (django-q2's OrmQ row, locked for the cluster's
+    `retry`), while the job is there: robotarium_portal.broker writes it in the same transaction as the lock,
+    and the job's row takes it along when it goes (acknowledged, or the queue rebuilt). A slot found lost or
+    stopped gives its jobs back at once (release_tasks), taken or not yet begun, instead of after `retry`
+    (1800 s for a verification); a live slot's jobs keep their lock."""
+    task = models.OneToOneField("django_q.OrmQ", on_delete=models.CASCADE, primary_key=True, related_name="+")
+    worker = models.ForeignKey(Worker, on_delete=models.CASCADE, related_name="+")
+
+    @classmethod
+    def release_tasks(cls, worker_pks):
+        """The jobs these slots took off the queue go back on it now (unlocked); returns how many."""
+        from django_q.models import OrmQ
+        held = list(cls.objects.filter(worker__in=worker_pks).values_list("task_id", flat=True))
+        freed = OrmQ.objects.filter(pk__in=held).update(lock=timezone.now())
+        cls.objects.filter(task__in=held, worker__in=worker_pks).delete()
+        return freed

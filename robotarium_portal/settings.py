@@ -152,10 +152,12 @@ FILE_UPLOAD_MAX_MEMORY_SIZE = 2 * 1024 * 1024
 # conditional UPDATE, so by one worker only). Two clusters: "verify" answers submissions while
 # "runs" drives the testbed, one experiment at a time, first come first served.
 # timeout: a run is stopped at the testbed's time limit (900 s) plus start and the results' video;
-# retry (> timeout) is when a claimed job nobody finished is handed out again.
+# retry (> timeout) is when a claimed job nobody finished is handed out again; a lost or stopped worker slot's
+# jobs go back at once (broker_class keeps who took each job: models.TaskHold, supervisor.lost and release).
 Q_CLUSTER = {
     "name": "runs",
     "orm": "default",
+    "broker_class": "robotarium_portal.broker.HoldingORM",   # the ORM broker, keeping who took each job
     "workers": 1,
     "recycle": 50,
     "timeout": 1800,

@@ -46,7 +46,7 @@ def release(worker_pks, stopped_at_last_beat=False):
     from django.utils import timezone
 
     from robotarium_portal import jobs
-    from robotarium_portal.models import Experiment, Worker
+    from robotarium_portal.models import Experiment, TaskHold, Worker
     for experiment in Experiment.objects.filter(worker__in=worker_pks, state__in=(Experiment.RUNNING,
                                                                                   Experiment.VERIFYING)):
         running = experiment.state == Experiment.RUNNING
@@ -55,6 +55,7 @@ def release(worker_pks, stopped_at_last_beat=False):
             jobs.enqueue_run() if running else jobs.enqueue_verification(experiment)
     Worker.objects.filter(pk__in=worker_pks, state=Worker.ALIVE).update(
         state=Worker.STOPPED, ended_at=timezone.now(), current_job="")
+    TaskHold.release_tasks(worker_pks)   # what their clusters took off the queue and never finished: back now
 
 
 def recorded_so_far(experiment):
@@ -69,9 +70,10 @@ def recorded_so_far(experiment):
 
 
 def lost(worker):
-    """A slot found lost: its verification again, its run failed with what was recorded so far."""
+    """A slot found lost: its verification again, its run failed with what was recorded so far, and the jobs its
+    cluster had taken off the queue (begun or not) back on it now, not after the cluster's `retry`."""
     from robotarium_portal import jobs, mail
-    from robotarium_portal.models import Experiment
+    from robotarium_portal.models import Experiment, TaskHold
     when = worker.last_heartbeat.strftime("%Y-%m-%d %H:%M:%S UTC")
     for experiment in Experiment.objects.filter(worker=worker, state=Experiment.VERIFYING):
         if experiment.requeue(worker.pk, "The worker verifying it (%s) was lost (last heard of %s)" % (worker, when)):
@@ -82,6 +84,7 @@ def lost(worker):
                   % (worker, experiment.attempts, when))
         if experiment.fail(worker.pk, detail, results=recorded_so_far(experiment)):
             mail.try_sending(mail.send_issues_found, experiment)
+    TaskHold.release_tasks([worker.pk])
     logger.warning("worker %s was lost; its jobs were handed out again or failed", worker)
 
 

@@ -24,7 +24,8 @@ for path in reversed(PACKAGE_SOURCES):
 # pytest-xdist's work stealing a long test begun last leaves one worker busy while the other waits;
 # begun first, the short ones fill in around it. Each module keeps its tests together (module
 # fixtures start a testbed, a database, a service once).
-LONGEST_FIRST = ("test_soak.py", "test_service.py", "test_safe_scripts.py", "test_own_robots.py", "test_examples.py",
+LONGEST_FIRST = ("test_soak.py", "test_service.py", "test_service_faults.py", "test_safe_scripts.py",
+                 "test_own_robots.py", "test_examples.py",
                  "test_rps2_examples.py", "test_jobbox.py", "test_portal.py",
                  "test_portal_submit.py",
                  "test_run_results.py", "test_safety_guarantee.py", "test_verify.py", "test_rps2.py", "test_faults.py",

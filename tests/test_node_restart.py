@@ -142,6 +142,7 @@ def back_up(testbed, node, restart):
     assert testbed["up"].healthy(), log[-3000:]
 
 
+@pytest.mark.e2e   # whole runs through ./robotarium on an `up` testbed
 def test_a_killed_recorder_is_restarted_and_its_run_goes_on_its_recording_stopped(testbed, tmp_path):
     code, out, info, first, took = run(testbed, tmp_path, kill="recorder")
     k = info["recording_stopped_at_step"]
@@ -158,6 +159,7 @@ def test_a_killed_recorder_is_restarted_and_its_run_goes_on_its_recording_stoppe
     assert info["recording"].startswith(str(testbed["bags"])), info
 
 
+@pytest.mark.e2e   # whole runs through ./robotarium on an `up` testbed
 @pytest.mark.parametrize("node", ["safety", "simulator"])
 def test_a_killed_node_the_run_needs_is_restarted_and_its_run_ends_naming_the_restart(testbed, tmp_path, node):
     code, out, info, first, took = run(testbed, tmp_path, kill=node)
@@ -178,6 +180,7 @@ def test_a_killed_node_the_run_needs_is_restarted_and_its_run_ends_naming_the_re
     assert code == 0 and info["outcome"] == "completed", out
 
 
+@pytest.mark.e2e   # whole runs through ./robotarium on an `up` testbed
 def test_a_script_whose_process_stops_is_ended_by_the_testbed_and_run_does_not_wait_for_it_for_ever(testbed, tmp_path):
     """Item 2's last sentence: a script's process that stops answering (SIGSTOP here: DDS and Python both stand
     still) loses its run to the testbed's client lease, and ./robotarium run, which waited for its exit for ever,

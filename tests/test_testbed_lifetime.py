@@ -35,6 +35,10 @@ pytestmark = pytest.mark.e2e   # whole runs through ./robotarium
 NAMESPACE = "/lifetime"
 # Real time, two robots, forever (a goal loop that never converges); prints RUNNING once it runs.
 FOREVER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "run_forever.py")
+# A 2.x example: the simulator refuses it hardware-like, in these words.
+RPS2_EXAMPLE = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "examples", "rps2",
+                            "barrier_certificates", "si_barriers.py")
+REFUSED_2X = "The testbed refused to start the experiment: the hardware-like mode models the guide's API only"
 
 
 @pytest.fixture(scope="module")
@@ -267,9 +271,29 @@ def test_a_testbed_without_a_safety_node_is_incomplete_not_a_script_error(lab):
         assert ("The testbed in %s on ROS_DOMAIN_ID %s is incomplete: no safety node answers" % (ns, lab["domain"])
                 in out), out
         assert "hint: the testbed has no safety node (nothing ran)" in out, out
+        # A start the simulator refuses for the request's sake is said in its own words, though no safety node
+        # answers there either (this client never sees one): "incomplete" only when the safety node was waited
+        # for in vain (the start's `incomplete`), never for every refusal of a client that has not seen it yet.
+        run = cli(lab, "run", "--no-video", "--hardware", "--bags-dir", lab["bags"], RPS2_EXAMPLE, ns=ns, timeout=180)
+        out = run.stdout + run.stderr
+        assert REFUSED_2X in out and "is incomplete" not in out, out
         assert not testbed.failed(), testbed.failed()   # the testbed itself goes on
     finally:
         testbed.stop()
+
+
+def test_a_refused_start_on_a_testbed_started_a_moment_ago_says_the_refusal(lab):
+    """`./robotarium run --hardware` of a 2.x example starts a testbed of its own and is refused at once (the
+    hardware-like mode models the guide's API only), before its client may have seen the safety node's
+    presence: the refusal's words reach the user, not "the testbed is incomplete" (the service soak's 2.x runs)."""
+    ns = "/refused"
+    run = cli(lab, "run", "--no-video", "--hardware", "--bags-dir", lab["bags"], RPS2_EXAMPLE, ns=ns, timeout=180)
+    out = run.stdout + run.stderr
+    assert "started one on this machine" in out, out   # (a fresh testbed of its own)
+    assert REFUSED_2X in out, out
+    assert "is incomplete" not in out, out
+    assert run.returncode != 0, out
+    assert not wait_until_gone(lab["domain"])   # its testbed went with it
 
 
 def test_stop_mid_run_names_the_stopped_testbed_first(lab):

@@ -488,3 +488,24 @@ def end_experiment(ns=None, timeout=10.0, force=False, outcome=0, detail=""):
         if not future.done():
             raise TimeoutError("the testbed in %s did not answer end_experiment within %.0f s" % (ns, timeout))
         return future.result()
+
+
+# The node kinds whose restart a run in progress hears of (the arena takes the simulator's place).
+ANNOUNCED = {"simulator": "simulator", "arena": "simulator", "safety": "safety", "recorder": "recorder"}
+
+
+class RestartAnnouncer:
+    """up's own node (on its probe context, kept for its life), with a latched writer on each announced kind's
+    restart topic, made at the start so that clients have matched them before anything restarts."""
+
+    def __init__(self, ns, names):
+        self.node = Node("robotarium_up_%d" % os.getpid(), namespace=ns, context=probe_context(),
+                         start_parameter_services=False)
+        self.publishers = {ANNOUNCED[name]: self.node.create_publisher(String, restarts.topic(ANNOUNCED[name]),
+                                                                        restarts.QOS)
+                           for name in names if name in ANNOUNCED}
+
+    def announce(self, restart):
+        publisher = self.publishers.get(restart.who)
+        if publisher is not None:
+            publisher.publish(String(data=restart.to_json()))

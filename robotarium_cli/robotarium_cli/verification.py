@@ -137,7 +137,8 @@ def verdict(rules, run=None, report="", results=None):
             "number_of_robots": run.number_of_robots if run else None, "outcome": run.outcome if run else "not_run",
             "report": report,
             "counts": {key: getattr(run, key) if run else None for key in counted},
-            "results": results}
+            "results": results,
+            "api": run.api if run else ""}   # the API the script ran with ("guide", "2"): the service runs it so
 
 
 def verdict_lines(rules, run, config, robots, duration):

@@ -16,7 +16,7 @@ from typing import NoReturn
 
 import numpy as np
 
-from robotarium_client import session
+from robotarium_client import api_level, session
 from robotarium_client.errors import (  # noqa: F401 - also robotarium_client.robotarium's, as before
     EXIT_TIME_LIMIT,
     EndedByTestbed,
@@ -36,6 +36,8 @@ from robotarium_msgs.srv import StartExperiment
 
 class Robotarium(RobotariumABC):
     """The Robotarium of the guide, on the ROS 2 testbed."""
+
+    API = api_level.GUIDE   # the API its runs are written against (run_record.Experiment.api)
 
     def __init__(self, number_of_robots: int = -1, show_figure: bool = True, sim_in_real_time: bool = True,
                  initial_conditions: np.ndarray = np.array([])) -> None:
@@ -115,7 +117,8 @@ class Robotarium(RobotariumABC):
             hardware=response.hardware, hardware_seed=response.hardware_seed, audit=response.audit,
             first_collision_step=response.first_collision_step or None,
             first_boundary_step=response.first_boundary_step or None,
-            safety_interventions=response.safety_interventions, ideal_interventions=response.ideal_interventions)
+            safety_interventions=response.safety_interventions, ideal_interventions=response.ideal_interventions,
+            api=self.API)
         self._errors = {k: v for k, v in (("boundary", response.boundary_violations), ("collision", response.collisions),
                                           ("actuator", response.actuator_limit_iterations)) if v}
         return report
@@ -135,7 +138,8 @@ class Robotarium(RobotariumABC):
         """What is known of a run whose end the testbed never confirmed (a lost testbed)."""
         link = self._link
         info = run_record.Experiment(run_id=link.run_id or "", recording=link.announced_recording(), steps=link.step,
-                                     real_time=self.sim_in_real_time, number_of_robots=self.number_of_robots)
+                                     real_time=self.sim_in_real_time, number_of_robots=self.number_of_robots,
+                                     api=self.API)
         if link.unsent_end_at is not None:
             info.ended, info.ended_by_unsent_request_at_step = True, link.unsent_end_at
         return info

@@ -52,6 +52,8 @@ def constants(config):
 class Robotarium(backend.Robotarium):
     """rps.robotarium.Robotarium of the Robotarium simulator 2.x."""
 
+    API = rps2.API   # "2", as api_level names it: its start request's api and its run record's
+
     def __init__(self, **kwargs):
         unknown = sorted(set(kwargs) - set(KEYWORDS))
         if unknown:
@@ -156,7 +158,7 @@ class Robotarium(backend.Robotarium):
         return rps2.random_poses(self.number_of_robots, np.random, self.config)
 
     def _complete_start_request(self, request):
-        request.api = rps2.API
+        request.api = self.API
         request.obstacles = rps2.flatten_obstacles(self.obstacles)
         request.use_distance_sensors = self._use_distance_sensors
         request.sensor_seed = int(np.random.randint(1, 2 ** 31))   # 2.x's noise comes from the script's numpy

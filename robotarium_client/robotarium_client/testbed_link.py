@@ -201,10 +201,11 @@ class TestbedLink:
         self.started_at = time.time()
         response = self._wait_in_line(request)
         if not response.success:
-            incomplete = not self.watches["safety"].seen   # the testbed's fault, not the request's
             self.shutdown()
-            if incomplete:   # the simulator waited for the safety node in vain: say so, as the testbed's problem
+            if response.incomplete:   # the simulator waited for the safety node in vain: the testbed's problem
                 raise TestbedIncomplete(incomplete_testbed_message(self.ns))
+            # Any other refusal in its own words, whether or not this client saw the safety node yet (a
+            # testbed started a moment ago: its presence may not have reached us).
             raise RobotariumError("The testbed refused to start the experiment: %s" % response.message)
         self.run_id, self.token, self.poses_key = response.run_id, response.token, response.poses_key
         self._number_of_robots = request.number_of_robots

@@ -45,6 +45,8 @@ class Experiment:
     ideal_interventions: int = 0          # of those, what a verification's certificate would have changed
     ended_by_unsent_request_at_step: int | None = None
     time_limit: dict | None = None        # {"limit", "step", "sim_time", "note"} where the time limit ended it
+    api: str = ""                         # the script's Robotarium API: "guide" (rps 0.0.0) or "2" (the 2.x
+                                          # simulator's); "" in a file from before it was kept
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)

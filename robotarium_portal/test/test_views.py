@@ -421,6 +421,59 @@ def test_a_worker_whose_beats_stop_is_found_lost_its_verification_again_its_run_
     assert Worker.objects.get(pk=beating.pk).state == Worker.ALIVE
 
 
+def test_the_jobs_a_lost_slot_took_off_the_queue_go_back_at_once_a_live_slots_keep_their_lock(monkeypatch):
+    """The broker keeps who took each job (TaskHold, with its lock); the watch that finds a slot lost unlocks
+    that slot's jobs (begun or not) at once, and leaves the lock of a job a live slot took."""
+    from django_q.brokers import get_broker
+
+    from robotarium_portal import jobs
+    from robotarium_portal.broker import HoldingORM
+    from robotarium_portal.models import TaskHold, Worker
+    from robotarium_portal.supervisor import Watcher
+    OrmQ.objects.filter(key="verify").delete()
+    Worker.objects.filter(state=Worker.ALIVE).update(state=Worker.STOPPED)   # other tests' slots: not watched
+    silent, beating = make_worker(kind="verify"), make_worker(kind="verify", host="lab-pc-3")
+    owner = make_user()
+    for title in ("taken by the silent slot", "taken by the beating slot"):
+        jobs.enqueue_verification(experiment_of(owner, title=title))
+    broker = get_broker("verify")
+    assert isinstance(broker, HoldingORM)   # the service's broker (settings' broker_class)
+    time.sleep(0.01)   # (a job is there once its enqueue time has passed)
+    taken = {}
+    for slot in (silent, beating):
+        monkeypatch.setenv("ROBOTARIUM_WORKER_ID", str(slot.pk))
+        ((task, _),) = broker.dequeue()
+        taken[slot.pk] = task
+    monkeypatch.delenv("ROBOTARIUM_WORKER_ID")
+    assert dict(TaskHold.objects.values_list("worker", "task")) == taken
+    now = timezone_now()
+    assert OrmQ.objects.filter(pk__in=taken.values(), lock__gt=now).count() == 2   # both locked for `retry`
+    watcher = Watcher()
+    with override_settings(WORKER_LOST_AFTER=0.3):
+        watcher.sweep()
+        time.sleep(0.4)
+        Worker.objects.filter(pk=beating.pk).update(beats=beating.beats + 1)
+        watcher.sweep()
+    assert Worker.objects.get(pk=silent.pk).state == Worker.LOST
+    assert OrmQ.objects.get(pk=taken[silent.pk]).lock <= timezone_now()   # back on the queue now
+    assert OrmQ.objects.get(pk=taken[beating.pk]).lock > now               # still the live slot's
+    assert list(TaskHold.objects.values_list("worker", flat=True)) == [beating.pk]
+    OrmQ.objects.filter(pk=taken[beating.pk]).delete()   # done (acknowledged): its hold goes with it
+    assert not TaskHold.objects.exists()
+
+
+def test_a_script_verified_with_the_2x_api_runs_without_the_hardware_like_mode_and_says_so():
+    from robotarium_portal import jobs
+    experiment = experiment_of(make_user())
+    for verification, hardware_like in ((None, True), ({"verdict": "accepted"}, True),
+                                        ({"verdict": "accepted", "api": "guide"}, True),
+                                        ({"verdict": "accepted", "api": "2"}, False)):
+        experiment.verification = verification
+        mode = jobs.run_mode(experiment)
+        assert mode.hardware_like is hardware_like, verification
+        assert ("the hardware-like mode covers the guide's API only" in mode.note) is not hardware_like
+
+
 def test_password_reset_through_the_mailed_link():
     user = make_user()
     mail.outbox.clear()

@@ -74,6 +74,12 @@ REPORT_WAIT = 3.0           # s an end waits for the safety node's reports of th
 CLIENT_DISCOVERY_WAIT = 10.0  # s after a start for the client's presence to appear before it counts as lost
 
 
+class NoSafetyNode(str):
+    """Why a start is refused when no safety node answered within the wait (arm_safety): the testbed is
+    incomplete, its fault and not the request's; the start's response says so (`incomplete`), so a client
+    tells it apart from every other refusal, whose words it passes on."""
+
+
 def drop_counts(counts):
     """{reason: count} -> robotarium_msgs/DropCounts."""
     return DropCounts(**counts)
@@ -228,6 +234,7 @@ class SimulatorNode(Node):
             self._starting = False
         if armed is not True:
             response.message = armed
+            response.incomplete = isinstance(armed, NoSafetyNode)
             return response
 
         self.testbed, self.run = testbed, run
@@ -279,8 +286,9 @@ class SimulatorNode(Node):
         deadline = now + wait
         while not self.arm_client.service_is_ready():
             if time.monotonic() > deadline:
-                return ("no safety node answers on %s within %.0f s: without it the robots cannot move. Is the "
-                        "testbed complete (./robotarium up starts all of it)?" % (self.arm_client.srv_name, wait))
+                return NoSafetyNode("no safety node answers on %s within %.0f s: without it the robots cannot move. "
+                                    "Is the testbed complete (./robotarium up starts all of it)?"
+                                    % (self.arm_client.srv_name, wait))
             await self.sleep(0.05)
         if settled:   # one appeared after all: it gets the usual time to answer
             deadline = time.monotonic() + SAFETY_WAIT
@@ -293,7 +301,7 @@ class SimulatorNode(Node):
                 result = future.result()
                 return True if result.success else "the safety node refused the experiment: %s" % result.message
             self.arm_client.remove_pending_request(future)
-        return "the safety node did not answer on %s within %.0f s." % (self.arm_client.srv_name, SAFETY_WAIT)
+        return NoSafetyNode("the safety node did not answer on %s within %.0f s." % (self.arm_client.srv_name, SAFETY_WAIT))
 
     async def wait_for_listeners(self, client_node, testbed):
         """The streams are volatile (robotarium_core.topics): a run's first poses, status and sensors

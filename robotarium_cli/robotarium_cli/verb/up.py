@@ -5,37 +5,12 @@ import time
 
 import robotarium_recording as recording
 from robotarium_bringup import supervisor
-from robotarium_bringup.testbed import LocalTestbed, running_testbed
+from robotarium_bringup.testbed import ANNOUNCED, LocalTestbed, RestartAnnouncer, running_testbed
 from robotarium_cli.console import Interruption, say
 from robotarium_cli.running import PROBE_WAIT, discovery_is_local
 from robotarium_core.topics import namespace_from_environment as namespace
 
 HELP = "start the testbed nodes; they run as long as this command does (Ctrl-C stops); a node that exits is restarted"
-# The node kinds whose restart a run in progress hears of (the arena takes the simulator's place).
-ANNOUNCED = {"simulator": "simulator", "arena": "simulator", "safety": "safety", "recorder": "recorder"}
-
-
-class RestartAnnouncer:
-    """up's own node (on its probe context, kept for its life), with a latched writer on each announced kind's
-    restart topic, made at the start so that clients have matched them before anything restarts."""
-
-    def __init__(self, ns, names):
-        from rclpy.node import Node
-        from std_msgs.msg import String
-
-        from robotarium_bringup.testbed import probe_context
-        from robotarium_core import restarts
-        self.node = Node("robotarium_up_%d" % os.getpid(), namespace=ns, context=probe_context(),
-                         start_parameter_services=False)
-        self.publishers = {ANNOUNCED[name]: self.node.create_publisher(String, restarts.topic(ANNOUNCED[name]),
-                                                                        restarts.QOS)
-                           for name in names if name in ANNOUNCED}
-        self.message = String
-
-    def announce(self, restart):
-        publisher = self.publishers.get(restart.who)
-        if publisher is not None:
-            publisher.publish(self.message(data=restart.to_json()))
 
 
 def add_arguments(parser):
