@@ -411,7 +411,7 @@ class TestbedLink:
         """A status as its bytes: its head (state, run_id) read with cdr, the whole message
         deserialised only for an IDLE status of this run, the one _on_status acts on."""
         try:
-            head = cdr.TESTBED_STATUS_HEAD.parse(data)
+            head = cdr.TESTBED_STATUS_HEAD.parse(data, max_string=len(data))
         except cdr.CdrError:
             return   # not a TestbedStatus: not the simulator's
         if head.run_id == self.run_id and head.state == TestbedStatus.STATE_IDLE:

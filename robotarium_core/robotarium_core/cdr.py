@@ -336,7 +336,8 @@ MARKER = Layout("visualization_msgs/msg/Marker", HEADER + (
 # The fields of a TestbedStatus up to its step: the simulator publishes one every lockstep step; a
 # client acts only on an IDLE status of its own run and the recorder needs only these, so they read
 # them and deserialise the whole message (nested DropCounts, strings) only when they need it
-# (rclpy's message object costs ~0.1 ms a step).
+# (rclpy's message object costs ~0.1 ms a step). Read with max_string=len(data): an experiment's name
+# may be longer than MAX_STRING, and a string cannot take more than the message's bytes anyway.
 TESTBED_STATUS_HEAD = Layout("robotarium_msgs/msg/TestbedStatus", HEADER + (
     ("state", UINT8), ("experiment", STRING), ("run_id", STRING), ("mode", STRING), ("number_of_robots", UINT32),
     ("step", UINT64),

@@ -432,7 +432,7 @@ class RecorderNode(Node):
     def on_status(self, data):
         recv = time.time_ns()
         try:
-            msg = cdr.TESTBED_STATUS_HEAD.parse(data)   # all it needs, without the rest (one a lockstep step)
+            msg = cdr.TESTBED_STATUS_HEAD.parse(data, max_string=len(data))   # all it needs (one a lockstep step)
         except cdr.CdrError:
             return   # not a TestbedStatus: not the simulator's
         pub = msg.sec * 1_000_000_000 + msg.nanosec or recv
