@@ -25,6 +25,7 @@ import numpy as np
 import rclpy
 from rclpy.context import Context
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
 
 import robotarium_recording as recording
@@ -146,7 +147,8 @@ class TestbedLink:
         self.command_pub = self.node.create_publisher(TwistArray, CMD_REQUESTED, OUTPUT_QOS)
         self._poses_subscription = self.node.create_subscription(RobotPoses, POSES, self._on_poses, TESTBED_QOS,
                                                                  raw=True)
-        self.node.create_subscription(TestbedStatus, STATUS, self._on_status, STATUS_QOS)
+        # Raw: a status comes every lockstep step and only this run's IDLE one matters (_on_status_bytes).
+        self.node.create_subscription(TestbedStatus, STATUS, self._on_status_bytes, STATUS_QOS, raw=True)
         # Made now, not at the first drawing: the recorder discovers it while the experiment starts.
         self._drawing_pub = self.node.create_publisher(String, DRAWING, DRAWING_QOS)
         self._drawing_message = String()
@@ -404,6 +406,16 @@ class TestbedLink:
         except (OSError, IndexError):
             return False
         return state not in ("T", "t", "Z", "X")
+
+    def _on_status_bytes(self, data: bytes) -> None:
+        """A status as its bytes: its head (state, run_id) read with cdr, the whole message
+        deserialised only for an IDLE status of this run, the one _on_status acts on."""
+        try:
+            head = cdr.TESTBED_STATUS_HEAD.parse(data, max_string=len(data))
+        except cdr.CdrError:
+            return   # not a TestbedStatus: not the simulator's
+        if head.run_id == self.run_id and head.state == TestbedStatus.STATE_IDLE:
+            self._on_status(deserialize_message(data, TestbedStatus))
 
     def _on_status(self, msg: TestbedStatus) -> None:
         if msg.run_id != self.run_id or msg.state != TestbedStatus.STATE_IDLE:

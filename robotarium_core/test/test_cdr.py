@@ -8,7 +8,7 @@ from geometry_msgs.msg import Pose, PoseArray, Twist
 from rclpy.serialization import deserialize_message, serialize_message
 
 from robotarium_core import cdr
-from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, TwistArray
+from robotarium_msgs.msg import DropCounts, RobotPoses, SafetyReport, TestbedStatus, TwistArray
 
 RNG = np.random.default_rng(13)
 SIZES = [0, 1, 3, 20, 50]
@@ -131,6 +131,23 @@ def test_safety_report_is_rclpys_message_byte_for_byte(solver_status):
     assert deserialize_message(ours, SafetyReport) == msg
 
 
+@pytest.mark.parametrize("run_id", ["", "run_20261129_1", "é" * 30])
+@pytest.mark.parametrize("experiment", ["x" * 7, "a long name " * 500])
+def test_testbed_status_head_reads_rclpys_message(run_id, experiment):
+    """The client reads a status's head (TESTBED_STATUS_HEAD) and deserialises the rest only for
+    its run's IDLE status: the head's fields are those of the message's first fields, in order."""
+    head = list(TestbedStatus.get_fields_and_field_types())[:7]
+    assert head == ["header", "state", "experiment", "run_id", "mode", "number_of_robots", "step"]
+    assert list(cdr.TESTBED_STATUS_HEAD.Message._fields) == ["sec", "nanosec", "frame_id"] + head[1:]
+    msg = TestbedStatus(state=TestbedStatus.STATE_IDLE, experiment=experiment, run_id=run_id, mode="lockstep",
+                        number_of_robots=5, step=2 ** 40 + 3, end_reason="ended", waiting=["a", "b"],
+                        dropped_cmd_safe=DropCounts(stale=3))
+    msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id = 12, 34, "arena"
+    data = serialize_message(msg)
+    parsed = cdr.TESTBED_STATUS_HEAD.parse(data, max_string=len(data))   # as the client and the recorder read it
+    assert parsed == (12, 34, "arena", TestbedStatus.STATE_IDLE, experiment, run_id, "lockstep", 5, 2 ** 40 + 3)
+
+
 def test_bad_bytes_are_a_cdr_error_never_a_crash():
     good = serialize_message(twist_array_message(5, 9, np.ones(5), np.ones(5), False))
     for cut in range(len(good) - 1):   # every truncation (the last byte is the bool)
@@ -243,3 +260,35 @@ def test_random_bytes_never_raise_anything_but_cdr_error():
             assert error.reason in (cdr.FOREIGN, cdr.OVERSIZED, cdr.MALFORMED)
         else:
             assert len(parsed.ids) <= 50 and len(parsed.v) <= 50
+
+
+@pytest.mark.parametrize("layout", [cdr.TWIST_ARRAY, cdr.ROBOT_POSES, cdr.SAFETY_REPORT, cdr.POSE_ARRAY, cdr.MARKER,
+                                    cdr.TESTBED_STATUS_HEAD])
+def test_build_and_parse_of_scalar_runs_equal_the_field_by_field_path(layout):
+    """build and parse pack consecutive scalars with one struct per alignment phase (cdr._steps):
+    the same bytes as writing field by field (_write), and the same values read back, for strings
+    of every length modulo 8 before each run (every phase) and random values."""
+    rng = np.random.default_rng(3)
+    for trial in range(64):
+        values = {}
+        for name, kind in layout.fields:
+            if isinstance(kind, cdr._String):
+                values[name] = "s" * int(rng.integers(0, 17))
+            elif isinstance(kind, cdr._Sequence):
+                count = int(rng.integers(0, 4))
+                shape = (count, kind.width) if kind.width else (count,)
+                values[name] = (rng.integers(0, 200, shape) if kind.dtype.kind in "ui" else rng.normal(size=shape)
+                                ).astype(kind.dtype)
+            elif kind.fmt == "?":
+                values[name] = bool(rng.integers(0, 2))
+            elif kind.fmt in "dfe":
+                values[name] = float(np.float32(rng.normal())) if kind.fmt == "f" else float(rng.normal())
+            else:
+                values[name] = int(rng.integers(0, 2 ** (8 * kind.size - 1)))
+        ours = layout.build(**values)
+        assert ours == b"".join(layout._writer(values).parts)
+        parsed = layout.parse(ours)
+        for name, _ in layout.fields:
+            assert np.array_equal(getattr(parsed, name), values[name]), (trial, name)
+    with pytest.raises(TypeError, match="no field"):
+        layout.build(nonsense=1)

@@ -67,12 +67,30 @@ class TestbedCertificate:
         c, s = np.cos(x[2]), np.sin(x[2])
         x_min, x_max, y_min, y_max = self.arena
         m = self.margin + self.reach
-        gaps = np.stack([x_max - m - x[0], x[0] - x_min - m, y_max - m - x[1], x[1] - y_min - m])
         turn = self.turn
-        robots = [np.tile(np.arange(n), 4)]
-        coef = [np.stack([c, -c, s, -s]).ravel()]
-        slack = [np.full(4 * n, turn)]   # |d(cos t)|, |d(sin t)| <= the turn
-        bound = [np.maximum(self.rate * gaps / self.time_step, 0.0).ravel()]
+        # Each row is  coef v + slack |v| <= bound  (bound >= 0): v <= bound / (coef + slack) and
+        # v >= -bound / (slack - coef), where those are positive. The four edge rows of every robot
+        # come as 4 x N arrays (one call per operation whatever N: at small N numpy's per-call cost,
+        # not the arithmetic, is the step's); the pair rows, few, follow with minimum.at. A minimum
+        # is exact whatever the order, so the intervals are those of one pass over all rows.
+        gaps = np.empty((4, n))
+        gaps[0] = x_max - m - x[0]
+        gaps[1] = x[0] - x_min - m
+        gaps[2] = y_max - m - x[1]
+        gaps[3] = x[1] - y_min - m
+        bound = np.maximum(self.rate * gaps / self.time_step, 0.0)
+        coef = np.empty((4, n))
+        coef[0] = c
+        np.negative(c, out=coef[1])
+        coef[2] = s
+        np.negative(s, out=coef[3])
+        up, down = coef + turn, turn - coef   # |d(cos t)|, |d(sin t)| <= the turn: the slack
+        high = np.full((4, n), np.inf)
+        low = np.full((4, n), -np.inf)
+        with np.errstate(over="ignore"):   # a vanishing coefficient bounds nothing: +-inf is the right limit
+            np.divide(bound, up, out=high, where=up > 0)
+            np.divide(-bound, down, out=low, where=down > 0)
+        high, low = high.min(axis=0), low.max(axis=0)
         centre = np.ascontiguousarray(x[:2].T)
         pairs = self._neighbours.pairs(centre, self.cutoff(speed))
         if len(pairs):
@@ -80,18 +98,14 @@ class TestbedCertificate:
             e = centre[i] - centre[j]
             distance = self.distance + 2 * self.reach
             half = np.maximum(self.rate * (np.einsum("ij,ij->i", e, e) - distance ** 2) / self.time_step, 0.0) / 2
-            robots.append(np.concatenate([i, j]))
-            coef.append(np.concatenate([-2 * (e[:, 0] * c[i] + e[:, 1] * s[i]), 2 * (e[:, 0] * c[j] + e[:, 1] * s[j])]))
-            slack.append(np.tile(2 * np.hypot(e[:, 0], e[:, 1]) * turn, 2))   # |d(e.n)| <= |e| x the turn
-            bound.append(np.concatenate([half, half]))
-        robots, coef, slack, bound = map(np.concatenate, (robots, coef, slack, bound))
-        # Each row is  coef v + slack |v| <= bound  (bound >= 0): v <= bound / (coef + slack) and
-        # v >= -bound / (slack - coef), where those are positive.
-        low, high = np.full(n, -np.inf), np.full(n, np.inf)
-        up, down = coef + slack > 0, slack - coef > 0
-        with np.errstate(over="ignore"):   # a vanishing coefficient bounds nothing: +-inf is the right limit
-            np.minimum.at(high, robots[up], bound[up] / (coef + slack)[up])
-            np.maximum.at(low, robots[down], -bound[down] / (slack - coef)[down])
+            robots = np.concatenate([i, j])
+            coef = np.concatenate([-2 * (e[:, 0] * c[i] + e[:, 1] * s[i]), 2 * (e[:, 0] * c[j] + e[:, 1] * s[j])])
+            slack = np.tile(2 * np.hypot(e[:, 0], e[:, 1]) * turn, 2)   # |d(e.n)| <= |e| x the turn
+            bound = np.concatenate([half, half])
+            up, down = coef + slack > 0, slack - coef > 0
+            with np.errstate(over="ignore"):
+                np.minimum.at(high, robots[up], bound[up] / (coef + slack)[up])
+                np.maximum.at(low, robots[down], -bound[down] / (slack - coef)[down])
         return low, high
 
     def __call__(self, dxu, x):

@@ -21,6 +21,7 @@ from geometry_msgs.msg import PoseArray
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.serialization import serialize_message
 from rclpy.task import Future
 from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
@@ -158,8 +159,11 @@ class SimulatorNode(Node):
         self.commands = self.create_subscription(TwistArray, CMD_SAFE, self.on_commands,
                                                  command_input_qos(self.config.command_queue_depth), raw=True,
                                                  event_callbacks=warn_on_incompatible_qos(self, CMD_SAFE))
+        # Raw (cdr.SAFETY_REPORT): one comes every lockstep step, and rclpy's message object (a nested
+        # DropCounts) cost more than the step's model.
         self.safety_reports = self.create_subscription(SafetyReport, SAFETY_REPORT, self.on_safety_report,
-                                                      SAFETY_REPORT_QOS)
+                                                      SAFETY_REPORT_QOS, raw=True)
+        self._requested_drops = (None, None)   # (the safety node's drop counts, as a DropCounts): made when they change
         self.create_subscription(String, RECORDING, self.on_recording, LATCHED)
         # A start waits for the safety node's answer (a coroutine): in a group of its own, so that
         # the node's other callbacks (that answer among them) run meanwhile.
@@ -531,14 +535,27 @@ class SimulatorNode(Node):
                 "dropped a command array on cmd_safe: %s (%s). Further drops of this kind are only counted in the "
                 "status topic." % (model.DROP_REASONS[reason], detail))
 
-    def on_safety_report(self, msg):
+    def on_safety_report(self, data):
+        """A SafetyReport as its bytes (a raw subscription)."""
         if self.testbed is None:
             return
+        try:
+            msg = cdr.SAFETY_REPORT.parse(data)
+        except cdr.CdrError:
+            return   # not a SafetyReport: not the safety node's
         self.run.count_safety_report(
             is_intervention(msg, self.config.intervention_tolerance), msg.max_change,
             of_an_array=msg.status != SafetyReport.STATUS_COUNTS_ONLY,
-            stale_stop=msg.status == SafetyReport.STATUS_STOP_NO_POSES, dropped=msg.dropped,
+            stale_stop=msg.status == SafetyReport.STATUS_STOP_NO_POSES, dropped=self.requested_drops(msg),
             ideal=msg.ideal_change > self.config.intervention_tolerance)
+
+    def requested_drops(self, report):
+        """The report's drop counts (cdr.SAFETY_REPORT flattens them) as a DropCounts, the same object
+        while they stay the same (they change only when the safety node drops an array)."""
+        counts = tuple(getattr(report, reason) for reason in model.DROP_REASONS)
+        if counts != self._requested_drops[0]:
+            self._requested_drops = (counts, DropCounts(**dict(zip(model.DROP_REASONS, counts))))
+        return self._requested_drops[1]
 
     def on_recording(self, msg):
         self.recording = msg.data
@@ -618,8 +635,10 @@ class SimulatorNode(Node):
             msg.number_of_robots = tb.number_of_robots
             msg.step = tb.steps
             copy_counters(tb, msg, self.run.tally)
-        self.status_stream_pub.publish(msg)
-        self.status_pub.publish(msg)
+        # Serialised once for both writers (rclpy would convert and serialise the message for each).
+        data = serialize_message(msg)
+        self.status_stream_pub.publish(data)
+        self.status_pub.publish(data)
 
 
 def main(args=None):
