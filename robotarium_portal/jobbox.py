@@ -30,7 +30,8 @@ ACCOUNT_PREFIX = "robotarium-job-"
 ENVIRONMENT = ("PATH", "HOME", "LANG", "LC_ALL", "LC_CTYPE", "TZ", "TERM", "PYTHONPATH", "PYTHONUNBUFFERED",
                "LD_LIBRARY_PATH", "VIRTUAL_ENV", "AMENT_PREFIX_PATH", "CMAKE_PREFIX_PATH", "RMW_IMPLEMENTATION",
                "MPLBACKEND", "ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS",
-               "ROBOTARIUM_ROOT", "ROBOTARIUM_PROGRESS", "ROBOTARIUM_RPS", "ROBOTARIUM_PYTHON")
+               "ROBOTARIUM_ROOT", "ROBOTARIUM_PROGRESS", "ROBOTARIUM_RPS", "ROBOTARIUM_PYTHON",
+               "ROBOTARIUM_WARM_VERIFICATION")   # (verify takes it out of its environment: the script never sees it)
 SHARED_TMP = ("/tmp", "/var/tmp", "/dev/shm")
 # The repository's folders of runs and logs (other people's `./robotarium run` on this machine): empty in a box.
 PRIVATE_IN_REPOSITORY = ("bags", "log", "results", "service")
@@ -157,27 +158,29 @@ def kill_account(uid):
     return before
 
 
-def in_namespace(netns):
-    """The pids of the processes in the network namespace netns (its /proc/PID/ns/net link)."""
+def in_namespace(netns, kind="net"):
+    """The pids of the processes in the namespace netns (their /proc/PID/ns/<kind> link: "net", or "pid")."""
     found = []
     for entry in os.listdir("/proc"):
         if entry.isdigit():
             try:
-                if os.readlink("/proc/%s/ns/net" % entry) == netns:
+                if os.readlink("/proc/%s/ns/%s" % (entry, kind)) == netns:
                     found.append(int(entry))
             except OSError:
                 continue
     return found
 
 
-def pin_namespace(pid, own):
+def pin_namespace(pid, own, link="net"):
     """(identity, descriptor) of process pid's network namespace ("net:[inode]"), the namespace held
     open: it lives while a descriptor of it is open, so its number cannot pass to a namespace made
     later. Without the pin a job's cleanup (kill_namespace) once killed a job that had just started on
     another worker: the ended job's namespace was gone and the new one had been given its number.
-    (None, None) while pid still shares `own` (the door has not made its namespace yet), or is gone."""
+    (None, None) while pid still shares `own` (the door has not made its namespace yet), or is gone.
+    link "pid_for_children": the PID namespace the door made for the job (a box that joins a slot's network
+    namespace is told from what else runs there by it)."""
     try:
-        fd = os.open("/proc/%d/ns/net" % pid, os.O_RDONLY | os.O_CLOEXEC)
+        fd = os.open("/proc/%d/ns/%s" % (pid, link), os.O_RDONLY | os.O_CLOEXEC)
     except OSError:
         return None, None
     netns = os.readlink("/proc/self/fd/%d" % fd)
@@ -187,12 +190,13 @@ def pin_namespace(pid, own):
     return netns, fd
 
 
-def kill_namespace(netns):
+def kill_namespace(netns, kind="net"):
     """SIGKILL whatever still runs in a job's network namespace once its command ended (a testbed node
-    whose command line was killed): every process of the job is in it. How many there were."""
-    before = len(in_namespace(netns))
+    whose command line was killed): every process of the job is in it. How many there were. kind "pid":
+    netns is the job's PID namespace (a box in a slot's network namespace, which others share)."""
+    before = len(in_namespace(netns, kind))
     for _ in range(50):
-        pids = in_namespace(netns)
+        pids = in_namespace(netns, kind)
         if not pids:
             break
         for pid in pids:
@@ -201,7 +205,7 @@ def kill_namespace(netns):
             except OSError:
                 continue
             try:
-                if os.readlink("/proc/%d/ns/net" % pid) == netns:
+                if os.readlink("/proc/%d/ns/%s" % (pid, kind)) == netns:
                     signal.pidfd_send_signal(fd, signal.SIGKILL)
             except OSError:
                 pass
@@ -257,10 +261,15 @@ def notes_in(output_path):
 class JobBox:
     """The box of one job slot (a worker runs one job a slot at a time): `<root>/<name>/`, its account."""
 
-    def __init__(self, root, name, limits, keep=(), own_network=True):
+    def __init__(self, root, name, limits, keep=(), own_network=True, network=None):
         # own_network False: the machine's network (a worker that moves real robots: its testbed's hardware arena
         # talks to them there); the box keeps its mount namespace, folder, account, limits and environment.
+        # network: a network namespace to join (a path to it, e.g. /proc/PID/ns/net) instead of one of the job's
+        # own: its slot's, where the slot's warm testbed runs (slot_network). Only for a root service (joining
+        # a namespace the machine's user namespace owns takes CAP_SYS_ADMIN there); the job's PID and mount
+        # namespaces, folder, account and limits stay its own, and its cleanup stops its own processes only.
         self.own_network = own_network
+        self.network = network if own_network and isolated() else None
         self.root = Path(root).resolve()
         self.folder = self.root / name
         self.work, self.home, self.tmp = self.folder / "work", self.folder / "home", self.folder / "tmp"
@@ -323,7 +332,7 @@ class JobBox:
         private = [os.path.join(repository, p) for p in PRIVATE_IN_REPOSITORY if os.path.isdir(os.path.join(repository, p))]
         spec = {"user_namespace": not isolated(), "hide": hide, "private": private, "keep": sorted(keep),
                 "box": str(self.folder), "uid": self.uid, "gid": self.gid, "disk_bytes": self.limits.disk_bytes,
-                "own_network": self.own_network}
+                "own_network": self.own_network, "join_network": self.network}
         return [sys.executable, os.path.abspath(__file__), "enter", "--", *command], json.dumps(spec)
 
     def run(self, command, env, output_path, timeout, started=None):
@@ -338,7 +347,10 @@ class JobBox:
             if started:
                 started(process.pid)
             deadline = time.monotonic() + timeout
-            own_netns, netns, pin = os.readlink("/proc/self/ns/net"), None, None
+            # The job's processes: those in its network namespace, or in its PID namespace where it joined one that
+            # others share (the slot's warm testbed runs there, and must outlive the job).
+            link, kind = ("pid_for_children", "pid") if self.network else ("net", "net")
+            own_netns, netns, pin = os.readlink("/proc/self/ns/%s" % kind), None, None
             try:
                 while True:
                     try:
@@ -347,7 +359,7 @@ class JobBox:
                     except subprocess.TimeoutExpired:
                         pass
                     if netns is None:   # the door has made the job's namespace (then started the command)
-                        netns, pin = pin_namespace(process.pid, own_netns)
+                        netns, pin = pin_namespace(process.pid, own_netns, link)
                     if time.monotonic() > deadline:
                         notes.append("the job did not end within its %d s; it was stopped" % timeout)
                         timed_out = True
@@ -360,7 +372,7 @@ class JobBox:
                 killed = self._stop_script()
                 if killed:
                     notes.append("%d processes the script left behind were stopped at the job's end" % killed)
-                left = kill_namespace(netns) if netns else 0
+                left = kill_namespace(netns, kind) if netns else 0
                 if left:
                     notes.append("%d processes of the job still ran when its command had ended; they were stopped"
                                  % left)
@@ -429,6 +441,33 @@ def stop_group(pgid, grace=30.0):
             time.sleep(0.2)
 
 
+# -- a slot's network namespace -----------------------------------------------------------------------
+
+def start_in_network(command, env, output):
+    """Start command (the slot's warm testbed) in a new network namespace of its own, its loopback up, as the
+    service: (its Popen, the path of the namespace for JobBox(network=...)). It gets SIGTERM should the
+    process that started it die (PR_SET_PDEATHSIG), so it never outlives its slot. Root only."""
+    process = subprocess.Popen([sys.executable, os.path.abspath(__file__), "network", "--", *command], env=env,
+                               stdout=output, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, process_group=0)
+    own = os.readlink("/proc/self/ns/net")
+    for _ in range(200):   # until the door has made the namespace
+        netns, pin = pin_namespace(process.pid, own)
+        if pin is not None:
+            os.close(pin)
+            return process, "/proc/%d/ns/net" % process.pid
+        if process.poll() is not None:
+            break
+        time.sleep(0.02)
+    return process, None
+
+
+def _network_door(command):
+    os.unshare(os.CLONE_NEWNET)
+    loopback_up()
+    ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)   # PR_SET_PDEATHSIG
+    os.execvp(command[0], command)
+
+
 # -- the door: run as `python jobbox.py enter SPEC -- COMMAND...` (a fresh process, one thread) ----------
 
 MS_RDONLY, MS_NOSUID, MS_NODEV, MS_NOEXEC, MS_BIND, MS_REC, MS_PRIVATE = 0x1, 0x2, 0x4, 0x8, 0x1000, 0x4000, 0x40000
@@ -473,6 +512,14 @@ def _box_on_tmpfs(libc, spec):
 def enter(spec, command):
     uid, gid = os.geteuid(), os.getegid()
     own_network = spec.get("own_network", True)
+    if own_network and spec.get("join_network"):   # the slot's network namespace (its loopback is up already)
+        try:
+            fd = os.open(spec["join_network"], os.O_RDONLY | os.O_CLOEXEC)
+            os.setns(fd, os.CLONE_NEWNET)
+            os.close(fd)
+            own_network = False
+        except OSError as error:   # the slot's namespace is gone: a namespace of the job's own, as ever
+            print(NOTE + "the slot's network namespace is gone (%s): the job has one of its own" % error, flush=True)
     flags = ((os.CLONE_NEWNET if own_network else 0) | os.CLONE_NEWNS | os.CLONE_NEWPID
              | (os.CLONE_NEWUSER if spec["user_namespace"] else 0))
     try:
@@ -550,6 +597,8 @@ def _init(libc, command):
 
 
 if __name__ == "__main__":
+    if sys.argv[1:3] == ["network", "--"] and len(sys.argv) > 3:
+        _network_door(sys.argv[3:])
     if len(sys.argv) < 4 or sys.argv[1:3] != ["enter", "--"] or SPEC_VARIABLE not in os.environ:
         sys.exit("usage: %s=SPEC_JSON python jobbox.py enter -- COMMAND... (the job box's door; see its docstring)"
                  % SPEC_VARIABLE)

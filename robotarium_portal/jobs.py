@@ -104,7 +104,7 @@ def stopping():
     return (jobs_dir() / "stopping").exists()
 
 
-def run_command(command, cwd, env, output_path, timeout, job, own_network=True):
+def run_command(command, cwd, env, output_path, timeout, job, own_network=True, network=None):
     """Run command in the job's own box (jobbox: its namespaces, folder, account and limits; cwd's files are
     copied into the box's folder, where it runs), its output in a file. The box's process group is in
     jobs/<job>.pgid while it runs (serve stops it there). The exit code, or None when it ran past timeout
@@ -112,13 +112,76 @@ def run_command(command, cwd, env, output_path, timeout, job, own_network=True):
     pgid_file = jobs_dir() / ("%s.pgid" % job)
     # a box per worker slot: the slots on one machine differ in their ROS_DOMAIN_ID (a bounded set of accounts)
     box = jobbox.JobBox(settings.JOB_BOXES_DIR, "%s-%s" % (job, env.get("ROS_DOMAIN_ID", "0")),
-                        jobbox.Limits(**settings.JOB_LIMITS), keep=[settings.DATA_DIR], own_network=own_network)
+                        jobbox.Limits(**settings.JOB_LIMITS), keep=[settings.DATA_DIR], own_network=own_network,
+                        network=network)
     try:
         box.prepare(cwd)
         return box.run(command, env, output_path, timeout, started=lambda pid: pgid_file.write_text(str(pid))).code
     finally:
         pgid_file.unlink(missing_ok=True)
         box.clean()
+
+
+# The network namespace of this verification slot's warm testbed (start_warm_verification; its jobs read it).
+WARM_NETWORK_VARIABLE = "ROBOTARIUM_PORTAL_WARM_NETWORK"
+WARM_START = 60   # s the slot waits for its warm testbed before it takes work without it
+
+
+def start_warm_verification():
+    """The verification slot's warm verification testbed, for the slot's life: ./robotarium up --verification
+    --no-record on the slot's ROS_DOMAIN_ID, with the transports and discovery of a job's box, in a network
+    namespace of its own (jobbox.start_in_network), which each verification's box joins. The script still runs
+    in its box: its own PID and mount namespaces, folder, account and limits; what it shares with the next job
+    is the testbed's nodes (the service's processes). Returns the testbed's Popen (None: none, as the settings,
+    or a service that is not root, say). Called by the slot's process (jobslot) before its workers start."""
+    if not (settings.WARM_VERIFICATION and jobbox.isolated()):
+        return None
+    # A job's named variables only (as JobBox.environment gives a verification, with its transports and discovery):
+    # nothing of the slot's own, such as its lifeline, whose descriptor the testbed would not have (it then ends).
+    env = dict(jobbox.scrubbed(job_env("ROBOTARIUM_PORTAL_VERIFY_DOMAIN")), FASTDDS_BUILTIN_TRANSPORTS="UDPv4",
+               ROS_AUTOMATIC_DISCOVERY_RANGE="SUBNET")
+    env.pop("ROBOTARIUM_PROGRESS", None)
+    logs = settings.DATA_DIR / "logs"
+    logs.mkdir(parents=True, exist_ok=True)
+    with open(logs / ("warm-verification-%s.txt" % (me() or "local")), "ab") as log:
+        process, network = jobbox.start_in_network(
+            [str(settings.REPOSITORY / "robotarium"), "up", "--verification", "--no-record"], env, log)
+    if network is None:
+        stop_group(process.pid, grace=5)
+        return None
+    os.environ[WARM_NETWORK_VARIABLE] = network
+    # Ready before the slot takes its first verification (which would otherwise start a testbed of its own).
+    deadline = time.monotonic() + WARM_START
+    while warm_verification(env)[0] is None and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.2)
+    return process
+
+
+def warm_verification(env):
+    """(the registry entry of this slot's warm verification testbed where it runs, free of settings a
+    verification with `env` would not take, in the slot's network namespace; that namespace's path), or
+    (None, None): the verification then starts a testbed of its own in its box."""
+    network = os.environ.get(WARM_NETWORK_VARIABLE)
+    if not network:
+        return None, None
+    from robotarium_bringup import local_testbeds
+    from robotarium_cli.running import warm_verification_testbed
+    try:
+        netns = os.readlink(network)
+    except OSError:
+        return None, None
+    root = env.get("ROBOTARIUM_ROOT") or str(settings.REPOSITORY)
+    for _, entry in local_testbeds.registered():
+        try:
+            if os.readlink("/proc/%d/ns/net" % entry["owner"]["pid"]) != netns:
+                continue
+        except (OSError, KeyError, TypeError):
+            continue
+        found = warm_verification_testbed([entry], env["ROS_DOMAIN_ID"], "SUBNET", root, "", False, "",
+                                          local_testbeds.running)
+        if found is not None:
+            return found, network
+    return None, None
 
 
 def box_notes(output_path):
@@ -226,7 +289,12 @@ def _verify(experiment):
                "--json", str(verdict_path), "--no-record", "--results-dir", str(experiment.folder / "verification")]
     began = time.monotonic()
     limit, rule = verification_limit(experiment)
-    code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_VERIFY_DOMAIN"), output, limit, VERIFY_CLUSTER)
+    env = job_env("ROBOTARIUM_PORTAL_VERIFY_DOMAIN")
+    warm, network = warm_verification(env)
+    if warm is not None:   # verify finds it there (robotarium_cli.running.WARM_VARIABLE), or says why not
+        from robotarium_cli.running import WARM_VARIABLE
+        env[WARM_VARIABLE] = json.dumps(warm)
+    code = run_command(command, work, env, output, limit, VERIFY_CLUSTER, network=network)
     experiment.timings = {"verify_command": round(time.monotonic() - began, 3)}
     shutil.rmtree(work, ignore_errors=True)
     if stopping():

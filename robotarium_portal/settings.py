@@ -173,6 +173,10 @@ Q_CLUSTER = {
 # for its testbed and the script's imports (900 s declared: 1410 s). A script that spins or never ends is
 # rejected at it, its rule named ("time"), and the next submission is verified.
 VERIFY_STARTUP = float(os.environ.get("ROBOTARIUM_PORTAL_VERIFY_STARTUP", "60"))
+# Each verification slot keeps a warm verification testbed (./robotarium up --verification --no-record) in a network
+# namespace of its own, which each verification's box joins (jobs.start_warm_verification); "0": none, each
+# verification starts a testbed of its own in its box. A root service only (the boxes' namespaces).
+WARM_VERIFICATION = os.environ.get("ROBOTARIUM_PORTAL_WARM_VERIFICATION", "1") != "0"
 # Each worker beats every WORKER_HEARTBEAT s; one that missed WORKER_LOST_AFTER s of beats, while the one
 # who watches saw the database all that time, is lost: its verification is handed out again, its run failed.
 WORKER_HEARTBEAT = float(os.environ.get("ROBOTARIUM_WORKER_HEARTBEAT", "2"))

@@ -12,6 +12,7 @@ import re
 import shutil
 import socket
 import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -385,3 +386,72 @@ def test_through_the_portal_a_run_moves_a_fleet_of_robots(place, monkeypatch):
         if testbed is not None:
             testbed.stop()
         fleet.stop()
+
+
+RESIDENT = """\
+import socket
+s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+s.bind(("127.0.0.1", 47001))
+while True:
+    data, peer = s.recvfrom(100)
+    s.sendto(b"resident " + data, peer)
+"""
+# A job in the slot's network namespace: it reaches the resident (the warm testbed's stand-in), says what it
+# sees of the job before it (a UDP port, processes, files), then leaves a process behind that holds a port.
+JOB = """\
+import os, socket, subprocess, sys, time
+s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+s.settimeout(5)
+s.sendto(b"%s", ("127.0.0.1", 47001))
+print("heard:", s.recvfrom(100)[0].decode())
+probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+try:
+    probe.bind(("127.0.0.1", 47002))
+    print("port 47002 free")
+    probe.close()
+except OSError as error:
+    print("port 47002 taken:", error)
+print("processes:", sorted(int(p) for p in os.listdir("/proc") if p.isdigit()))
+print("files:", sorted(os.listdir("/tmp")), sorted(os.listdir(os.environ.get("TMPDIR", "/tmp"))))
+open("/tmp/left-by-job", "w").write("secret")
+subprocess.Popen([sys.executable, "-c", "import socket, time; s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM); "
+                  "s.bind(('127.0.0.1', 47002)); time.sleep(600)"], start_new_session=True)
+time.sleep(0.5)
+"""
+
+
+def test_boxes_in_a_slots_network_namespace_reach_its_resident_and_nothing_of_each_other(place):
+    """A verification slot keeps its warm testbed in a network namespace of its own that each verification's box
+    joins (jobbox.start_in_network, JobBox(network=...)): the jobs reach what runs there (a UDP echo stands in
+    for the testbed), and nothing of one job reaches the next: the process and the port the first left behind
+    are gone (stopped with its PID namespace; the cleanup stops what ran there, not what else runs in the shared
+    network), its
+    files too, and the second sees its own processes only. The resident outlives both jobs."""
+    root, _ = place
+    with open(root / "resident.txt", "wb") as log:
+        resident, network = jobbox.start_in_network([sys.executable, "-c", RESIDENT], dict(os.environ), log)
+    try:
+        assert network and os.readlink(network) != os.readlink("/proc/self/ns/net")
+        outputs = []
+        for k in range(2):
+            box = new_box(place, "slotnet")
+            box.network = network   # (new_box makes a box of the default kind)
+            files = root / ("files-slotnet-%d" % k)
+            files.mkdir()
+            (files / "job.py").write_text(JOB % ("job%d" % k))
+            box.prepare(files)
+            output = root / ("output-slotnet-%d.txt" % k)
+            try:
+                outcome = box.run([sys.executable, "job.py"], dict(os.environ), output, 60)
+            finally:
+                box.clean()
+            outputs.append(output.read_text())
+            assert outcome.code == 0, outputs[-1]
+            assert "heard: resident job%d" % k in outputs[-1], outputs[-1]
+            assert resident.poll() is None, "a job's cleanup stopped what runs in the slot's namespace"
+        first, second = outputs
+        assert "port 47002 free" in first and "port 47002 free" in second, second   # the first's process is gone
+        assert "processes: [1, 2]" in second, second   # PID 1 and the job: no other job's, no resident
+        assert "files:" in second and "left-by-job" not in second, second   # (the test's own folder is kept in)
+    finally:
+        jobbox.stop_group(resident.pid, grace=5)

@@ -308,6 +308,13 @@ def test_the_whole_flow_in_a_real_browser_with_a_restart_mid_run(tmp_path):
             assert text_of(page, "#state") == "rejected" and "collisions:" in rejection, rejection
             assert re.search(r"collisions: \d+ times, limit 100 \(first at step \d+\)", rejection), rejection
             assert "collisions:" in inbox.wait_for("ada@example.org", "issues found")
+            # As root, each verification ran in its box on the slot's warm verification testbed (the box joined the
+            # slot's network namespace: jobs.start_warm_verification), the head-on rejection's counts included.
+            if os.geteuid() == 0:
+                for number in (pk, head_on):
+                    with open(os.path.join(data, "experiments", str(number), "verification-output.txt")) as f:
+                        said = f.read()
+                    assert "on the warm verification testbed" in said, said
 
             goto(page, base + "experiments/%d/" % pk)
             body = body_text(page)

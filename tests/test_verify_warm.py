@@ -98,6 +98,25 @@ def test_verify_takes_a_warm_testbed_only_where_it_judges_as_one_of_its_own_woul
     assert take([entry(config_file="/co/mine.yaml")], config_file="/co/mine.yaml") is not None
 
 
+def test_a_warm_testbed_the_portal_names_is_taken_without_the_registry_and_never_reaches_the_script(monkeypatch):
+    """In a job box (robotarium_portal.jobs) verify can see neither this machine's registry nor the warm testbed's
+    processes: the slot names it (WARM_VARIABLE), verify still checks its settings, and takes the variable out of
+    its environment, so the script never sees it."""
+    named = entry(nodes={"simulator": {"pid": 2, "start": 1}, "safety": {"pid": 3, "start": 1}},
+                  owner={"pid": 99999999, "start": 5})   # no such process here: not looked at
+    monkeypatch.setenv("ROBOTARIUM_ROOT", "/co")
+    monkeypatch.setenv("ROS_DOMAIN_ID", "7")
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    monkeypatch.setattr(local_testbeds, "registered", lambda: [])
+    monkeypatch.setenv(running.WARM_VARIABLE, json.dumps(named))
+    assert running.find_warm_verification_testbed(None, False, None) == named
+    assert running.WARM_VARIABLE not in os.environ
+    monkeypatch.setenv(running.WARM_VARIABLE, json.dumps(named))
+    assert running.find_warm_verification_testbed(None, True, None) is None   # recorded: it has no recorder
+    monkeypatch.setenv(running.WARM_VARIABLE, json.dumps(dict(named, domain="8")))
+    assert running.find_warm_verification_testbed(None, False, None) is None
+
+
 @pytest.mark.parametrize("outcome, code, failed", [
     ("testbed_busy", 4, True), ("testbed_lost", 4, True), ("unfinished", 4, True), ("testbed_incomplete", 4, True),
     ("interrupted", 4, True),      # the testbed ended it (stopped)

@@ -681,14 +681,29 @@ def warm_verification_testbed(entries, domain, discovery_range, root, config_fil
     return None
 
 
+# Set by the portal's verification slot for the verify it runs in a job box (robotarium_portal.jobs): the
+# registry entry, as JSON, of the slot's warm verification testbed, which runs in the network namespace the box
+# joined. From inside the box neither this machine's registry (its /tmp is the box's) nor the testbed's processes
+# (its PID namespace is the job's) can be seen: the slot found it running with these settings just before.
+WARM_VARIABLE = "ROBOTARIUM_WARM_VERIFICATION"
+
+
 def find_warm_verification_testbed(config_file, record, bags_dir):
-    """warm_verification_testbed of this machine, for a verification with these settings."""
+    """warm_verification_testbed of this machine (or the one WARM_VARIABLE names: taken from the environment,
+    so the script never gets it), for a verification with these settings."""
     root = repository_root()
+    named = os.environ.pop(WARM_VARIABLE, "")
+    if named:
+        try:
+            entries, alive = [json.loads(named)], lambda process: True   # busy or lost: the fallback says so
+        except ValueError:
+            entries, alive = [], local_testbeds.running
+    else:
+        entries, alive = [entry for _, entry in local_testbeds.registered()], local_testbeds.running
     return warm_verification_testbed(
-        [entry for _, entry in local_testbeds.registered()], local_testbeds.domain_id(),
-        os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", ""), root,
+        entries, local_testbeds.domain_id(), os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", ""), root,
         os.path.abspath(config_file) if config_file else "", record,
-        os.path.abspath(bags_dir or os.path.join(root, "bags")), local_testbeds.running)
+        os.path.abspath(bags_dir or os.path.join(root, "bags")), alive)
 
 
 def warm_testbed_failure(code, run):
