@@ -35,10 +35,12 @@ for k in range({steps}):
 print("done {name}", flush=True)
 r.call_at_scripts_end()
 """
-# Turns in place until its release file exists, while it runs ("work": the run's folder) or while it is
-# verified ("verify"): the test acts while it surely runs or is verified. At most 2600 steps: under the
-# 2700 (90 s) a verification allows the declared 60 s; 900 ended the hold by itself after ~25 s under
-# load, before a test's condition (a second job taken by the cluster) had come.
+# Turns in place until its release file exists, while it runs ("work": the portal's run, in real time) or
+# while it is verified ("verify": lockstep): the test acts while it surely runs or is verified. (It asked the
+# folder's name before, but a job box runs every job in <box>/work: a verification never held, and a test
+# that needed it held passed only when its next step came within the few seconds the verification took.)
+# The release file goes in the service's data folder (Service.release_file), which a job box keeps: the
+# box's /tmp is its own. At most 2600 steps: under the 2700 (90 s) a verification allows the declared 60 s.
 HOLD = """import os
 import time
 import numpy as np
@@ -50,7 +52,7 @@ for k in range(2600):
     r.get_poses()
     r.set_velocities(np.arange(N), np.vstack([np.zeros(N), 0.5 * np.ones(N)]))
     r.step()
-    if os.path.basename(os.getcwd()) != {hold_in!r} or os.path.exists({release!r}):
+    if r.sim_in_real_time != ({hold_in!r} == "work") or os.path.exists({release!r}):
         break
     time.sleep(0.02)
 print("released at step", k, flush=True)
@@ -186,6 +188,11 @@ class Service:
         self.workers = {}
         self.portal = None
         self.postgres = None
+
+    def release_file(self, name):
+        """A path for HOLD's release file that its script sees inside a job box too (the data folder is kept
+        there; the box's /tmp is its own)."""
+        return os.path.join(self.data, "release-%s" % name)
 
     def make_second_host(self):
         """A network namespace with a veth pair: this side HOST_ADDRESS, the second host SECOND_ADDRESS."""

@@ -103,7 +103,7 @@ def test_twelve_submissions_on_two_hosts_and_a_database_restart_mid_run_each_ver
 
 
 def _hold(service, title, tmp, hold_in="work"):
-    release = os.path.join(tmp, "release-%s" % title.replace(" ", "-"))
+    release = service.release_file(title.replace(" ", "-"))
     pk = service.submit([{"title": title, "robots": 2, "script": HOLD.format(release=release, hold_in=hold_in)}])[0]
     return pk, release
 

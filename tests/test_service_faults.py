@@ -91,7 +91,7 @@ def test_a_verification_taken_by_a_worker_killed_before_it_began_is_verified_aga
     # The worker's one verification slot holds A (its script waits for its release file while verified);
     # B, another person's, is submitted meanwhile: the slot's cluster takes B's job off the queue (its lock)
     # while A's verification goes on.
-    release = str(tmp_path / "release-a")
+    release = service.release_file("a")
     (a,) = service.submit([{"title": "held in verification", "robots": 2, "owner": "a@example.org",
                             "script": HOLD.format(release=release, hold_in="verify")}])
     service.wait_for(a, ("verifying",))
