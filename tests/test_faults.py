@@ -523,7 +523,11 @@ def test_a_client_that_disappears_frees_the_testbed(healthy, tmp_path, how):
             os.killpg(proc.pid, signal.SIGKILL)
         else:
             os.killpg(proc.pid, signal.SIGINT)
-        proc.wait(timeout=30)
+        try:
+            proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:   # what the script said, for the cause (seen in two whole-suite runs)
+            raise AssertionError("the %s client did not exit within 30 s; it wrote:\n%s"
+                                 % (how, log.read_text(errors="replace")[-4000:])) from None
         step = last_step(log)
         # The bound is client_lease of testbed time; the wait is long so that a loaded machine cannot fail
         # it: the bug was an experiment that never ended, and the reason tells a lease end from others.
