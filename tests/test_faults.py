@@ -483,8 +483,11 @@ def script_client(lab, tmp_path, *args):
     output goes to a file (read it with lines(), never through the handle the script writes to)."""
     log = tmp_path / ("client_%d.log" % time.time_ns())
     with open(log, "wb") as out:
+        # SIGINT as a terminal's: a suite started in the background (nohup ... &) ignores it, and Python then
+        # leaves it ignored in its children (the SIGINT case saw the script step on for 30 s).
         proc = subprocess.Popen([sys.executable, STEPS_FOREVER, *args], env=node_env(lab.domain, ROBOTARIUM_PROGRESS="0"),
-                                stdout=out, stderr=subprocess.STDOUT, start_new_session=True, cwd=str(tmp_path))
+                                stdout=out, stderr=subprocess.STDOUT, start_new_session=True, cwd=str(tmp_path),
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     return proc, log
 
 

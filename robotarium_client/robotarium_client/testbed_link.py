@@ -373,6 +373,12 @@ class TestbedLink:
         """A node of the testbed was restarted (robotarium_core.restarts): during this run, the recorder's restart
         stops its recording (the run goes on); the simulator's or the safety node's ends the run, named so."""
         restart = restarts.parse(msg.data)
+        if restart is not None and self.started_at is None:
+            # The latched announcement of a restart before this run (heard as the topic matched): never this
+            # run's, however close its time (a client started within CLOCK_SLACK of a restart in place took it
+            # for its own and ended at step 0).
+            self.restarts_heard.add(restart)
+            return
         if (restart is None or self.run_id is None or self.end_sent or restart in self.restarts_heard
                 or not restart.during(self.started_at)):
             return
