@@ -445,6 +445,7 @@ class Result:
     folder: str = ""
     verdict: str = ""           # "completed", "by fault", "lost"
     why_lost: str = ""
+    output: str = ""            # a lost run's ./robotarium run output, kept in the soak's folder
     start_latency: float | None = None   # s from the run's process start to its experiment heard RUNNING
     wall: float = 0.0           # s from the run's process start to its exit
 
@@ -571,6 +572,9 @@ class Soak:
             result.verdict = "pending"
         else:
             self._judge(result, output)
+        if result.verdict == "lost":   # what ./robotarium run said, kept (run.out is the next run's)
+            result.output = os.path.join(self.work, "lost-run-%d.out" % p.n)
+            shutil.copyfile(out_path, result.output)
         return result
 
     def _follow(self, p, result, process, began):
@@ -856,7 +860,7 @@ def summary(soak, plans):
                          r.n, r.script, r.mode, r.length, r.fault or "none", r.injected or "not injected",
                          r.injected_at_step, r.why_lost, r.outcome, r.exit_code, r.detail[:300],
                          (", recording stopped: %s" % r.recording_stopped) if r.recording_stopped else "",
-                         r.report_first_line[:300]))
+                         r.report_first_line[:300]) + ("\n      its output: %s" % r.output if r.output else ""))
     lines.append("node restarts by ./robotarium up (its supervisor): %d%s" % (
         len(soak.node_restarts), "".join("\n  after run %d: %s" % (after, line[:200])
                                          for after, line in soak.node_restarts)))

@@ -118,14 +118,26 @@ def test_data_files_over_the_cap_are_left_out_and_named(testbed, tmp_path):
         assert "data file big.dat not saved in the run folder: left out: 0.08 MB over" in f.read()
 
 
-def test_a_full_disk_stops_the_recording_not_the_run_nor_the_testbed(testbed, tmp_path):
+def _mount_small_disk(bags, size):
+    """A tmpfs of `size` over the recorder's bags folder (root only: else the test skips)."""
     if os.geteuid() != 0:
         pytest.skip("mounting a small tmpfs under the recorder needs root")
-    bags = str(testbed["bags"])
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", bags], stderr=subprocess.PIPE,
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=%s" % size, "tmpfs", bags], stderr=subprocess.PIPE,
                              text=True)
     if mounted.returncode != 0:
         pytest.skip("cannot mount a tmpfs here: %s" % mounted.stderr.strip())
+
+
+def _unmount(bags):
+    for _ in range(50):   # the recorder may still hold the bag it wrote: lazily, then wait
+        if subprocess.run(["umount", "-l", bags], stderr=subprocess.DEVNULL).returncode == 0:
+            return
+        time.sleep(0.1)
+
+
+def test_a_full_disk_stops_the_recording_not_the_run_nor_the_testbed(testbed, tmp_path):
+    bags = str(testbed["bags"])
+    _mount_small_disk(bags, "256k")
     try:
         # 10 robots, 2000 steps: a bag of ~600 kB, so the disk fills during the run (near step 820; with
         # 1000 steps, ~300 kB, it filled only at the last chunk on a loaded machine, after the run had ended)
@@ -162,10 +174,31 @@ def test_a_full_disk_stops_the_recording_not_the_run_nor_the_testbed(testbed, tm
         assert code == 0 and "Run completed." in out and ACCEPTANCE in out, out
         assert folder.startswith(bags) and glob.glob(os.path.join(folder, "*.mcap")), out
     finally:
-        for _ in range(50):   # the recorder may still hold the bag it wrote: lazily, then wait
-            if subprocess.run(["umount", "-l", bags], stderr=subprocess.DEVNULL).returncode == 0:
-                break
-            time.sleep(0.1)
+        _unmount(bags)
+
+
+def test_a_disk_full_before_the_first_step_is_recorded_says_so_first(testbed, tmp_path):
+    """A disk with room for the bag's header but not its first chunk: the bag holds no step. The run
+    completes; its report's first line names the full disk (it read "Run completed." and the cause only
+    in its last line, after "the results could not be made": a soak's lost run)."""
+    bags = str(testbed["bags"])
+    _mount_small_disk(bags, "12k")
+    try:
+        code, out, folder = run(testbed, tmp_path, steps=600, robots=10)
+        assert code == 4 and ACCEPTANCE not in out, out
+        assert "holds no step of the run, so there are no results of it" in out, out
+        assert folder.startswith(str(testbed["root"] / "results")), out
+        with open(os.path.join(folder, "run.json")) as f:
+            info = json.load(f)
+        assert info["recording_stopped_because"] == "disk full" and info["outcome"] == "completed", info
+        with open(os.path.join(folder, "report.txt")) as f:
+            report = f.read()
+        assert report.startswith("Run completed. Recording stopped at step %d: disk full: the recording is "
+                                 "incomplete." % info["recording_stopped_at_step"]), report
+        assert "holds no step of the run" in report and os.path.isfile(os.path.join(folder, "index.html")), report
+        assert testbed["up"].poll() is None, testbed["log"].read_text()
+    finally:
+        _unmount(bags)
 
 
 def test_an_end_request_the_script_did_not_send_is_never_run_completed(testbed, tmp_path):

@@ -243,7 +243,11 @@ def write_unrecorded_results(run_dir, run, testbed_report="", not_here=""):
     started, or it was recorded on another machine): how it ended, the testbed's debug report if
     there is one, and `not_here`: why its recording is not here."""
     outcome = {name: value for value, name in outcomes.NAMES.items()}.get(run.outcome, outcomes.UNFINISHED)
-    lines = [outcomes.first_line(outcome, run.detail), ""]
+    first = outcomes.first_line(outcome, run.detail)
+    stopped = outcomes.recording_stopped(run)
+    if stopped:   # as write_results says it of a recording that stopped early
+        first = "%s %s%s: the recording is incomplete." % (first, stopped[0].upper(), stopped[1:])
+    lines = [first, ""]
     if testbed_report:
         verdict = (run.verdict or {}).get("text", "")
         lines += [testbed_report.rstrip("\n")] + ([verdict.strip("\n")] if verdict else []) + [

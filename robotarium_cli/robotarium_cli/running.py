@@ -522,7 +522,7 @@ class Run:
             record.recording_stopped_at_step = int(steps[-1])
         stopped = outcomes.recording_stopped(record)
         if not self.quiet:
-            say("%s: %s holds the run up to there" % (stopped, bag_dir))
+            say("%s: %s %s" % (stopped, bag_dir, "holds the run up to there" if len(steps) else "holds no step of it"))
         return stopped
 
     def _results(self, record, run_dir, bag_dir, stopped, died):
@@ -545,10 +545,20 @@ class Run:
             recording.write_results(bag_dir, progress=not self.quiet, video=self.pending.video, run=record,
                                     out_dir=run_dir)
         except Exception as error:   # noqa: BLE001 - say so, keep the folder
-            say("could not make the results from the recording (%s); see %s"
-                % (session.describe_exception(error), run_dir))
-            write_unrecorded_results(run_dir, record, record.last.report if record.last else "",
-                                     "the results could not be made from the recording in %s" % bag_dir)
+            why = _why_no_results(bag_dir, error)
+            say("%s; see %s" % (why, run_dir))
+            write_unrecorded_results(run_dir, record, record.last.report if record.last else "", why)
+
+
+def _why_no_results(bag_dir, error):
+    """Why the results of a run could not be made from its recording in `bag_dir` (`error` raised)."""
+    try:
+        empty = not len(recording.Bag(bag_dir).poses().steps)
+    except Exception:   # noqa: BLE001 - no bag, no poses topic, nothing readable
+        empty = True
+    if empty:   # a recording that stopped (a full disk, a killed recorder) before its first part reached the disk
+        return "the recording in %s holds no step of the run, so there are no results of it" % bag_dir
+    return "the results could not be made from the recording in %s (%s)" % (bag_dir, session.describe_exception(error))
 
 
 def _not_recorded_here(announced, recording, results):
