@@ -214,6 +214,14 @@ try:
                 f.flush()
                 written += 1024 ** 2
 except OSError as error:
+    try:   # to the last byte: the run's own books share this disk
+        with open("rest.bin", "wb", buffering=0) as f:
+            while True:
+                written += f.write(bytes(4096))
+    except OSError:
+        pass
+    for i in range(300):   # more than a page of output once the disk is full
+        print("output once the disk is full, line", i, flush=True)
     print("many files:", error, "after", written, "bytes", flush=True)
     raise
 """
@@ -224,6 +232,10 @@ except OSError as error:
     assert refused and int(refused.group(1)) <= LIMITS.disk_bytes, output[-2000:]
     assert "the script filled the job's disk quota (60 MiB); the write was refused" in output
     assert run["outcome"] == "script_error"
+    # Its record and its last words reach the run folder, though the books of its run share its full disk
+    # (a whole-suite run had no run.json: the runner's and the log's writes were refused too).
+    (log,) = (place[0] / "results-disk").glob("*/log.txt")
+    assert "many files: [Errno 28] No space left on device" in log.read_text()
 
 
 def test_allocating_20_gb_is_refused_by_the_memory_limit(place):

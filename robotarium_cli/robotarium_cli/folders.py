@@ -43,19 +43,55 @@ def snapshot_files(directory):
 PROGRESS = progress.LINE_START.encode()
 
 
+# the script's last output kept in memory once its log's disk is full (a job that filled its quota): its
+# traceback, which says why, still reaches log.txt in the run folder
+UNLOGGED_TAIL = 64 * 1024
+
+
+class Unlogged:
+    """What of the script's output its log could not take (its disk full): the error, the bytes in all, the last
+    UNLOGGED_TAIL bytes."""
+
+    def __init__(self, error):
+        self.error, self.count, self.tail = error, 0, bytearray()
+
+    def add(self, line):
+        self.count += len(line)
+        self.tail += line
+        del self.tail[:-UNLOGGED_TAIL]
+
+    def append_to(self, log_path):
+        """Its note and tail at the end of log.txt at log_path (the run folder's, on another disk)."""
+        cut = self.count > len(self.tail)
+        with open(log_path, "ab") as log:
+            log.write(("\n[robotarium] the log stopped here: %s; %s of the script's output:\n" % (
+                self.error, "the last %d of its %d bytes" % (len(self.tail), self.count) if cut else "the rest")
+            ).encode() + bytes(self.tail))
+
+
 def tee(stream, log, console=None):
     """Each line of `stream` into the log and onto the console; the testbed's progress lines onto the
-    console only (log.txt holds what the script printed and what ended it, not how far it got)."""
-    sinks = [log] + ([console] if console is not None else [])
+    console only (log.txt holds what the script printed and what ended it, not how far it got). Returns
+    an Unlogged once the log could not be written (its disk full), else None. `log` is unbuffered: a
+    refused write leaves nothing to fail again as it closes."""
+    unlogged = None
     for line in iter(stream.readline, b""):
-        for sink in list(sinks):
-            if sink is log and line.startswith(PROGRESS):
-                continue
+        if not line.startswith(PROGRESS):
+            if unlogged is not None:
+                unlogged.add(line)
+            else:
+                try:
+                    log.write(line)
+                except OSError as error:
+                    unlogged = Unlogged(session.describe_exception(error))
+                    unlogged.add(line)
+        if console is not None:
             try:
-                sink.write(line)
-                sink.flush()
+                console.write(line)
+                console.flush()
             except OSError:   # our terminal is gone (SIGHUP): keep the log, keep reading
-                sinks.remove(sink)
+                console = None
+    return unlogged
 
 
 def wait_until_recorded(run_dir, timeout=15.0, quiet=False):

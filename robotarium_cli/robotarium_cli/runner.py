@@ -24,6 +24,7 @@ from robotarium_client.figure import skip_headless_idle_draws
 from robotarium_core import lifeline, outcomes, run_record
 
 ORPHAN_EXIT = 1.5
+RESERVE, RESERVE_BYTES = ".reserve", 256 * 1024   # room kept for run.json (main)
 STARTED = "started.json"   # beside RUN_INFO_JSON: session.note_started's record of the running experiment
 orphaned = []   # set when ./robotarium run is gone: the interruption is said to be that
 
@@ -161,6 +162,14 @@ def main(argv):
     # as it started (a script killed outright never writes RUN_INFO_JSON).
     session.run_files = {"log": os.path.join(folder, "log.txt"), "started": os.path.join(folder, STARTED)}
     lifeline.watch(_orphaned)
+    # Room kept for run.json: a script that fills its disk (a job box's quota holds this folder) still has its
+    # run recorded. Its own to give up: only its own record would suffer.
+    reserve = os.path.join(folder, RESERVE)
+    try:
+        with open(reserve, "wb") as f:
+            f.write(bytes(RESERVE_BYTES))
+    except OSError:
+        pass
     session.options = session.RunOptions.from_json(options_json)
     script = os.path.abspath(script)
     pid = os.getpid()
@@ -173,6 +182,10 @@ def main(argv):
     for signum in SIGNAL_EXIT:
         signal.signal(signum, signal.SIG_IGN)
     outcome, detail, code, runs = finish(outcome, detail, code)
+    try:
+        os.remove(reserve)   # its room is run.json's now
+    except OSError:
+        pass
     run_record.write(run_record.RunRecord(
         outcome=outcomes.NAMES[outcome], detail=detail, exit_code=code, experiments=runs,
         step_calls=session.robotaria[-1]._iterations if session.robotaria else 0), run_info_path)

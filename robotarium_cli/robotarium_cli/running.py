@@ -280,6 +280,7 @@ class Run:
         self.pending = None
         self.code = None      # the script's process's exit code (None: it never started)
         self.frozen = None    # FrozenScript that killed a script stopped too long, once it did
+        self.unlogged = None  # folders.Unlogged: the script's output its log's full disk refused
 
     @property
     def record_path(self):
@@ -344,7 +345,7 @@ class Run:
         try:
             if self.interruption.signum is None:
                 command, env, pass_fds, box_options = self._script_process()
-                with open(self.log_path, "wb") as log:
+                with open(self.log_path, "wb", buffering=0) as log:
                     # A process group of its own: a terminal's Ctrl-C reaches only this command, which forwards
                     # it once (a second SIGINT would cut short the script's exit handler ending its experiment).
                     process = subprocess.Popen(command, cwd=self.pending.cwd, env=env, pass_fds=pass_fds,
@@ -355,7 +356,7 @@ class Run:
                     self.pending.runner = local_testbeds.process(process.pid)
                     self.pending.write(self.work)
                     # the log first: it never lags what was shown
-                    tee(process.stdout, log, sys.stdout.buffer if request.echo else None)
+                    self.unlogged = tee(process.stdout, log, sys.stdout.buffer if request.echo else None)
                     self.code = process.wait()
         finally:
             if self.testbed is not None:
@@ -421,6 +422,8 @@ class Run:
             record.verdict = _judge(self.request, record)
         finish_run_folder(run_dir, record, pending.script, self.log_path, saved, pending.cwd,
                           _data_limit(self.request.options.config_file))
+        if self.unlogged is not None:
+            self.unlogged.append_to(os.path.join(run_dir, "log.txt"))
         if bag_dir:
             self._results(record, run_dir, bag_dir, stopped, died)
         else:
