@@ -231,3 +231,68 @@ def test_an_end_request_the_script_did_not_send_is_never_run_completed(testbed, 
     with open(os.path.join(folder, "index.html")) as f:
         assert cause in f.read()
     assert testbed["up"].poll() is None, testbed["log"].read_text()
+
+
+@pytest.mark.parametrize("stopped", ["all", "event"])
+def test_a_script_whose_own_fast_dds_stops_says_so_and_ends(testbed, tmp_path, stopped):
+    """Fast DDS 2.14 can deadlock a participant inside (docs/faults.md: alive but deaf), the script's as well
+    as a node's. Here Fast DDS threads of the script's process are stopped for real (ptrace) mid-run.
+    all: its step() hears no poses for 10 s and says its own DDS stopped (it blamed the safety node);
+    event (its event thread alone: the run goes on): the run completes, and the script does not hang for ever
+    as it leaves DDS at its end (it did: destroy_node waits for the event thread)."""
+    from devtools.rosutil import FrozenThread
+    from devtools.soak import proc_children
+    from robotarium_core import dds_health
+    steps = "100000" if stopped == "all" else "3000"
+    process = subprocess.Popen([sys.executable, "-m", "robotarium_cli", "run", "--no-local-testbed", "--no-video",
+                                "--lockstep", "--bags-dir", str(testbed["bags"]), "--results-dir",
+                                str(testbed["root"] / "results"), SCRIPT, steps, "2"],
+                               env=testbed["env"], cwd=str(tmp_path), stdout=open(tmp_path / "run.out", "wb"),
+                               stderr=subprocess.STDOUT, start_new_session=True)
+    frozen = []
+    try:
+        deadline = time.monotonic() + 120
+        runner, threads = None, {}
+        while not threads and time.monotonic() < deadline and process.poll() is None:
+            time.sleep(0.2)
+            try:
+                runner = next((pid for pid in proc_children(process.pid)
+                               if b"robotarium_cli.runner" in open("/proc/%d/cmdline" % pid, "rb").read()), None)
+                threads = runner and dds_health.dds_event_threads(runner)
+            except OSError:
+                threads = {}
+        assert threads, "the script's process never started its Fast DDS"
+        time.sleep(2)   # its run under way
+        for tid in sorted(int(t) for t in os.listdir("/proc/%d/task" % runner)):
+            try:
+                with open("/proc/%d/task/%d/comm" % (runner, tid)) as f:
+                    name = f.read()
+            except OSError:
+                continue
+            if name.startswith("dds.ev." if stopped == "event" else "dds."):
+                frozen.append(FrozenThread(tid))
+        deadline = time.monotonic() + 90
+        while process.poll() is None and time.monotonic() < deadline:
+            # A stopped thread whose process exits waits for its tracer: reaped here, as a deadlocked one needs not
+            for thread in frozen:
+                thread.gone()
+            time.sleep(0.2)
+        out = (tmp_path / "run.out").read_text(errors="replace")
+        assert process.poll() is not None, "run did not end within 90 s of the freeze:\n%s" % out[-4000:]
+    finally:
+        for thread in frozen:
+            thread.release()
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+    folder = re.findall(r"results in (\S+) \(open", out)
+    with open(os.path.join(str(tmp_path), folder[-1], "run.json")) as f:
+        info = json.load(f)
+    if stopped == "all":
+        assert "This script's own Fast DDS stopped (dds.ev.0 (thread" in out, out
+        assert info["outcome"] == "testbed_lost" and "own Fast DDS stopped" in info["detail"], info
+        assert process.returncode == 4, out
+    else:
+        assert "this script's Fast DDS could not be left: dds.ev.0 (thread" in out, out
+        assert info["outcome"] == "completed" and info["steps"] == 3000 and process.returncode == 0, out
+    assert testbed["up"].poll() is None, testbed["log"].read_text()

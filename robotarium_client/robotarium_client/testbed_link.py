@@ -39,8 +39,8 @@ from robotarium_client.errors import (
     TestbedLost,
 )
 from robotarium_core import cdr, claim, outcomes, presence, restarts
-from robotarium_core.dds_health import DDS_STALL_LIMIT
-from robotarium_core.dds_settings import init_context
+from robotarium_core.dds_health import DDS_STALL_CHECK, DDS_STALL_LIMIT, DdsStallWatch
+from robotarium_core.dds_settings import init_context, profile_is_ours
 from robotarium_core.discovery import wait_for_quiet_discovery, wait_for_service
 from robotarium_core.executor import LeanExecutor
 from robotarium_core.model import RobotariumError
@@ -74,6 +74,9 @@ if TYPE_CHECKING:
 
 STARTUP_WAIT = 60.0   # s for a testbed started here to come up
 STEP_TIMEOUT = 10.0   # s without poses after a step() before we give up with an explanation
+# what stopped this process's own Fast DDS, once leaving it found its event thread stuck ("" never): the runner
+# then exits without waiting for it
+DDS_STUCK = ""
 # s a start may take: a hardware arena (robotarium_hardware) answers once its drive-on phase brought the robots to
 # the initial conditions, which took up to 30 s for the guide's listings on a loaded 2-core machine
 START_WAIT = 180.0
@@ -102,6 +105,49 @@ def holder_of_this_process() -> str:
     except (KeyError, OSError):
         user = "?"
     return "%s@%s pid %d %s" % (user, socket.gethostname(), os.getpid(), os.path.basename(sys.argv[0] or "python"))
+
+
+class OwnDdsWatch:
+    """Whether this process's own Fast DDS event thread is stuck (dds_health.DdsStallWatch), looked at cheaply:
+    look() (in a wait's predicate; always False) samples it every DDS_STALL_CHECK at most; stuck() says what has
+    not run for DDS_STALL_LIMIT, or ""; running_or_stuck() settles it before leaving DDS. Only under the
+    testbed's Fast DDS profile, whose event thread wakes several times a second; that is known once DDS has
+    started (init_context)."""
+
+    def __init__(self) -> None:
+        self.watch = None   # a DdsStallWatch from the first look under our profile
+        self.next = 0.0
+
+    def look(self) -> bool:
+        now = time.monotonic()
+        if now >= self.next:
+            if self.watch is None and profile_is_ours():
+                self.watch = DdsStallWatch(gap=float("inf"))
+            if self.watch is not None:
+                self.watch.check(now)
+            self.next = now + DDS_STALL_CHECK
+        return False
+
+    def stuck(self) -> str:
+        if self.watch is None or self.watch.last is None:
+            return ""
+        return self.watch.check() or ""
+
+    def running_or_stuck(self) -> str:
+        """"" once the event thread is seen to run (at once, mostly: it ran since the last look), else what has
+        not run for DDS_STALL_LIMIT. Leaving DDS waits for that thread, holding the GIL (rclpy's destroy):
+        nothing could watch it from here once it began."""
+        self.look()
+        if self.watch is None or not self.watch.seen:
+            return ""
+        before = {tid: switches for tid, (switches, _) in self.watch.seen.items()}
+        while True:
+            stuck = self.watch.check()
+            if stuck:
+                return stuck
+            if any(self.watch.seen.get(tid, (switches,))[0] != switches for tid, switches in before.items()):
+                return ""
+            time.sleep(0.05)
 
 
 class TestbedLink:
@@ -134,6 +180,7 @@ class TestbedLink:
         self.started_at = None        # epoch s this client asked to start its run: restarts from then on are its
         self.restarts_heard = set()   # robotarium_core.restarts.Restart records acted on
         self.awaiting_restart = {}    # {node: (monotonic deadline, step)}: lost, its process alive here (a DDS stall)
+        self._own_dds = OwnDdsWatch()   # this process's own Fast DDS: a stuck event thread is named, not the testbed
         self.claims = {}              # {node: its claim's identity (host, pid)}: robotarium_core.claim
         # The testbed's Fast DDS settings for the script's participant too (dds_settings.init_context): UDP
         # only; its writers' heartbeat every 0.1 s, so a lost packet of cmd_requested is sent again at once.
@@ -273,10 +320,19 @@ class TestbedLink:
 
     def wait_for_step(self, target: int) -> np.ndarray:
         """The newest poses once those of step `target` came (3 x N); raises what stopped the run."""
+        own = self._own_dds
         arrived = self.spin_until(lambda: self.confirm_losses() or (
-            self.latest is not None and self.latest.step >= target), STEP_TIMEOUT)
+            self.latest is not None and self.latest.step >= target) or own.look(), STEP_TIMEOUT)
         self.check()
         if not arrived:
+            stuck = own.stuck()
+            if stuck:   # this process heard nothing because its own DDS stopped, not the testbed
+                global DDS_STUCK
+                DDS_STUCK = stuck   # nothing more can be said over it; leaving it would wait for ever
+                raise TestbedLost(
+                    "This script's own Fast DDS stopped (%s: a deadlock inside Fast DDS, docs/faults.md), so it heard "
+                    "nothing of the testbed for %.0f s after step %d; the testbed ends its run when it stops hearing "
+                    "the script. Run the script again." % (stuck, STEP_TIMEOUT, target - 1))
             raise TestbedLost(
                 "The testbed sent no poses for step %d within %.0f s. Is the safety node running (robots cannot "
                 "move without it)? Node logs are in log/testbed/<namespace>_<domain>_<pid>/ when ./robotarium started "
@@ -539,13 +595,23 @@ class TestbedLink:
                                   % (client.srv_name, timeout))
 
     def shutdown(self) -> None:
-        """Leave DDS (the participant goes with the node) and stop a testbed started here."""
+        """Leave DDS (the participant goes with the node) and stop a testbed started here. Leaving waits
+        for Fast DDS's event thread: where that thread is stuck (a deadlock inside Fast DDS) the script goes
+        on without DDS rather than hang at its end for ever (DDS_STUCK says so to the runner)."""
+        global DDS_STUCK
         if self.node is not None:
-            self._executor.shutdown()
-            wait_for_quiet_discovery(self.node)
-            self.node.destroy_node()
-            self.node = None
-            rclpy.try_shutdown(context=self._context)
+            node, self.node = self.node, None
+            stuck = DDS_STUCK or self._own_dds.running_or_stuck()
+            if stuck and not DDS_STUCK:
+                DDS_STUCK = stuck
+                print("[robotarium] this script's Fast DDS could not be left: %s (a deadlock inside Fast DDS, "
+                      "docs/faults.md); the script goes on without it" % stuck, file=sys.stderr, flush=True)
+            if not stuck:   # else left as it is: the process ends without it (runner)
+                self._executor.shutdown()
+                wait_for_quiet_discovery(node)
+                node.destroy_node()
+                rclpy.try_shutdown(context=self._context)
         if self.local_testbed is not None:
             self.local_testbed.stop()
             self.local_testbed = None
+
