@@ -746,6 +746,11 @@ def test_sros2_policy_gives_cmd_safe_and_poses_one_writer_each():
     assert allowed[("request", "/robotarium/safety/arm")] == {"/robotarium/simulator"}
     assert allowed[("publish", "/robotarium/cmd_requested")] == {"/robotarium/client"}
     assert {"/robotarium/client", "/robotarium/operator"} <= allowed[("request", "/robotarium/end_experiment")]
+    # restart announcements (robotarium_core/restarts.py): each node its own, up (the supervisor) any; clients hear them
+    for node in ("simulator", "safety", "recorder"):
+        assert allowed[("publish", "/robotarium/_restarted/%s" % node)] == {"/robotarium/%s" % node}, node
+    assert allowed[("publish", "/robotarium/_restarted/*")] == {"/robotarium/supervisor"}
+    assert "/robotarium/client" in allowed[("subscribe", "/robotarium/_restarted/*")]
     # no wildcard publish rule could let anyone else write them
     assert not any(kind == "publish" and name.endswith("*") and not name.endswith("client_*")
-                   for kind, name in allowed)
+                   and allowed[(kind, name)] != {"/robotarium/supervisor"} for kind, name in allowed)

@@ -500,7 +500,11 @@ class RestartAnnouncer:
     restart topic, made at the start so that clients have matched them before anything restarts."""
 
     def __init__(self, ns, names):
-        self.node = Node("robotarium_up_%d" % os.getpid(), namespace=ns, context=probe_context(),
+        context = probe_context()
+        if security_enabled():   # a participant of its own, in the policy's supervisor enclave (sros2/)
+            context = Context()
+            init_context(context=context, node=False, args=["--ros-args", "--enclave", "/robotarium/supervisor"])
+        self.node = Node("robotarium_up_%d" % os.getpid(), namespace=ns, context=context,
                          start_parameter_services=False)
         self.publishers = {ANNOUNCED[name]: self.node.create_publisher(String, restarts.topic(ANNOUNCED[name]),
                                                                         restarts.QOS)
