@@ -173,10 +173,13 @@ def pure_stack_robotarium(config=None):
 def run_script(script, robotarium_class, seed=1, settings=()):
     """Run `script` (its own folder as the working directory, numpy seeded with `seed`, each
     (NAME, VALUE) of settings replacing its top-level `NAME = ...` line) with
-    rps.robotarium.Robotarium replaced by robotarium_class; returns its Trace."""
+    rps.robotarium.Robotarium replaced by robotarium_class; returns its Trace. Its figure is drawn on
+    but never rendered: a trace is poses, and 0.0.0 renders it every step (over half of its time in a
+    listing with plotting)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     import rps.robotarium
     script = os.path.abspath(script)
@@ -187,6 +190,7 @@ def run_script(script, robotarium_class, seed=1, settings=()):
         assert count == 1, (script, name)
     saved = rps.robotarium.Robotarium, os.getcwd(), list(sys.path), sys.argv
     rps.robotarium.Robotarium = robotarium_class
+    render, FigureCanvasAgg.draw = FigureCanvasAgg.draw, lambda canvas: None
     robotarium_class.last = None
     out = io.StringIO()
     try:
@@ -198,6 +202,7 @@ def run_script(script, robotarium_class, seed=1, settings=()):
             exec(compile(source, script, "exec"), {"__name__": "__main__", "__file__": script})
     finally:
         rps.robotarium.Robotarium, cwd, sys.path[:], sys.argv = saved
+        FigureCanvasAgg.draw = render
         os.chdir(cwd)
         plt.close("all")
     trace = robotarium_class.last.trace
