@@ -19,6 +19,7 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 import xml.etree.ElementTree as ET
 
@@ -706,6 +707,55 @@ def test_a_node_whose_fast_dds_event_thread_stops_starts_afresh_and_the_next_cli
         drive(r, [0.05] * 3, [0.2] * 3)
     r.call_at_scripts_end()
     assert r.run_info.steps == 20 and r.run_info.outcome == "completed", r.run_info
+
+
+def test_a_run_whose_safety_node_deadlocks_mid_run_ends_naming_the_restart_in_place(healthy):
+    """The same deadlock mid-run (docs/faults.md, the restart-in-place row): the safety node's event thread
+    stopped for real (ptrace) while a client steps. The client loses the node's presence, finds its process
+    still running on this machine, waits for its restart announcement and ends the run "testbed node restarted
+    at step k: the safety node stopped answering (its Fast DDS stopped: ...) and restarted in place"; the node
+    is back for the next client. Prints the time from the stall to the client's error."""
+    from robotarium_client.errors import NodeRestarted
+    lab = healthy
+    node = lab.nodes["safety"]
+    pid = node.proc.pid
+    r = client(LINE3)
+    for _ in range(10):
+        drive(r, [0.05] * 3, [0.2] * 3)
+    (tid,) = dds_health.dds_event_threads(pid)
+    frozen = FrozenThread(tid)
+    stalled = time.monotonic()
+    # The node starts afresh with exec, which waits for the stopped thread's end to be reaped by its tracer (this
+    # process): reaped here meanwhile, as a deadlocked thread needs not be, while the client waits in step().
+    done = threading.Event()
+
+    def reap():
+        while not done.is_set() and not frozen.gone():
+            time.sleep(0.1)
+
+    reaper = threading.Thread(target=reap, daemon=True)
+    reaper.start()
+    try:
+        with pytest.raises(NodeRestarted) as ended:
+            for _ in range(3000):   # lockstep: the run goes on until the client learns what happened
+                drive(r, [0.05] * 3, [0.2] * 3)
+        named = time.monotonic() - stalled
+    finally:
+        done.set()
+        reaper.join()
+        frozen.release()
+    text = str(ended.value)
+    assert text.startswith("testbed node restarted at step"), text
+    assert "the safety node" in text and "Fast DDS stopped" in text and "restarted in place" in text, text
+    print("stall -> the client's error naming the restart in place: %.1f s" % named)
+    r._end_quietly()   # as the script's exit does (runner): the testbed is free for the next client
+    assert lab.probe.spin_until(lambda: lab.watches["safety"].alive, 30), node.output()
+    assert node.alive() and node.proc.pid == pid
+    r2 = client(LINE3)
+    for _ in range(20):
+        drive(r2, [0.05] * 3, [0.2] * 3)
+    r2.call_at_scripts_end()
+    assert r2.run_info.outcome == "completed", r2.run_info
 
 
 def test_a_node_asked_with_sigusr1_writes_where_each_thread_stands_and_goes_on(healthy):
