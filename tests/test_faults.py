@@ -709,6 +709,7 @@ def test_a_node_whose_fast_dds_event_thread_stops_starts_afresh_and_the_next_cli
     assert r.run_info.steps == 20 and r.run_info.outcome == "completed", r.run_info
 
 
+@pytest.mark.slow   # waits out a 5 s stall and the restart
 def test_a_run_whose_safety_node_deadlocks_mid_run_ends_naming_the_restart_in_place(healthy):
     """The same deadlock mid-run (docs/faults.md, the restart-in-place row): the safety node's event thread
     stopped for real (ptrace) while a client steps. The client loses the node's presence, finds its process
