@@ -74,8 +74,8 @@ if TYPE_CHECKING:
 
 STARTUP_WAIT = 60.0   # s for a testbed started here to come up
 STEP_TIMEOUT = 10.0   # s without poses after a step() before we give up with an explanation
-# what stopped this process's own Fast DDS, once leaving it found its event thread stuck ("" never): the runner
-# then exits without waiting for it
+# what stopped this process's own Fast DDS ("" never), once a wait for poses or leaving DDS found its event thread
+# stuck: nothing more is said over it, and the runner exits without waiting for it
 DDS_STUCK = ""
 # s a start may take: a hardware arena (robotarium_hardware) answers once its drive-on phase brought the robots to
 # the initial conditions, which took up to 30 s for the guide's listings on a loaded 2-core machine
@@ -320,6 +320,7 @@ class TestbedLink:
 
     def wait_for_step(self, target: int) -> np.ndarray:
         """The newest poses once those of step `target` came (3 x N); raises what stopped the run."""
+        global DDS_STUCK
         own = self._own_dds
         arrived = self.spin_until(lambda: self.confirm_losses() or (
             self.latest is not None and self.latest.step >= target) or own.look(), STEP_TIMEOUT)
@@ -327,8 +328,7 @@ class TestbedLink:
         if not arrived:
             stuck = own.stuck()
             if stuck:   # this process heard nothing because its own DDS stopped, not the testbed
-                global DDS_STUCK
-                DDS_STUCK = stuck   # nothing more can be said over it; leaving it would wait for ever
+                DDS_STUCK = stuck
                 raise TestbedLost(
                     "This script's own Fast DDS stopped (%s: a deadlock inside Fast DDS, docs/faults.md), so it heard "
                     "nothing of the testbed for %.0f s after step %d; the testbed ends its run when it stops hearing "
