@@ -282,7 +282,7 @@ def write_unrecorded_results(run_dir, run, testbed_report="", not_here=""):
     first = outcomes.first_line(outcome, run.detail)
     stopped = outcomes.recording_stopped(run)
     if stopped:   # as write_results says it of a recording that stopped early
-        first = "%s %s%s: the recording is incomplete." % (first, stopped[0].upper(), stopped[1:])
+        first = outcomes.with_recording_stopped(first, stopped)
     lines = [first, ""]
     if testbed_report:
         verdict = (run.verdict or {}).get("text", "")

@@ -100,6 +100,11 @@ def recording_stopped(run):
     return "recording stopped at step %d: %s" % (step, run.recording_stopped_because or RECORDER_GONE)
 
 
+def with_recording_stopped(first_line, stopped):
+    """A report's first line with how its recording stopped early (`stopped`: recording_stopped's words) after it."""
+    return "%s %s%s: the recording is incomplete." % (first_line, stopped[0].upper(), stopped[1:])
+
+
 def lost_poses(count, first_step):
     """What a report says of a recording missing the poses of `count` steps (a gap in the bag's step
     sequence), the first of them `first_step`."""

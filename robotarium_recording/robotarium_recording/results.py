@@ -438,8 +438,7 @@ def write_results(bag_dir, progress=True, *, out_dir=None, video=True, run=None)
     stopped = outcomes.recording_stopped(run)
     if stopped:   # no verdict from a recording that stopped early (the report's notes say where)
         numbers["report"] = numbers["report"].replace(model.ACCEPTANCE_LIKELY, model.RECORDING_INCOMPLETE)
-        numbers["first_line"] = "%s %s%s: the recording is incomplete." % (
-            numbers["first_line"], stopped[0].upper(), stopped[1:])
+        numbers["first_line"] = outcomes.with_recording_stopped(numbers["first_line"], stopped)
     if numbers["recording_lost_poses"]:   # a gap in the bag's steps: no verdict, and run.json says so
         lost = outcomes.lost_poses(numbers["recording_lost_poses"], numbers["recording_first_lost_step"])
         numbers["report"] = numbers["report"].replace(model.ACCEPTANCE_LIKELY, model.RECORDING_INCOMPLETE)
