@@ -201,6 +201,100 @@ def test_a_disk_full_before_the_first_step_is_recorded_says_so_first(testbed, tm
         _unmount(bags)
 
 
+def _room(path):
+    """The room a file takes on a tmpfs (whole pages)."""
+    return -(-os.path.getsize(path) // 4096) * 4096
+
+
+def _bag_and_results_room(folder):
+    """(room the bag in `folder` took, counting metadata.yaml twice as its rewrite needs, room its results took)."""
+    names = os.listdir(folder)
+    bag = sum(_room(os.path.join(folder, n)) for n in names if n.endswith(".mcap"))
+    bag += 2 * _room(os.path.join(folder, "metadata.yaml"))
+    results = sum(_room(os.path.join(folder, n)) for n in names if not n.endswith(".mcap") and n != "metadata.yaml")
+    return bag, results
+
+
+def _leave_free(bags, room):
+    """Fill the disk under `bags` to leave `room` bytes free."""
+    stats = os.statvfs(bags)
+    free = stats.f_bavail * stats.f_frsize
+    assert free > room, (free, room)
+    with open(os.path.join(bags, "filler"), "wb") as f:
+        f.write(b"\0" * (free - room))
+
+
+def _steps_in(bag):
+    from pathlib import Path
+
+    from rosbags.highlevel import AnyReader
+    with AnyReader([Path(bag)]) as reader:
+        poses = [c for c in reader.connections if c.topic == NAMESPACE + "/poses"]
+        return [reader.deserialize(raw, c.msgtype).step for c, _, raw in reader.messages(connections=poses)]
+
+
+def test_results_with_no_room_beside_the_bag_go_to_the_results_folder(testbed, tmp_path):
+    """The bag's disk takes the whole recording, not the results beside it: the run folder is
+    results/<run id>/ with every result, the bag stays whole where it was, nothing of the results is left
+    on the full disk (the results were attempted there and lost with the disk's folder: a soak's run)."""
+    bags = str(testbed["bags"])
+    code, out, folder = run(testbed, tmp_path)   # the same run on a roomy disk: the room its bag and results take
+    assert code == 0, out
+    bag_room, results_room = _bag_and_results_room(folder)
+    _mount_small_disk(bags, "2m")
+    try:
+        _leave_free(bags, bag_room + results_room // 2)
+        code, out, folder = run(testbed, tmp_path)
+        assert code == 0 and "Run completed." in out and ACCEPTANCE in out, out
+        assert re.search(r"the disk of %s/\S+ is full: the run's folder is \S+ \(the recording holds the whole run\)"
+                         % re.escape(bags), out), out
+        assert folder.startswith(str(testbed["root"] / "results")), out
+        with open(os.path.join(folder, "run.json")) as f:
+            info = json.load(f)
+        assert info["recording"].startswith(bags) and info.get("recording_stopped_at_step") is None, info
+        for name in ("report.txt", "index.html", "trajectories.png", "log.txt", os.path.basename(SCRIPT)):
+            assert os.path.isfile(os.path.join(folder, name)), (name, os.listdir(folder))
+        with open(os.path.join(folder, "report.txt")) as f:
+            assert f.readline().startswith("Run completed."), out
+        left = sorted(os.listdir(info["recording"]))
+        assert len(left) == 2 and left[0] == "metadata.yaml" and left[1].endswith(".mcap"), left
+        assert _steps_in(info["recording"]) == list(range(31)), info["recording"]
+    finally:
+        _unmount(bags)
+
+
+def test_a_disk_that_fills_as_the_bag_closes_gives_the_same_run_folder(testbed, tmp_path):
+    """Room for half the bag of a short run: the disk fills as the recorder writes its last chunk, during
+    the run or after its end as the bag is closed (the client then hears nothing of it: `run` finds it out
+    by its own write). Either way: the run completed, its recording stopped at step k for a full disk, the
+    run folder in results/<run id>/."""
+    bags = str(testbed["bags"])
+    code, out, folder = run(testbed, tmp_path)
+    assert code == 0, out
+    bag_room, _ = _bag_and_results_room(folder)
+    _mount_small_disk(bags, "2m")
+    try:
+        _leave_free(bags, bag_room // 5)
+        code, out, folder = run(testbed, tmp_path)
+        # (the script's own debug report may say acceptance is likely: it ends before the bag is closed)
+        assert code == 4 and "the experiment completed, but recording stopped at step" in out, out
+        assert folder.startswith(str(testbed["root"] / "results")), out
+        assert "see %s" % folder in out or "holds no step" not in out, out   # never the folder on the full disk
+        with open(os.path.join(folder, "run.json")) as f:
+            info = json.load(f)
+        k = info["recording_stopped_at_step"]
+        assert info["recording_stopped_because"] == "disk full" and info["outcome"] == "completed", info
+        assert info["exit_code"] == 4 and k is not None and k < 30, info
+        with open(os.path.join(folder, "report.txt")) as f:
+            report = f.read()
+        assert report.startswith("Run completed. Recording stopped at step %d: disk full: the recording is "
+                                 "incomplete." % k) and ACCEPTANCE not in report, report
+        assert os.path.isfile(os.path.join(folder, "index.html")), os.listdir(folder)
+        assert testbed["up"].poll() is None, testbed["log"].read_text()
+    finally:
+        _unmount(bags)
+
+
 def test_an_end_request_the_script_did_not_send_is_never_run_completed(testbed, tmp_path):
     """A process that copied the run's token off the wire ends the experiment at step ~115 (it used to
     be "Run completed. Acceptance ... likely!" with run.json saying interrupted)."""

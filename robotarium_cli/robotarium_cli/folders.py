@@ -2,7 +2,6 @@
 folders of runs whose ./robotarium run was killed."""
 import ast
 import difflib
-import errno
 import importlib.util
 import os
 import pkgutil
@@ -18,7 +17,7 @@ import robotarium_recording as recording
 from robotarium_cli.console import say
 from robotarium_cli.verification import COMPILE_ERRORS, compile_script
 from robotarium_client import progress, session
-from robotarium_core import outcomes, run_record, script_box
+from robotarium_core import model, outcomes, run_record, script_box
 from robotarium_core.config import DEFAULT, ConfigError, TestbedConfig
 
 # Folders never searched for data files a script saved.
@@ -97,15 +96,20 @@ def tee(stream, log, console=None):
 def wait_until_recorded(run_dir, timeout=15.0, quiet=False):
     """The recorder closes a run's bag shortly after the run ended (it keeps late messages for a
     moment); results made before that would miss the last chunk. Wait for metadata.yaml to say
-    the bag is complete."""
+    the bag is complete. A bag its recorder recovered (it stopped writing it: a full disk) is not waited for."""
     path = os.path.join(run_dir, "metadata.yaml")
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         try:
             with open(path) as f:
                 info = yaml.safe_load(f)["rosbag2_bagfile_information"]
-            if str(info.get("custom_data", {}).get("complete")) == "true":
+            custom = info.get("custom_data") or {}
+            if str(custom.get("complete")) == "true":
                 return True
+            if str(custom.get("recovered")) == "true":   # nobody writes it any more
+                if not quiet:
+                    say("the recorder stopped writing %s before its end; results are made from what it holds" % run_dir)
+                return False
         except (OSError, KeyError, TypeError, yaml.YAMLError):
             pass  # not written yet, or being replaced
         time.sleep(0.02)
@@ -223,7 +227,7 @@ def results_folder_problem(folder, min_free_mb):
             os.fsync(probe.fileno())
         free = shutil.disk_usage(folder).free
     except OSError as error:
-        if error.errno in (errno.ENOSPC, errno.EDQUOT):
+        if outcomes.disk_full(error):
             return "%s is on a full disk (%s)" % (folder, error.strerror)
         return "%s is not writable (%s)" % (folder, error.strerror or error)
     if free < min_free_mb * 1e6:
@@ -283,6 +287,7 @@ def write_unrecorded_results(run_dir, run, testbed_report="", not_here=""):
     stopped = outcomes.recording_stopped(run)
     if stopped:   # as write_results says it of a recording that stopped early
         first = outcomes.with_recording_stopped(first, stopped)
+        testbed_report = testbed_report.replace(model.ACCEPTANCE_LIKELY, model.RECORDING_INCOMPLETE)
     lines = [first, ""]
     if testbed_report:
         verdict = (run.verdict or {}).get("text", "")

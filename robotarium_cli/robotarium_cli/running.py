@@ -5,6 +5,7 @@ script's log and run.json, pending.json: what finishing the folder needs) lives 
 <results dir>/.unfinished/ until the folder is finished: should ./robotarium run be killed outright,
 the next run, status or report finishes it from there (finish_unfinished), as run would have.
 """
+import contextlib
 import dataclasses
 import json
 import os
@@ -420,13 +421,10 @@ class Run:
         if (self.request.judge and record.safety_interventions
                 and record.outcome == outcomes.NAMES[outcomes.COMPLETED]):
             record.verdict = _judge(self.request, record)
-        finish_run_folder(run_dir, record, pending.script, self.log_path, saved, pending.cwd,
-                          _data_limit(self.request.options.config_file))
-        if self.unlogged is not None:
-            self.unlogged.append_to(os.path.join(run_dir, "log.txt"))
         if bag_dir:
-            self._results(record, run_dir, bag_dir, stopped, died)
+            run_dir = self._recorded_results(record, run_dir, bag_dir, stopped, died, saved)
         else:
+            self._finish_run_folder(run_dir, record, saved)
             write_unrecorded_results(run_dir, record, record.last.report if record.last else "", not_here)
         shutil.rmtree(self.work, ignore_errors=True)   # last: a run whose folder is finished is no longer pending
         if not self.quiet:
@@ -528,18 +526,72 @@ class Run:
             say("%s: %s %s" % (stopped, bag_dir, "holds the run up to there" if len(steps) else "holds no step of it"))
         return stopped
 
-    def _results(self, record, run_dir, bag_dir, stopped, died):
-        """Report, plot, video and page from the recording, once the bag is closed."""
+    def _finish_run_folder(self, run_dir, record, saved):
+        pending = self.pending
+        finish_run_folder(run_dir, record, pending.script, self.log_path, saved, pending.cwd,
+                          _data_limit(self.request.options.config_file))
+        if self.unlogged is not None:
+            self.unlogged.append_to(os.path.join(run_dir, "log.txt"))
+
+    def _recorded_results(self, record, run_dir, bag_dir, stopped, died, saved):
+        """The run folder finished, with its report, plot, video and page made from the recording once the
+        bag is closed. Returns the run folder: the bag's, or results/<run id>/ where the bag's disk is full
+        (it can fill as the recorder closes the bag, after the run: then its client heard nothing of it)."""
         if not stopped:
             # A lost testbed may never close the bag: then take what is on disk after a short wait. A
             # script killed outright has its experiment ended by the testbed (client_lease) or by
             # this command's stopping of its own testbed.
             timeout = 15.0 if record.ended or died or self.interruption is None else 3.0
             if self.testbed is None:
-                wait_until_recorded(run_dir, timeout, quiet=self.quiet)
-            elif not wait_until_recorded(run_dir, timeout, quiet=True):
+                wait_until_recorded(bag_dir, timeout, quiet=self.quiet)
+            elif not wait_until_recorded(bag_dir, timeout, quiet=True):
                 self.stop_testbed()   # its recorder closes the bag as it stops (or is gone)
-                wait_until_recorded(run_dir, timeout=1.0)
+                wait_until_recorded(bag_dir, timeout=1.0)
+        in_the_bag = set(os.listdir(bag_dir)) if run_dir == bag_dir else None
+        try:
+            self._finish_run_folder(run_dir, record, saved)
+            self._results(record, run_dir, bag_dir, died)
+        except OSError as error:
+            if in_the_bag is None or not outcomes.disk_full(error):
+                raise
+            run_dir = self._beside_a_full_bag_disk(record, bag_dir, in_the_bag)
+            self._finish_run_folder(run_dir, record, saved)
+            self._results(record, run_dir, bag_dir, died)
+        return run_dir
+
+    def _beside_a_full_bag_disk(self, record, bag_dir, in_the_bag):
+        """The bag's disk refused the run folder's files: take back what this command wrote there, mark the
+        recording stopped where the bag does not hold the whole run, and return results/<run id>/."""
+        for name in set(os.listdir(bag_dir)) - in_the_bag:
+            path = os.path.join(bag_dir, name)
+            if name.endswith(".mcap") or name.startswith("metadata"):
+                continue   # the recorder's, whatever it did meanwhile
+            if os.path.isdir(path) and not os.path.islink(path):
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                with contextlib.suppress(OSError):
+                    os.remove(path)
+        if not _holds_the_whole_run(record, bag_dir) and record.recording_stopped_at_step is None:
+            try:
+                steps = recording.Bag(bag_dir).poses().steps
+            except Exception:   # noqa: BLE001 - nothing readable: it holds no step
+                steps = ()
+            for each in [record] + record.experiments[-1:]:
+                each.recording_stopped_at_step = int(steps[-1]) if len(steps) else 0
+                each.recording_stopped_because = outcomes.DISK_FULL
+            if record.exit_code == 0:   # completed, but its recording is not: not a success (README)
+                record.exit_code = outcomes.EXIT_CODES[outcomes.TESTBED_LOST]
+        run_dir = os.path.join(self.pending.results_dir, record.run_id)
+        os.makedirs(run_dir, exist_ok=True)
+        if not self.quiet:
+            stopped = outcomes.recording_stopped(record)
+            say("the disk of %s is full: the run's folder is %s%s" % (
+                bag_dir, run_dir, " (%s)" % stopped if stopped else " (the recording holds the whole run)"))
+        return run_dir
+
+    def _results(self, record, run_dir, bag_dir, died):
+        """Report, plot, video and page from the recording into `run_dir`. A full disk in the bag's own
+        folder is raised (the caller moves the run folder); any other failure is said, the folder kept."""
         try:
             if died:   # the testbed's steps, as the report counts them (a killed script could not say)
                 recorded_steps = recording.Bag(bag_dir).poses().steps
@@ -548,9 +600,11 @@ class Run:
             recording.write_results(bag_dir, progress=not self.quiet, video=self.pending.video, run=record,
                                     out_dir=run_dir)
         except Exception as error:   # noqa: BLE001 - say so, keep the folder
+            if run_dir == bag_dir and outcomes.disk_full(error):
+                raise
             why = _why_no_results(bag_dir, error)
-            say("%s; see %s" % (why, run_dir))
             write_unrecorded_results(run_dir, record, record.last.report if record.last else "", why)
+            say("%s; see %s" % (why, run_dir))   # (after: a full disk there moves the folder first)
 
 
 def _why_no_results(bag_dir, error):
@@ -622,8 +676,11 @@ def _recorded_whole(record, bag_dir):
     """Whether the recorder closed the run's bag (its own metadata says so: a recovered bag's does not) and
     the bag holds the run whole: the poses of every step from 0 to the testbed's last and the status that
     closed the run."""
-    if not wait_until_recorded(bag_dir, RECORDER_BACK_WAIT, quiet=True):
-        return False
+    return wait_until_recorded(bag_dir, RECORDER_BACK_WAIT, quiet=True) and _holds_the_whole_run(record, bag_dir)
+
+
+def _holds_the_whole_run(record, bag_dir):
+    """Whether the bag in `bag_dir` holds the run whole (_recorded_whole), as it is now."""
     try:
         bag = recording.Bag(bag_dir)
         steps = [int(k) for k in bag.poses().steps]

@@ -5,6 +5,7 @@ agree): the simulator keeps the outcome an end_experiment request gives in the I
 closes the run, so the recording itself says how the run ended. One more has no message value,
 because only the report can tell it: a recording that ends while its experiment was still running.
 """
+import errno
 import re
 
 NONE, COMPLETED, SCRIPT_ERROR, INTERRUPTED, NO_END, TIME_LIMIT, CLIENT_LOST, TESTBED_LOST = range(8)
@@ -83,6 +84,12 @@ ENDED_BY_ITS_USER = "ended by its user"   # ./robotarium end by the user who run
 RECORDER_GONE = "the recorder is gone"   # why a recording stopped, when its recorder is lost
 NO_TESTBED_ANSWERS = "No Robotarium testbed answers"   # how the client's error begins when none answered it
 RECORDER_RESTARTED = "the recorder was restarted"   # ... when it was restarted mid-run (robotarium_core.restarts)
+DISK_FULL = "disk full"   # ... when its disk took no more (the recorder's write, or the results beside the bag)
+
+
+def disk_full(error):
+    """Whether `error` (an exception) is a write refused for want of room: no space, or over a disk quota."""
+    return isinstance(error, OSError) and error.errno in (errno.ENOSPC, errno.EDQUOT)
 
 
 def recorder_lost(because):

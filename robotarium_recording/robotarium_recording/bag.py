@@ -9,7 +9,6 @@ rewrites such a file's tail and metadata.yaml so that other readers open it too 
 reindex`). Messages decode with a rosbags typestore: Jazzy's standard types plus the schemas stored
 in the bag itself (so an old bag still decodes after our .msg files change).
 """
-import errno
 import functools
 import glob
 import hashlib
@@ -25,6 +24,7 @@ from mcap.data_stream import ReadDataStream
 from mcap.records import Channel, Chunk, Footer, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 
+from robotarium_core import outcomes
 from robotarium_core.config import DEFAULT, TestbedConfig
 from robotarium_recording.bag_writer import (
     MAGIC,
@@ -334,7 +334,7 @@ def recover_bag(path):
         except OSError as error:
             # On a full disk even metadata.yaml may not fit: give up the last chunk to make room.
             last = bag.files[-1] if bag.files else None
-            if error.errno not in (errno.ENOSPC, errno.EDQUOT) or last is None or len(cuts[last]) < 2:
+            if not outcomes.disk_full(error) or last is None or len(cuts[last]) < 2:
                 raise
             cuts[last].pop()
             _cut_after_record(last, cuts[last])
@@ -352,7 +352,7 @@ def _cut_after_record(file_path, ends):
                 f.write(PROVISIONAL_TAIL)
             return
         except OSError as error:
-            if error.errno not in (errno.ENOSPC, errno.EDQUOT) or len(ends) < 2:
+            if not outcomes.disk_full(error) or len(ends) < 2:
                 raise
             ends.pop()
 

@@ -23,7 +23,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProf
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import String
 
-from robotarium_core import cdr, presence, restarts
+from robotarium_core import cdr, outcomes, presence, restarts
 from robotarium_core.config import DEFAULT, FIELDS
 from robotarium_core.dds_health import fast_dds_watchdogs
 from robotarium_core.node_main import run_node
@@ -271,7 +271,7 @@ class RunRecorder:
         and say so (on_write_error)."""
         self.write_errors += 1
         writer, self.writer = self.writer, None
-        why = "disk full" if error.errno in (errno.ENOSPC, errno.EDQUOT) else (error.strerror or str(error))
+        why = outcomes.DISK_FULL if outcomes.disk_full(error) else (error.strerror or str(error))
         path = writer.path if writer is not None else ""
         if writer is not None:
             writer.abandon()
