@@ -126,20 +126,23 @@ class Planned:
 
 
 def plan(runs, seed, node_every=50, real_time=0.3, long=0.3, client_faults=0.16, disk=True, node_faults=None,
-         iterations=None):
+         iterations=None, leave_out=(), real_time_uncounted=True):
     """The runs of a soak, drawn from `seed`: a node fault about every `node_every` runs (kill and freeze
     in turn, the node at random), the full disk once (if `disk`), a client fault or a flood in about
     `client_faults` of the other runs, each client fault at least once where there are runs enough
     (node_faults: the node faults to take in turn instead, e.g. ["kill:safety", "freeze:recorder"]); a run
     with a fault runs long enough to be hit: a script with an iteration count, long. iterations: {(mode,
-    length): count} in place of ITERATIONS (a fault's step is drawn from the first 40 % of a long run)."""
+    length): count} in place of ITERATIONS (a fault's step is drawn from the first 40 % of a long run).
+    leave_out: scripts (paths under examples/) not drawn. real_time_uncounted: whether a loop with no iteration
+    count may run in real time (shortened, it still runs to its end at 30 Hz: 15-25 s)."""
     iterations = {**ITERATIONS, **(iterations or {})}
     rng = random.Random(seed)
-    scripts = catalog()
+    scripts = [s for s in catalog() if s.path not in leave_out]
     plans = [Planned(n, rng.choice(scripts), "real-time" if rng.random() < real_time else "lockstep",
                      "long" if rng.random() < long else "short") for n in range(1, runs + 1)]
     for p in plans:   # loops of minutes at 30 Hz run in lockstep (the same draws otherwise)
-        if p.mode == "real-time" and p.script.path in LOCKSTEP_ONLY:
+        if p.mode == "real-time" and (p.script.path in LOCKSTEP_ONLY
+                                      or not (real_time_uncounted or p.script.iterations)):
             p.mode = "lockstep"
     free = list(range(1, runs))   # (the first run never has a fault: the baseline of the nodes' sizes)
     rng.shuffle(free)
