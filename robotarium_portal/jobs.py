@@ -241,13 +241,16 @@ def failing_truthfully(job):
 
 def verify_experiment(pk):
     """./robotarium verify on a copy of the experiment's files: accepted -> queued, else rejected or failed."""
-    experiment = Experiment.objects.filter(pk=pk).first()
+    # Every database step here waits out a restart: a job that broke on one left its experiment submitted
+    # with no job to verify it, for ever (a whole-suite run's PostgreSQL restart).
+    experiment = database_retry(lambda: Experiment.objects.filter(pk=pk).first(), "reading experiment %d" % pk)
     if experiment is None or not database_retry(lambda: experiment.claim_verification(me()), "claiming a verification"):
-        if experiment is not None and Experiment.objects.filter(pk=pk, state=Experiment.SUBMITTED).exists():
+        if experiment is not None and database_retry(
+                lambda: Experiment.objects.filter(pk=pk, state=Experiment.SUBMITTED).exists(), "reading experiment %d" % pk):
             # Its owner's other submission is being verified in another slot: one slot a person at a time, so
             # the others' submissions go first; this one goes back in the queue.
             time.sleep(BUSY_OWNER_PAUSE)
-            enqueue_verification(experiment)
+            database_retry(lambda: enqueue_verification(experiment), "putting experiment %d back in the queue" % pk)
             return "experiment %d waits for its owner's other verification" % pk
         return "experiment %d is not waiting for verification" % pk
     return _working_on("verify #%d" % pk, lambda: _verify(experiment))
