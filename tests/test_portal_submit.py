@@ -274,7 +274,9 @@ def test_submit_follows_it_downloads_its_results_and_the_page_shows_it_live(port
     assert [e for e in listed if e["id"] == pk] == []
     if find_chromium() is None:
         pytest.skip("no chromium: the live view was not watched (./robotarium test installs Debian's package)")
-    assert watched["moved"] > 500, watched     # pixels that changed between two screenshots 1 s apart
+    # pixels that changed between two screenshots 1 s apart: the robots and their trails (400-2000 as the load
+    # lets the real-time testbed keep its pace); a page that does not redraw changes none
+    assert watched["moved"] > 100, watched
     assert watched["rate"] >= 10, watched      # updates a second
     assert watched["lag"] <= 1.0, watched      # s behind the testbed
     assert watched["state_changed_by_itself"], watched
