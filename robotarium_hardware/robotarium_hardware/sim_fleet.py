@@ -133,20 +133,32 @@ class SimulatedFleet:
     def kill(self, name, sig=signal.SIGKILL):
         os.killpg(self.processes[name].pid, sig)
 
-    def restart(self, name):
-        """Start robot `name` again where its body stands, or the stand-in (after a kill)."""
-        if name not in self.fleet.names:
-            self.processes[name].wait()
-            return self._start(name, *self.commands[name])
-        k = self.fleet.names.index(name)
-        x, y, theta = self.world.poses_at()[:, k]
-        robot = self.fleet.robots[k]
+    def restart(self, name, timeout=READY_WAIT):
+        """Start robot `name` again where its body stands, or the stand-in (after a kill); returns its process
+        once it says it is ready, as start's wait_ready waits (a run begun before found it missing: the
+        drive-on failed, "lost tracking" or "stopped answering", on a loaded machine)."""
         self.processes[name].wait()
-        return self._start(name, "robotarium_hardware.robot_node", [
-            "-r", "__node:=%s" % name, "-p", "name:=%s" % name, "-p", "index:=%d" % k,
-            "-p", "world:=%s" % self.world_file, "-p", "cmd_type:=%s" % robot.cmd_type,
-            "-p", "x:=%r" % float(x), "-p", "y:=%r" % float(y), "-p", "theta:=%r" % float(theta),
-            "-p", "seed:=%d" % (k + 1)])
+        if name not in self.fleet.names:
+            process = self._start(name, *self.commands[name])
+        else:
+            k = self.fleet.names.index(name)
+            x, y, theta = self.world.poses_at()[:, k]
+            robot = self.fleet.robots[k]
+            process = self._start(name, "robotarium_hardware.robot_node", [
+                "-r", "__node:=%s" % name, "-p", "name:=%s" % name, "-p", "index:=%d" % k,
+                "-p", "world:=%s" % self.world_file, "-p", "cmd_type:=%s" % robot.cmd_type,
+                "-p", "x:=%r" % float(x), "-p", "y:=%r" % float(y), "-p", "theta:=%r" % float(theta),
+                "-p", "seed:=%d" % (k + 1)])
+        log = os.path.join(self.log_dir, name + ".log")
+        deadline = time.monotonic() + timeout
+        while not _says(log, "ready"):
+            if process.poll() is not None or time.monotonic() > deadline:
+                with open(log, errors="replace") as f:
+                    raise RuntimeError("%s did not say it is ready again (%s):\n%s" % (
+                        name, "exit code %d" % process.returncode if process.poll() is not None
+                        else "%g s" % timeout, f.read()[-2000:]))
+            time.sleep(0.05)
+        return process
 
     def stop(self, grace=3.0):
         for process in self.processes.values():
