@@ -325,6 +325,7 @@ def test_real_time_tick_rate_is_30_hz(testbed):
     assert (len(stamps) - 1) / (stamps[-1] - stamps[0]) <= 30.0 * 1.02   # never faster than real time
 
 
+@pytest.mark.realtime   # 15 ticks in the command's 0.5 s of wall time: a starved simulator skips ticks (13 under load 17)
 def test_command_held_for_half_a_second_then_robot_stops(testbed):
     _, probe, safety = testbed
     poses = probe.collect(RobotPoses, NS + "/poses")
