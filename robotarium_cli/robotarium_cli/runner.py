@@ -64,6 +64,16 @@ def _raise_interrupted(signum, frame):
     raise session.Interrupted(signal.Signals(signum).name)
 
 
+SIGINT_RECEIVED = []   # [True] once SIGINT came
+
+
+def _raise_keyboard_interrupt(signum, frame):
+    # As Python's own handler, remembered: raised inside a C call, pybind11 turns the KeyboardInterrupt into a
+    # RuntimeError ("Unable to convert call argument"), and the run said "the script raised RuntimeError" (a soak).
+    SIGINT_RECEIVED.append(True)
+    raise KeyboardInterrupt
+
+
 def print_traceback(exc, script):
     """The traceback as `python SCRIPT` prints it: frames from the script on, not the runner's."""
     tb = exc.__traceback__
@@ -88,6 +98,7 @@ def run(script, script_args):
     sys.path.insert(0, os.path.dirname(script))
     for signum in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(signum, _raise_interrupted)
+    signal.signal(signal.SIGINT, _raise_keyboard_interrupt)
     if os.environ.get("MPLBACKEND", "").lower() == "agg":   # headless (./robotarium run chose it)
         skip_headless_idle_draws()
     try:
@@ -106,6 +117,8 @@ def run(script, script_args):
         else:
             print_traceback(exc, script)
         step = session.robotaria[-1]._iterations if session.robotaria else 0
+        if SIGINT_RECEIVED and not isinstance(exc, (KeyboardInterrupt, session.Interrupted, EndedByTestbed)):
+            exc = KeyboardInterrupt().with_traceback(exc.__traceback__)   # what the SIGINT became in a C call
         if orphaned and isinstance(exc, KeyboardInterrupt):
             exc = session.Interrupted("the loss of ./robotarium run (its lifeline closed)")
         outcome, detail = session.failure_of(exc, step, where_in_script(exc, script))
