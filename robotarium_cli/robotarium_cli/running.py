@@ -515,11 +515,8 @@ class Run:
                 recording.recover_bag(bag_dir)
             except OSError as error:
                 say("could not tidy the recording in %s (%s); readers scan it as it is" % (bag_dir, error.strerror))
-        try:
-            steps = recording.Bag(bag_dir).poses().steps
-        except Exception:   # noqa: BLE001 - nothing readable: the client's step stands
-            steps = ()
-        if len(steps):
+        steps = _recorded_steps(bag_dir)
+        if len(steps):   # (none readable: the client's step stands)
             record.recording_stopped_at_step = int(steps[-1])
         stopped = outcomes.recording_stopped(record)
         if not self.quiet:
@@ -572,10 +569,7 @@ class Run:
                 with contextlib.suppress(OSError):
                     os.remove(path)
         if not _holds_the_whole_run(record, bag_dir) and record.recording_stopped_at_step is None:
-            try:
-                steps = recording.Bag(bag_dir).poses().steps
-            except Exception:   # noqa: BLE001 - nothing readable: it holds no step
-                steps = ()
+            steps = _recorded_steps(bag_dir)
             for each in [record] + record.experiments[-1:]:
                 each.recording_stopped_at_step = int(steps[-1]) if len(steps) else 0
                 each.recording_stopped_because = outcomes.DISK_FULL
@@ -607,13 +601,18 @@ class Run:
             say("%s; see %s" % (why, run_dir))   # (after: a full disk there moves the folder first)
 
 
+def _recorded_steps(bag_dir):
+    """The steps whose poses the bag in `bag_dir` holds; none where nothing is readable (no bag, no poses topic)."""
+    try:
+        return recording.Bag(bag_dir).poses().steps
+    except Exception:   # noqa: BLE001 - nothing readable: no step
+        return ()
+
+
 def _why_no_results(bag_dir, error):
     """Why the results of a run could not be made from its recording in `bag_dir` (`error` raised)."""
-    try:
-        empty = not len(recording.Bag(bag_dir).poses().steps)
-    except Exception:   # noqa: BLE001 - no bag, no poses topic, nothing readable
-        empty = True
-    if empty:   # a recording that stopped (a full disk, a killed recorder) before its first part reached the disk
+    # a recording that stopped (a full disk, a killed recorder) before its first part reached the disk
+    if not len(_recorded_steps(bag_dir)):
         return "the recording in %s holds no step of the run, so there are no results of it" % bag_dir
     return "the results could not be made from the recording in %s (%s)" % (bag_dir, session.describe_exception(error))
 
