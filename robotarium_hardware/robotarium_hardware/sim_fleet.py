@@ -92,11 +92,7 @@ class SimulatedFleet:
         self.world = World(self.world_file, len(self.fleet.robots), create=True)
         poses = start_poses(len(self.fleet.robots))
         for k, robot in enumerate(self.fleet.robots):
-            process = self._start(robot.name, "robotarium_hardware.robot_node", [
-                "-r", "__node:=%s" % robot.name, "-p", "name:=%s" % robot.name, "-p", "index:=%d" % k,
-                "-p", "world:=%s" % self.world_file, "-p", "cmd_type:=%s" % robot.cmd_type,
-                "-p", "x:=%r" % float(poses[0, k]), "-p", "y:=%r" % float(poses[1, k]),
-                "-p", "theta:=%r" % float(poses[2, k]), "-p", "seed:=%d" % (k + 1)])
+            process = self._start_robot(k, poses[:, k])
             say("robot %s pid %d" % (robot.name, process.pid))
         names = "[%s]" % ",".join(self.fleet.names)
         if self.fleet.tracking == "mocap":
@@ -133,6 +129,15 @@ class SimulatedFleet:
     def kill(self, name, sig=signal.SIGKILL):
         os.killpg(self.processes[name].pid, sig)
 
+    def _start_robot(self, k, pose):
+        """Robot k's process, standing at `pose` (x, y, theta)."""
+        robot = self.fleet.robots[k]
+        x, y, theta = (float(v) for v in pose)
+        return self._start(robot.name, "robotarium_hardware.robot_node", [
+            "-r", "__node:=%s" % robot.name, "-p", "name:=%s" % robot.name, "-p", "index:=%d" % k,
+            "-p", "world:=%s" % self.world_file, "-p", "cmd_type:=%s" % robot.cmd_type,
+            "-p", "x:=%r" % x, "-p", "y:=%r" % y, "-p", "theta:=%r" % theta, "-p", "seed:=%d" % (k + 1)])
+
     def restart(self, name, timeout=READY_WAIT):
         """Start robot `name` again where its body stands, or the stand-in (after a kill); returns its process
         once it says it is ready, as start's wait_ready waits (a run begun before found it missing: the
@@ -142,13 +147,7 @@ class SimulatedFleet:
             process = self._start(name, *self.commands[name])
         else:
             k = self.fleet.names.index(name)
-            x, y, theta = self.world.poses_at()[:, k]
-            robot = self.fleet.robots[k]
-            process = self._start(name, "robotarium_hardware.robot_node", [
-                "-r", "__node:=%s" % name, "-p", "name:=%s" % name, "-p", "index:=%d" % k,
-                "-p", "world:=%s" % self.world_file, "-p", "cmd_type:=%s" % robot.cmd_type,
-                "-p", "x:=%r" % float(x), "-p", "y:=%r" % float(y), "-p", "theta:=%r" % float(theta),
-                "-p", "seed:=%d" % (k + 1)])
+            process = self._start_robot(k, self.world.poses_at()[:, k])
         log = os.path.join(self.log_dir, name + ".log")
         deadline = time.monotonic() + timeout
         while not _says(log, "ready"):
