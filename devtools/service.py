@@ -16,9 +16,9 @@ from devtools.rosutil import REPO, processes_with_env
 
 TIMEOUT = 180.0
 HEARTBEAT = "1"   # s: a lost worker is found after 5 s without a beat
-SUBNET = 250 + os.getpid() % 5       # 10.<SUBNET>.<x>.0/24: a private test subnet
-OCTET = os.getpid() % 250 + 1
-HOST_ADDRESS, SECOND_ADDRESS = "10.%d.%d.1" % (SUBNET, OCTET), "10.%d.%d.2" % (SUBNET, OCTET)
+SUBNETS = ["10.%d.%d" % (a, b) for a in range(250, 255) for b in range(1, 251)]   # private test /24s
+NAMESPACE_PREFIX, VETH_PREFIX = "robotarium-test-", "rbt"   # + the pid of the test process that made it
+_OPEN = set()   # the namespaces of this process's Services not closed yet
 SECOND_HOST = "second-host"
 PASSWORD = "a-long-Passphrase-7"
 
@@ -123,6 +123,35 @@ def run_quietly(*command):
     return subprocess.run(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
+def free_subnet():
+    """A private test /24 ("10.250.1") that no address or route on this machine is in; the search starts at
+    one of this process's own (two test processes looking at once mostly pick different ones)."""
+    used = run_quietly("ip", "-4", "-o", "addr").stdout + run_quietly("ip", "-4", "route").stdout
+    start = os.getpid() % len(SUBNETS)
+    for subnet in SUBNETS[start:] + SUBNETS[:start]:
+        if subnet + "." not in used:
+            return subnet
+    raise RuntimeError("no free 10.250-254.x.0/24 test subnet here:\n" + used)
+
+
+def remove_stale_second_hosts():
+    """The namespaces and veths make_second_host made in test processes that are gone (killed before their
+    clean-up) or in an earlier process with this one's pid."""
+    def stale(name, prefix):
+        pid = name[len(prefix):]
+        if not pid.isdigit() or NAMESPACE_PREFIX + pid in _OPEN:
+            return False
+        return int(pid) == os.getpid() or not os.path.exists("/proc/" + pid)   # (a pid used again)
+    for line in run_quietly("ip", "netns", "list").stdout.splitlines():
+        name = line.split()[0] if line.split() else ""
+        if name.startswith(NAMESPACE_PREFIX) and stale(name, NAMESPACE_PREFIX):
+            run_quietly("ip", "netns", "delete", name)
+    for line in run_quietly("ip", "-o", "link").stdout.splitlines():
+        name = line.split(":")[1].strip().split("@")[0] if line.count(":") >= 2 else ""
+        if name.startswith(VETH_PREFIX) and stale(name, VETH_PREFIX):
+            run_quietly("ip", "link", "delete", name)
+
+
 def session_processes(sid):
     """Every live process of this session."""
     found = []
@@ -184,7 +213,8 @@ class Service:
         self.folder = folder
         self.data = os.path.join(folder, "service")
         os.makedirs(self.data)
-        self.namespace = "robotarium-test-%d" % os.getpid()
+        self.namespace = NAMESPACE_PREFIX + str(os.getpid())
+        self.host_address = self.second_address = None   # the veth pair's two ends (make_second_host)
         self.workers = {}
         self.portal = None
         self.postgres = None
@@ -195,20 +225,26 @@ class Service:
         return os.path.join(self.data, "release-%s" % name)
 
     def make_second_host(self):
-        """A network namespace with a veth pair: this side HOST_ADDRESS, the second host SECOND_ADDRESS."""
-        here, there = "rbt%d" % os.getpid(), "rbs%d" % os.getpid()
+        """A network namespace with a veth pair on a /24 no interface here uses: this side host_address, the
+        second host second_address. What killed test processes left first goes: a stale pair on the same
+        subnet routes the second host's replies into a namespace that is gone (its connections time out)."""
+        remove_stale_second_hosts()
+        subnet = free_subnet()
+        self.host_address, self.second_address = subnet + ".1", subnet + ".2"
+        here, there = (VETH_PREFIX + str(os.getpid()))[:15], ("rbs%d" % os.getpid())[:15]
         for command in (["ip", "netns", "add", self.namespace],
-                        ["ip", "link", "add", here[:15], "type", "veth", "peer", "name", there[:15]],
-                        ["ip", "link", "set", there[:15], "netns", self.namespace],
-                        ["ip", "addr", "add", HOST_ADDRESS + "/24", "dev", here[:15]],
-                        ["ip", "link", "set", here[:15], "up"],
-                        ["ip", "-n", self.namespace, "addr", "add", SECOND_ADDRESS + "/24", "dev", there[:15]],
-                        ["ip", "-n", self.namespace, "link", "set", there[:15], "up"],
+                        ["ip", "link", "add", here, "type", "veth", "peer", "name", there],
+                        ["ip", "link", "set", there, "netns", self.namespace],
+                        ["ip", "addr", "add", self.host_address + "/24", "dev", here],
+                        ["ip", "link", "set", here, "up"],
+                        ["ip", "-n", self.namespace, "addr", "add", self.second_address + "/24", "dev", there],
+                        ["ip", "-n", self.namespace, "link", "set", there, "up"],
                         ["ip", "-n", self.namespace, "link", "set", "lo", "up"]):
             result = run_quietly(*command)
             if result.returncode:
                 raise RuntimeError("%s: %s" % (" ".join(command), result.stdout))
-        self.veth = here[:15]
+        self.veth = here
+        _OPEN.add(self.namespace)
 
     def env(self):
         env = {k: v for k, v in os.environ.items() if not k.startswith(("ROBOTARIUM_PORTAL", "DJANGO_", "ROS_"))}
@@ -226,7 +262,7 @@ class Service:
         if name == SECOND_HOST:
             command = ["ip", "netns", "exec", self.namespace, "unshare", "--uts", "sh", "-c",
                        'hostname %s && exec "$0" "$@"' % SECOND_HOST, os.path.join(REPO, "robotarium"), "worker",
-                       "--database", self.postgres.url(HOST_ADDRESS), "--data", self.data]
+                       "--database", self.postgres.url(self.host_address), "--data", self.data]
         else:
             command = [os.path.join(REPO, "robotarium"), "worker", "--database", self.postgres.url(), "--data",
                        self.data]
@@ -322,5 +358,6 @@ class Service:
         run_quietly("ip", "netns", "delete", self.namespace)
         if getattr(self, "veth", None):
             run_quietly("ip", "link", "delete", self.veth)
+        _OPEN.discard(self.namespace)
 
 

@@ -25,7 +25,7 @@ import pytest
 
 from devtools.postgres import PostgreSQL, server_binaries
 from devtools.rosutil import processes_with_env
-from devtools.service import HOLD, HOST_ADDRESS, SECOND_HOST, SHORT, TIMEOUT, Service, run_quietly
+from devtools.service import HOLD, SECOND_HOST, SHORT, TIMEOUT, Service, run_quietly
 
 pytestmark = pytest.mark.e2e
 @pytest.fixture(scope="module")
@@ -39,7 +39,7 @@ def service():
     service = Service(folder)
     try:
         service.make_second_host()
-        service.postgres = PostgreSQL(listen=("127.0.0.1", HOST_ADDRESS))
+        service.postgres = PostgreSQL(listen=("127.0.0.1", service.host_address))
         service.start_portal()
         threads = [threading.Thread(target=service.start_worker, args=(name,)) for name in ("here", SECOND_HOST)]
         for thread in threads:
@@ -58,7 +58,7 @@ def test_the_second_host_reaches_the_database_over_its_own_link_only(service):
     """The namespace is a host of its own: its only way out is the veth link (not this machine's loopback)."""
     probe = "import socket,sys; s=socket.socket(); s.settimeout(3); s.connect((sys.argv[1], %d))" % service.postgres.port
     inside = ["ip", "netns", "exec", service.namespace, sys.executable, "-c", probe]
-    assert run_quietly(*inside, HOST_ADDRESS).returncode == 0
+    assert run_quietly(*inside, service.host_address).returncode == 0
     assert run_quietly(*inside, "127.0.0.1").returncode != 0
     hosts = {h for (h,) in service.postgres.query("SELECT DISTINCT host FROM robotarium_portal_worker "
                                                   "WHERE state = 'alive'")}
