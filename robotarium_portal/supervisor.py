@@ -43,6 +43,7 @@ def release(worker_pks, stopped_at_last_beat=False):
     """The slots stopped (properly, now; or, found dead at a start, at their last beat): their run goes back
     to the head of the queue (queued_at kept), their verification is made again; the slots are marked
     stopped."""
+    from django.db import transaction
     from django.utils import timezone
 
     from robotarium_portal import jobs
@@ -51,8 +52,9 @@ def release(worker_pks, stopped_at_last_beat=False):
                                                                                   Experiment.VERIFYING)):
         running = experiment.state == Experiment.RUNNING
         when = experiment.worker.last_heartbeat if stopped_at_last_beat else None
-        if experiment.requeue(experiment.worker_id, jobs.SERVICE_STOPPED, when):
-            jobs.enqueue_run() if running else jobs.enqueue_verification(experiment)
+        with transaction.atomic():   # back in line and its job, or neither
+            if experiment.requeue(experiment.worker_id, jobs.SERVICE_STOPPED, when):
+                jobs.enqueue_run() if running else jobs.enqueue_verification(experiment)
     Worker.objects.filter(pk__in=worker_pks, state=Worker.ALIVE).update(
         state=Worker.STOPPED, ended_at=timezone.now(), current_job="")
     TaskHold.release_tasks(worker_pks)   # what their clusters took off the queue and never finished: back now
@@ -72,12 +74,15 @@ def recorded_so_far(experiment):
 def lost(worker):
     """A slot found lost: its verification again, its run failed with what was recorded so far, and the jobs its
     cluster had taken off the queue (begun or not) back on it now, not after the cluster's `retry`."""
+    from django.db import transaction
+
     from robotarium_portal import jobs, mail
     from robotarium_portal.models import Experiment, TaskHold
     when = worker.last_heartbeat.strftime("%Y-%m-%d %H:%M:%S UTC")
     for experiment in Experiment.objects.filter(worker=worker, state=Experiment.VERIFYING):
-        if experiment.requeue(worker.pk, "The worker verifying it (%s) was lost (last heard of %s)" % (worker, when)):
-            jobs.enqueue_verification(experiment)
+        with transaction.atomic():   # back in line and its job, or neither
+            if experiment.requeue(worker.pk, "The worker verifying it (%s) was lost (last heard of %s)" % (worker, when)):
+                jobs.enqueue_verification(experiment)
     for experiment in Experiment.objects.filter(worker=worker, state=Experiment.RUNNING):
         detail = ("Failed: the testbed was lost: worker %s stopped answering during run %d (last heard of %s). "
                   "What was recorded so far is attached; you may submit the experiment again."

@@ -138,8 +138,10 @@ def save_experiment(form, user):
 
 
 def submit(user, experiment):
-    """Submit, unless the account may not or has too many pending (then why, in words); the verification job
-    after the commit. The pages and the API both submit through here."""
+    """Submit, unless the account may not or has too many pending (then why, in words); its verification job in
+    the same transaction (the queue is a table of the same database): submitted and its job, or neither. (Put
+    on the queue after the commit, a database lost in between left it submitted with no job, for ever.) The
+    pages and the API both submit through here."""
     profile = getattr(user, "profile", None)
     if profile is None or not profile.email_confirmed:
         return "Confirm your email address first (the link in the mail you got; Resend it from the log-in page)."
@@ -154,7 +156,7 @@ def submit(user, experiment):
                     "has finished (it is saved)." % pending)
         if not experiment.submit():
             return "It is %s already." % experiment.state
-        transaction.on_commit(lambda: jobs.enqueue_verification(experiment))
+        jobs.enqueue_verification(experiment)
     return None
 
 

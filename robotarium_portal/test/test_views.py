@@ -189,6 +189,27 @@ def test_sign_up_confirm_approve_then_submit():
     assert OrmQ.objects.filter(key="verify").count() == before + 1   # its verification job is queued
 
 
+def test_a_submission_and_its_verification_job_are_one_transaction():
+    """Submitted and its job, or neither: put on the queue after the commit, a database lost in between left
+    the experiment submitted with no job to verify it, for ever."""
+    from django.db import transaction
+
+    from robotarium_portal.views_experiments import submit
+
+    class DatabaseLost(Exception):
+        pass
+    user = make_user()
+    experiment = experiment_of(user)
+    before = OrmQ.objects.filter(key="verify").count()
+    with pytest.raises(DatabaseLost):
+        with transaction.atomic():
+            assert submit(user, experiment) is None
+            assert OrmQ.objects.filter(key="verify").count() == before + 1   # written with the submission
+            raise DatabaseLost()   # lost before the commit
+    experiment.refresh_from_db()
+    assert experiment.state == Experiment.SAVED and OrmQ.objects.filter(key="verify").count() == before
+
+
 def test_a_mail_server_that_is_down_costs_no_account_and_no_page():
     with socket.socket() as s:   # a port nobody listens on: the connection is refused
         s.bind(("127.0.0.1", 0))
