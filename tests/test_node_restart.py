@@ -6,6 +6,7 @@ code): the recorder's run goes on with its recording stopped at the restart, the
 restarted at step k"; the next run on the same `up` completes. The supervisor's bound (a node that keeps dying
 stops `up`, naming it) and the restart record are tested in plain Python.
 """
+import dataclasses
 import json
 import os
 import re
@@ -58,6 +59,12 @@ def test_a_restart_record_reads_back_and_says_what_a_run_makes_of_it():
     stall = restarts.in_place("simulator", "its Fast DDS stopped: dds.ev.0 has not run for 5.0 s", previous=up)
     assert stall.count == 2 and stall.by == restarts.IN_PLACE
     assert stall.describe().startswith("the simulator stopped answering (its Fast DDS stopped")
+    # announced once back: a run in progress when it stalled ends; one begun once it was back does not, however
+    # close (its latched announcement may come after the run's start)
+    announced = stall.back()
+    assert announced.back_at >= stall.at and restarts.parse(announced.to_json()) == announced
+    back = dataclasses.replace(announced, at=3000.0, back_at=3000.6)
+    assert back.during(2990.0) and not back.during(3000.2) and not back.during(3001.0)
     recorder = restarts.Restart("recorder", "exited (killed by SIGKILL)", restarts.BY_UP, 1, 0.0)
     because = restarts.recording_stopped(recorder)
     assert outcomes.recorder_lost(because) and outcomes.recorder_lost(outcomes.RECORDER_GONE)

@@ -194,7 +194,7 @@ def run_node(make_node, name, args=None, before_destroy=None, claim=None, watchd
         executor.add_node(claim_node)
         restarted = restarts.of_this_process()
         if restarted is not None and restarted.by == restarts.IN_PLACE:   # (up announces its own restarts)
-            claim_node.restart_announcement = restarts.announce(claim_node, restarted)
+            claim_node.restart_announcement = restarts.announce(claim_node, restarted.back())
     stop.attach(node, claim_node)
     watchdogs = list(watchdogs)
     due = [time.monotonic()] * len(watchdogs)   # when each watchdog is called next

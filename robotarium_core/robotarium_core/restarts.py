@@ -66,6 +66,7 @@ class Restart:
     count: int        # the node's restarts so far, this one included
     at: float         # epoch seconds the old process was found gone (or stuck)
     old_pid: int = 0  # the process that ended (in place: the same pid goes on)
+    back_at: float = 0.0   # in place: epoch seconds the node was back, announcing it (0: not known)
 
     def to_json(self):
         return json.dumps(dataclasses.asdict(self))
@@ -78,8 +79,16 @@ class Restart:
         return "%s %s and %s restarted it (restart %d)" % (node_name(self.who), self.cause, self.by, self.count)
 
     def during(self, started_at):
-        """Whether it happened during a run started at epoch `started_at`."""
-        return started_at is not None and self.at >= started_at - CLOCK_SLACK
+        """Whether it happened during a run started at epoch `started_at`. A node restarted in place that was
+        back before the run began (within CLOCK_SLACK) served the run afresh: a client that started right
+        after such a restart heard its latched announcement late, and ended at step 0 (a whole-suite run)."""
+        if started_at is None or (self.back_at and self.back_at < started_at + CLOCK_SLACK):
+            return False
+        return self.at >= started_at - CLOCK_SLACK
+
+    def back(self):
+        """This restart, its node back now (what the node restarted in place announces)."""
+        return dataclasses.replace(self, back_at=time.time())
 
 
 def parse(text):
@@ -87,7 +96,8 @@ def parse(text):
     try:
         value = json.loads(text)
         return Restart(who=str(value["who"]), cause=str(value["cause"]), by=str(value["by"]),
-                       count=int(value["count"]), at=float(value["at"]), old_pid=int(value.get("old_pid", 0)))
+                       count=int(value["count"]), at=float(value["at"]), old_pid=int(value.get("old_pid", 0)),
+                       back_at=float(value.get("back_at", 0.0)))
     except (ValueError, TypeError, KeyError, AttributeError):
         return None
 
