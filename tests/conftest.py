@@ -20,16 +20,17 @@ for path in reversed(PACKAGE_SOURCES):
         sys.path.insert(0, path)
 
 
-# The modules that take longest (a -n 2 run, 2026-11-26: minutes of worker time), run first: with
-# pytest-xdist's work stealing a long test begun last leaves one worker busy while the other waits;
-# begun first, the short ones fill in around it. Each module keeps its tests together (module
-# fixtures start a testbed, a database, a service once).
-LONGEST_FIRST = ("test_soak.py", "test_service.py", "test_service_faults.py", "test_safe_scripts.py",
-                 "test_own_robots.py", "test_examples.py",
-                 "test_rps2_examples.py", "test_jobbox.py", "test_portal.py",
-                 "test_portal_submit.py",
-                 "test_run_results.py", "test_safety_guarantee.py", "test_verify.py", "test_rps2.py", "test_faults.py",
-                 "test_line.py", "test_testbed_lifetime.py", "test_simulator_node.py")
+# Worker seconds of the modules that take longest (a whole-suite run at -n 3, quiet, 2026-11-29), for the
+# schedule (devtools.schedule): each pytest-xdist worker begins with its fair part of them. Any other module
+# counts SECONDS_PER_TEST by its tests' layer.
+MODULE_SECONDS = {"tests/test_soak.py": 384, "tests/test_safe_scripts.py": 339, "tests/test_rps2_examples.py": 246,
+                  "tests/test_service.py": 239, "tests/test_own_robots.py": 231, "tests/test_verify.py": 170,
+                  "tests/test_service_faults.py": 161, "tests/test_portal_submit.py": 147, "tests/test_jobbox.py": 141,
+                  "tests/test_portal.py": 119, "tests/test_faults.py": 115, "tests/test_testbed_lifetime.py": 98,
+                  "tests/test_run_results.py": 91, "tests/test_testbed_faults.py": 91, "tests/test_node_restart.py": 70,
+                  "tests/test_ros2_cli.py": 59, "tests/test_examples.py": 56, "tests/test_verify_warm.py": 55,
+                  "tests/test_line.py": 54, "tests/test_rps2.py": 53, "tests/test_simulator_node.py": 52}
+SECONDS_PER_TEST = {"unit": 0.1, "node": 3.0, "e2e": 10.0}
 
 
 def pytest_sessionstart(session):
@@ -41,13 +42,29 @@ def pytest_sessionstart(session):
 
 
 def pytest_collection_modifyitems(items):
-    """A test without a layer marker is a unit test (pytest.ini lists the layers); the longest
-    modules first (LONGEST_FIRST), the rest in their order."""
+    """A test without a layer marker is a unit test (pytest.ini lists the layers)."""
     for item in items:
         if item.get_closest_marker("node") is None and item.get_closest_marker("e2e") is None:
             item.add_marker(pytest.mark.unit)
-    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
-    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))   # stable: each module's order kept
+
+
+def pytest_configure(config):
+    config.pluginmanager.register(_Schedule(), "robotarium-schedule")
+
+
+class _Schedule:
+    @pytest.hookimpl(trylast=True)   # after -m and -k took theirs out: the shares are of what runs
+    def pytest_collection_modifyitems(self, config, items):
+        """The longest modules first, each pytest-xdist worker's share beginning with its fair part of them
+        (devtools.schedule); every worker computes the same order from the same collection."""
+        from devtools import schedule
+        modules = {}
+        for item in items:
+            modules.setdefault(item.nodeid.split("::")[0], []).append(item)
+        workers = getattr(config, "workerinput", {}).get("workercount", 1)
+        items[:] = schedule.order([(tests, MODULE_SECONDS.get(name) or sum(
+            SECONDS_PER_TEST[layer] for test in tests for layer in SECONDS_PER_TEST if test.get_closest_marker(layer)))
+            for name, tests in modules.items()], workers)
 
 
 @pytest.fixture(autouse=True, scope="module")
