@@ -21,6 +21,7 @@ import pytest
 import yaml
 
 from devtools.rosutil import NodeProcess, node_env, processes_on_domain, unique_domain_id
+from robotarium_core import outcomes
 from robotarium_core.config import DEFAULT_FILE
 
 pytestmark = pytest.mark.e2e   # whole runs through ./robotarium
@@ -327,6 +328,45 @@ def test_an_end_request_the_script_did_not_send_is_never_run_completed(testbed, 
     assert testbed["up"].poll() is None, testbed["log"].read_text()
 
 
+# Stuck mid-run in a call that holds the GIL and never returns, as a deadlock inside Fast DDS met in a publish or a
+# take leaves a script: nothing of Python runs, its own watches included (ctypes.PyDLL keeps the GIL over pause()).
+STUCK_IN_C = """import ctypes
+import numpy as np
+import rps.robotarium as robotarium
+from robotarium_client import testbed_link
+testbed_link.HUNG_STEP = 3.0   # (60 s by default)
+N = 2
+r = robotarium.Robotarium(number_of_robots=N, show_figure=False, sim_in_real_time=False)
+for k in range(60):
+    r.get_poses()
+    r.set_velocities(np.arange(N), np.zeros((2, N)))
+    if k == 30:
+        r._link.send = lambda *args: ctypes.PyDLL(None).pause()
+    r.step()
+r.call_at_scripts_end()
+"""
+
+
+def test_a_script_stuck_for_good_in_a_call_into_dds_is_ended_and_run_names_the_cause(testbed, tmp_path):
+    """A step() that never comes back from a call holding the GIL ends within HUNG_STEP: the kernel's timer ends
+    the process (SIGALRM), ./robotarium run names its own Fast DDS as the cause, exit code 4, the recorded steps
+    kept; the testbed goes on."""
+    script = tmp_path / "stuck.py"
+    script.write_text(STUCK_IN_C)
+    completed = subprocess.run([sys.executable, "-m", "robotarium_cli", "run", "--no-local-testbed", "--no-video",
+                                "--lockstep", "--bags-dir", str(testbed["bags"]), "--results-dir",
+                                str(testbed["root"] / "results"), str(script)], env=testbed["env"], cwd=str(tmp_path),
+                               capture_output=True, text=True, timeout=120)
+    out = completed.stdout + completed.stderr
+    assert completed.returncode == 4 and outcomes.OWN_DDS_HUNG in out, out
+    folder = re.findall(r"results in (\S+) \(open", out)
+    with open(os.path.join(str(tmp_path), folder[-1], "run.json")) as f:
+        info = json.load(f)
+    assert info["outcome"] == "testbed_lost" and info["detail"].startswith(outcomes.OWN_DDS_HUNG), info
+    assert info["steps"] >= 30, info
+    assert testbed["up"].poll() is None, testbed["log"].read_text()
+
+
 @pytest.mark.parametrize("stopped", ["all", "event"])
 def test_a_script_whose_own_fast_dds_stops_says_so_and_ends(testbed, tmp_path, stopped):
     """Fast DDS 2.14 can deadlock a participant inside (docs/faults.md: alive but deaf), the script's as well
@@ -383,7 +423,9 @@ def test_a_script_whose_own_fast_dds_stops_says_so_and_ends(testbed, tmp_path, s
     with open(os.path.join(str(tmp_path), folder[-1], "run.json")) as f:
         info = json.load(f)
     if stopped == "all":
-        assert "This script's own Fast DDS stopped (dds.ev.0 (thread" in out, out
+        # its step() heard nothing for STEP_TIMEOUT and said why; or, where the freeze caught a call into Fast DDS
+        # that held the GIL (nothing of Python runs then: the run hung here once), the kernel's timer ended it
+        assert "This script's own Fast DDS stopped (dds.ev.0 (thread" in out or outcomes.OWN_DDS_HUNG in out, out
         assert info["outcome"] == "testbed_lost" and "own Fast DDS stopped" in info["detail"], info
         assert process.returncode == 4, out
     else:

@@ -99,6 +99,7 @@ def run(script, script_args):
     for signum in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(signum, _raise_interrupted)
     signal.signal(signal.SIGINT, _raise_keyboard_interrupt)
+    testbed_link.HANG_WATCH = True   # a step stuck in its own Fast DDS for good ends the process (run names it)
     if os.environ.get("MPLBACKEND", "").lower() == "agg":   # headless (./robotarium run chose it)
         skip_headless_idle_draws()
     try:

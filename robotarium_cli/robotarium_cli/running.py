@@ -443,16 +443,22 @@ class Run:
                 died, exit_code = "interrupted by %s and killed" % interruption.name, interruption.exit_code
             elif self.frozen is not None and self.frozen.killed:
                 died, exit_code = self.frozen.killed, 128 - code if code < 0 else code
+            elif code == -signal.SIGALRM:   # its step() stuck in its own Fast DDS (testbed_link.HUNG_STEP)
+                died, exit_code = outcomes.OWN_DDS_HUNG, outcomes.EXIT_CODES[outcomes.TESTBED_LOST]
             elif code < 0:
                 died, exit_code = "killed by %s" % signal.Signals(-code).name, 128 - code
             else:
                 died, exit_code = "exit code %d" % code, code or 1
             started = _read_json(os.path.join(self.work, STARTED))
+            if died == outcomes.OWN_DDS_HUNG:
+                outcome, detail = outcomes.NAMES[outcomes.TESTBED_LOST], died
+            else:
+                outcome = "interrupted" if died.startswith(("./", "interrupted", "killed")) else "script_error"
+                detail = ("%s, and the script's process ended before it could say how its run ended" % died
+                          if interruption is None else
+                          "the script's process ended (%s) before it could end its experiment" % died)
             record = run_record.RunRecord(
-                outcome="interrupted" if died.startswith(("./", "interrupted", "killed")) else "script_error",
-                detail=("%s, and the script's process ended before it could say how its run ended" % died
-                        if interruption is None else
-                        "the script's process ended (%s) before it could end its experiment" % died),
+                outcome=outcome, detail=detail,
                 exit_code=exit_code, experiments=[run_record.Experiment.from_dict(started)] if started else [])
         # The run is its (last) experiment: its fields at the top, how the script's run ended over them.
         record.take_last_experiment()

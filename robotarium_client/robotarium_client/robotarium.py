@@ -16,7 +16,7 @@ from typing import NoReturn
 
 import numpy as np
 
-from robotarium_client import api_level, session
+from robotarium_client import api_level, session, testbed_link
 from robotarium_client.errors import (  # noqa: F401 - also robotarium_client.robotarium's, as before
     EXIT_TIME_LIMIT,
     EndedByTestbed,
@@ -67,6 +67,14 @@ class Robotarium(RobotariumABC):
     # -- the backend -----------------------------------------------------------------------------
 
     def _advance(self, velocities: np.ndarray) -> np.ndarray:
+        armed = testbed_link.arm_hang_watch()
+        try:
+            return self._step_on_the_testbed(velocities)
+        finally:
+            if armed:
+                testbed_link.disarm_hang_watch()
+
+    def _step_on_the_testbed(self, velocities: np.ndarray) -> np.ndarray:
         link = self._link
         if self.sim_in_real_time:
             link.take_newest_poses()   # the newest step published before this command

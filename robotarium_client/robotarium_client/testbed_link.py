@@ -15,6 +15,7 @@ from __future__ import annotations
 import getpass
 import json
 import os
+import signal
 import socket
 import sys
 import time
@@ -74,6 +75,13 @@ if TYPE_CHECKING:
 
 STARTUP_WAIT = 60.0   # s for a testbed started here to come up
 STEP_TIMEOUT = 10.0   # s without poses after a step() before we give up with an explanation
+# s one step() may take under ./robotarium run (HANG_WATCH, the runner's) before its process counts as stuck in a
+# call into its own Fast DDS that never came back: a deadlock inside Fast DDS met while a call held the GIL, so
+# nothing of Python runs, the watch below included. The kernel's timer ends the process then (SIGALRM's default
+# action; arm_hang_watch) and ./robotarium run names the cause (outcomes.OWN_DDS_HUNG). A step gives up by
+# itself well within it (STEP_TIMEOUT, then STALL_RESTART_WAIT where a node restarts).
+HUNG_STEP = 60.0
+HANG_WATCH = False
 # what stopped this process's own Fast DDS ("" never), once a wait for poses or leaving DDS found its event thread
 # stuck: nothing more is said over it, and the runner exits without waiting for it
 DDS_STUCK = ""
@@ -105,6 +113,19 @@ def holder_of_this_process() -> str:
     except (KeyError, OSError):
         user = "?"
     return "%s@%s pid %d %s" % (user, socket.gethostname(), os.getpid(), os.path.basename(sys.argv[0] or "python"))
+
+
+def arm_hang_watch() -> bool:
+    """Arm the kernel's timer for HUNG_STEP s (disarm_hang_watch after the step); False, and nothing armed,
+    outside ./robotarium run or where the script uses SIGALRM or the timer itself."""
+    if not HANG_WATCH or signal.getsignal(signal.SIGALRM) != signal.SIG_DFL or signal.getitimer(signal.ITIMER_REAL)[0]:
+        return False
+    signal.setitimer(signal.ITIMER_REAL, HUNG_STEP)
+    return True
+
+
+def disarm_hang_watch() -> None:
+    signal.setitimer(signal.ITIMER_REAL, 0)
 
 
 class OwnDdsWatch:

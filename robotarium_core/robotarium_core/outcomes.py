@@ -84,6 +84,11 @@ ENDED_BY_ITS_USER = "ended by its user"   # ./robotarium end by the user who run
 RECORDER_GONE = "the recorder is gone"   # why a recording stopped, when its recorder is lost
 NO_TESTBED_ANSWERS = "No Robotarium testbed answers"   # how the client's error begins when none answered it
 RECORDER_RESTARTED = "the recorder was restarted"   # ... when it was restarted mid-run (robotarium_core.restarts)
+# how ./robotarium run names the end of a script whose step() stayed stuck in a call into its own Fast DDS until
+# the kernel's timer ended its process (robotarium_client.testbed_link.HUNG_STEP)
+OWN_DDS_HUNG = ("This script's own Fast DDS stopped: its step() stayed stuck in a call into Fast DDS that never came "
+                "back (a deadlock inside Fast DDS, docs/faults.md; nothing of Python can run then), and its process "
+                "was ended")
 DISK_FULL = "disk full"   # ... when its disk took no more (the recorder's write, or the results beside the bag)
 
 
