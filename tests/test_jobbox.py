@@ -96,7 +96,8 @@ def run_script(place, name, script, timeout=120, prepare=None, extra_files=None)
     assert not processes_on_domain(domain), "the job's processes outlived it"
     assert not box.folder.exists()
     found = list(results.glob("*/run.json"))
-    assert len(found) == 1, "no run.json in %s; the output:\n%s" % (results, output.read_text()[-3000:])
+    assert len(found) == 1, "no run.json in %s; the job's %s; the output:\n%s" % (
+        results, outcome, output.read_text()[-3000:])   # (once: an empty output and no run.json, cause unknown)
     (run_json,) = found
     return outcome, json.loads(run_json.read_text()), output.read_text(), box.uid
 
