@@ -342,6 +342,15 @@ class Service:
                 pk, row, states, what, self.logs())
             time.sleep(0.3)
 
+    def wait_until_idle(self):
+        """Every live slot between jobs: a job counts itself done (jobs_done) just after its experiment's last
+        state, so counts are read only once no slot is still on a job."""
+        deadline = time.monotonic() + TIMEOUT
+        while self.query("SELECT id, current_job FROM robotarium_portal_worker WHERE state = 'alive' "
+                         "AND current_job <> ''"):
+            assert time.monotonic() < deadline, self.logs()
+            time.sleep(0.3)
+
     def close(self):
         for worker in self.workers.values():
             worker.stop()

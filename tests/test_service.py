@@ -92,6 +92,7 @@ def test_twelve_submissions_on_two_hosts_and_a_database_restart_mid_run_each_ver
                    os.walk(os.path.join(folder, "run-1", "results")) if "run.json" in names]
         assert [r["outcome"] for r in reports] == ["completed"], reports
     # Each job done once, and both hosts did some of them.
+    service.wait_until_idle()
     done = dict(((host, kind), n) for host, kind, n in service.query(
         "SELECT host, kind, SUM(jobs_done) FROM robotarium_portal_worker GROUP BY host, kind"))
     assert sum(n for (_, kind), n in done.items() if kind == "runs") == 12, done
