@@ -76,17 +76,17 @@ class RunRecorder:
     on_started(path) / on_finished(path, writer) are called when a bag is opened / closed.
     Times are ns since the epoch (receive and publish times of each message).
 
-    step_of(topic, data) -> the step of a poses message (None for any other): a closing run's bag
+    run_step_of(topic, data) -> (run id, step) of a poses message (None for any other): a closing run's bag
     stays open past grace_ns until it holds the poses of the run's last step (its last RUNNING
     status says which), catch_up_ns more at most. A reliable stream delivers in order, so one lost
     packet holds back every later poses message until the writer repairs it, which takes up to its
     heartbeat period (Fast DDS's 3 s; the testbed's profile makes it 0.1 s) when the recorder was
-    starved of CPU: the bag then closed without them.
+    starved of CPU: the bag then closed without them. Poses of another run never go into a run's bag.
     """
 
     def __init__(self, bags_dir, describe, on_started=None, on_finished=None, log=None,
                  preroll_ns=3_000_000_000, grace_ns=500_000_000, chunk_seconds=1.0, live_after_ns=None,
-                 on_write_error=None, step_of=None, catch_up_ns=4_000_000_000, restarted=False):
+                 on_write_error=None, run_step_of=None, catch_up_ns=4_000_000_000, restarted=False):
         self.bags_dir = os.path.abspath(bags_dir)
         self.describe = describe
         self.on_started = on_started or (lambda path: None)
@@ -94,7 +94,7 @@ class RunRecorder:
         self.log = log or (lambda text: None)
         self.preroll_ns = preroll_ns
         self.grace_ns = grace_ns
-        self.step_of = step_of or (lambda topic, data: None)
+        self.run_step_of = run_step_of or (lambda topic, data: None)
         self.catch_up_ns = catch_up_ns
         self.end_step = None          # the current run's step in its last RUNNING status
         self.poses_step = -1          # the newest poses step in its bag
@@ -125,8 +125,18 @@ class RunRecorder:
         self.left_alone = set()       # run ids
 
     def on_message(self, topic, data, recv_ns, pub_ns, log_line=False):
+        run_step = self.run_step_of(topic, data)
+        if self.state == "recording" and run_step is not None and run_step[0] and run_step[0] != self.run_id:
+            # Poses of another run never go into this run's bag. Newer than its start, they prove the simulator
+            # began another run: a restarted simulator's next run can come before the news of the restart (or a
+            # lapse of its presence) does, and its step 0 went into the bag of the run the old process left.
+            if pub_ns > self.start_ns:
+                self.finish("the simulator began another run (%s)" % run_step[0])
+            self.preroll.append((topic, data, recv_ns, pub_ns))
+            self._prune(recv_ns)
+            return
         if self.state == "recording" or (self.state == "closing" and (log_line or pub_ns <= self.end_ns)):
-            self._write(topic, data, recv_ns, pub_ns)
+            self._write(topic, data, recv_ns, pub_ns, run_step)
         else:
             self.preroll.append((topic, data, recv_ns, pub_ns))
             self._prune(recv_ns)
@@ -249,7 +259,7 @@ class RunRecorder:
         self.log("recording run %s to %s" % (run_id, self.writer.path))
         self.on_started(self.writer.path)
 
-    def _write(self, topic, data, recv_ns, pub_ns):
+    def _write(self, topic, data, recv_ns, pub_ns, run_step=False):
         if self.writer is None:   # this run's recording stopped on a write error
             self.not_recorded += 1
             return
@@ -258,9 +268,9 @@ class RunRecorder:
                 type_name, offered_qos = self.describe(topic)
                 self.writer.add_topic(topic, type_name, offered_qos)
             self.writer.write(topic, data, recv_ns, pub_ns)
-            step = self.step_of(topic, data)
-            if step is not None and step > self.poses_step:
-                self.poses_step = step
+            run_step = self.run_step_of(topic, data) if run_step is False else run_step
+            if run_step is not None and run_step[1] > self.poses_step:
+                self.poses_step = run_step[1]
             self.writer.maybe_flush()
         except OSError as error:
             self.not_recorded += 1
@@ -339,7 +349,7 @@ class RecorderNode(Node):
         self.topics = {}            # full name -> type name (None: cannot be recorded)
         self.session = RunRecorder(bags_dir, self.describe, self.announce_start, self.announce_end,
                                    self.get_logger().info, chunk_seconds=chunk_seconds,
-                                   on_write_error=self.announce_write_error, step_of=self.poses_step_of,
+                                   on_write_error=self.announce_write_error, run_step_of=self.poses_run_step_of,
                                    restarted=restarts.of_this_process() is not None)
         self.session.namespace = self.ns or "/"
         self.recording_pub = self.create_publisher(String, RECORDING, LATCHED)
@@ -444,12 +454,13 @@ class RecorderNode(Node):
         if restart is not None:
             self.session.simulator_restarted(restart)
 
-    def poses_step_of(self, topic, data):
-        """The step of a poses message of this namespace (RunRecorder.step_of); None for other topics."""
+    def poses_run_step_of(self, topic, data):
+        """(run id, step) of a poses message of this namespace (RunRecorder.run_step_of); None for other topics."""
         if topic != self.poses_topic:
             return None
         try:
-            return cdr.ROBOT_POSES.parse(data).step
+            msg = cdr.ROBOT_POSES.parse(data)
+            return msg.run_id, msg.step
         except cdr.CdrError:
             return None   # not a RobotPoses (a stray publisher)
 
