@@ -294,6 +294,16 @@ def sizes(pid):
         return None
 
 
+NOTEWORTHY = ("WARN", "ERROR", "recording run", "closed ", "exited", "Traceback")
+
+
+def _size(path):
+    try:
+        return os.path.getsize(path)
+    except OSError:
+        return 0
+
+
 class Up:
     """`./robotarium up --bags-dir BAGS` (python -m robotarium_cli up) in the soak's folder, on its domain;
     start() again after it stopped is a testbed restart."""
@@ -306,9 +316,11 @@ class Up:
         self.process = None
         self.starts = 0
         self._log_start = 0
+        self.restarts_counted = 0
 
     def start(self):
         self._log_start = os.path.getsize(self.log_path) if os.path.exists(self.log_path) else 0
+        self.restarts_counted = 0   # of this start's node restarts (Soak._node_restarted)
         with open(self.log_path, "ab") as log:
             self.process = subprocess.Popen([sys.executable, "-m", "robotarium_cli", "up", "--bags-dir", self.bags],
                                             env=self.env, cwd=self.work, stdout=log, stderr=subprocess.STDOUT,
@@ -330,6 +342,18 @@ class Up:
                 return f.read().decode(errors="replace")
         except OSError:
             return ""
+
+    def said_since(self, offset, lines=12):
+        """The lines of note the nodes wrote to up's console since `offset` (warnings, errors, the recorder's
+        bags, exits): a lost run's summary shows them (CI keeps no temporary folders)."""
+        try:
+            with open(self.log_path, "rb") as f:
+                f.seek(offset)
+                text = f.read().decode(errors="replace")
+        except OSError:
+            return ""
+        noted = [line[:400] for line in text.splitlines() if any(word in line for word in NOTEWORTHY)]
+        return "\n".join(noted[-lines:])
 
     def nodes(self):
         """{node name: pid} of the testbed's nodes (the children of up)."""
@@ -449,6 +473,7 @@ class Result:
     verdict: str = ""           # "completed", "by fault", "lost"
     why_lost: str = ""
     output: str = ""            # a lost run's ./robotarium run output, kept in the soak's folder
+    testbed_said: str = ""      # a lost run's: what the testbed's nodes logged of note meanwhile (up's console)
     start_latency: float | None = None   # s from the run's process start to its experiment heard RUNNING
     wall: float = 0.0           # s from the run's process start to its exit
 
@@ -515,7 +540,9 @@ class Soak:
             log = self.up.log()
             lines = [line for line in log.splitlines() if "; restarted it (restart" in line]
             done = lines and log[log.rindex(lines[-1]):].count(" ready") >= 1
-            if done and lines[-1].strip() not in [x for _, x in self.node_restarts]:
+            # (counted by number: after `up` started again its lines say "restart 1" again)
+            if done and len(lines) > self.up.restarts_counted:
+                self.up.restarts_counted = len(lines)
                 return lines[-1].strip()
             time.sleep(0.1)
         return ""
@@ -546,6 +573,7 @@ class Soak:
         command += [RUN_SEEDED, *p.run_seeded_args(), str(self.seed * 100003 + p.n), script, *p.script.args]
         out_path = os.path.join(self.work, "run.out")
         flood = None
+        log_at = _size(self.up.log_path)
         began = time.monotonic()
         with open(out_path, "wb") as out:
             process = subprocess.Popen(command, env=self.env, cwd=os.path.dirname(script), stdout=out,
@@ -578,6 +606,7 @@ class Soak:
         if result.verdict == "lost":   # what ./robotarium run said, kept (run.out is the next run's)
             result.output = os.path.join(self.work, "lost-run-%d.out" % p.n)
             shutil.copyfile(out_path, result.output)
+            result.testbed_said = self.up.said_since(log_at)
         return result
 
     def _follow(self, p, result, process, began):
@@ -863,7 +892,9 @@ def summary(soak, plans):
                          r.n, r.script, r.mode, r.length, r.fault or "none", r.injected or "not injected",
                          r.injected_at_step, r.why_lost, r.outcome, r.exit_code, r.detail[:300],
                          (", recording stopped: %s" % r.recording_stopped) if r.recording_stopped else "",
-                         r.report_first_line[:300]) + ("\n      its output: %s" % r.output if r.output else ""))
+                         r.report_first_line[:300]) + ("\n      its output: %s" % r.output if r.output else "")
+                     + ("\n      the testbed meanwhile:\n        %s" % r.testbed_said.replace("\n", "\n        ")
+                        if r.testbed_said else ""))
     lines.append("node restarts by ./robotarium up (its supervisor): %d%s" % (
         len(soak.node_restarts), "".join("\n  after run %d: %s" % (after, line[:200])
                                          for after, line in soak.node_restarts)))
