@@ -4,8 +4,10 @@ safety node or simulator gets SIGKILL at a step of its run. `up` restarts the no
 robotarium_bringup.supervisor) and stays up; the run says the true cause (run.json, report.txt's first line, the exit
 code): the recorder's run goes on with its recording stopped at the restart, the others end as "testbed node
 restarted at step k"; the next run on the same `up` completes. The supervisor's bound (a node that keeps dying
-stops `up`, naming it) and the restart record are tested in plain Python.
+stops `up`, naming it) and the restart record are tested in plain Python, and the bound once more with a run in
+progress on an `up` of its own (the run names the node that kept exiting).
 """
+import contextlib
 import dataclasses
 import json
 import os
@@ -38,10 +40,17 @@ def test_the_supervisor_restarts_a_node_a_bounded_number_of_times_then_gives_up_
     now[0] += 10
     assert watcher.exited("recorder", 1).restart.count == 2
     now[0] += 10
-    given_up = watcher.exited("recorder", -signal.SIGSEGV)
+    given_up = watcher.exited("recorder", -signal.SIGSEGV, pid=44)
     assert given_up.restart is None
     assert given_up.line.startswith("the recorder keeps exiting: killed by SIGSEGV, its 3rd exit within 60 s"), \
         given_up.line
+    # what a run in progress hears of it (it names that, not whichever node it missed first: up stops them all)
+    told = given_up.announcement
+    assert told.gave_up and told.old_pid == 44 and restarts.parse(told.to_json()) == told
+    assert restarts.ended_run(told, 12) == (
+        "the testbed stopped at step 12: the recorder kept exiting (killed by SIGSEGV, its 3rd exit within 60 s) and "
+        "./robotarium up stopped the testbed; the experiment cannot go on")
+    assert first.announcement == first.restart
     # another node has its own count; exits older than the window are forgotten
     assert watcher.exited("safety", 0).line == "the safety node exited (exited with code 0); restarted it (restart 1)"
     now[0] += 100
@@ -75,7 +84,13 @@ def test_a_restart_record_reads_back_and_says_what_a_run_makes_of_it():
 
 @pytest.fixture(scope="module")
 def testbed(tmp_path_factory):
-    """`./robotarium up` in /robotarium on a domain of its own, and a status watch, until the module is done."""
+    with own_up(tmp_path_factory) as testbed:
+        yield testbed
+
+
+@contextlib.contextmanager
+def own_up(tmp_path_factory):
+    """`./robotarium up` in /robotarium on a domain of its own, and a status watch, until the block is done."""
     domain = unique_domain_id()
     root = tmp_path_factory.mktemp("node_restart")
     bags = root / "bags"
@@ -203,3 +218,25 @@ def test_a_script_whose_process_stops_is_ended_by_the_testbed_and_run_does_not_w
           % (took, info["outcome"], info["detail"], first))
     code, out, info, first, _ = run(testbed, tmp_path, steps=30)   # the next run
     assert code == 0 and info["outcome"] == "completed", out
+
+
+@pytest.mark.e2e   # whole runs through ./robotarium on an `up` testbed of its own (it stops for good)
+def test_a_node_that_keeps_exiting_stops_up_and_the_run_names_it(tmp_path_factory, tmp_path):
+    """The supervisor's bound with a run in progress: the simulator killed a fourth time within RESTART_WINDOW is not
+    restarted and `up` stops the testbed. The run says so; before, it said "the safety node is gone", the node it
+    happened to miss first (up stops every node), which did nothing wrong (a soak of repeated kills)."""
+    with own_up(tmp_path_factory) as testbed:
+        for k in range(1, supervisor.RESTART_LIMIT + 1):
+            os.kill(testbed["up"].nodes()["simulator"], signal.SIGKILL)
+            back_up(testbed, "simulator", "the simulator exited (killed by SIGKILL); restarted it (restart %d)" % k)
+        code, out, info, first, took = run(testbed, tmp_path, kill="simulator")
+        print("the simulator killed a 4th time: the run exited %.1f s after the kill\n  run.json: %s / %s\n  "
+              "report.txt: %s" % (took, info["outcome"], info["detail"], first))
+        assert info["outcome"] == "testbed_lost" and code == info["exit_code"] == 4, out
+        words = ("the simulator kept exiting (killed by SIGKILL, its 4th exit within %.0f s) and ./robotarium up "
+                 "stopped the testbed" % supervisor.RESTART_WINDOW)
+        assert info["detail"].startswith("the testbed stopped at step") and words in info["detail"], info
+        assert first.startswith("Run did not complete: the testbed stopped at step"), first
+        assert soak.NODE_WORDS["safety"] not in first, first
+        testbed["up"].process.wait(timeout=60)
+        assert "the simulator keeps exiting" in testbed["up"].log()

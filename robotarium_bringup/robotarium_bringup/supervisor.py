@@ -24,6 +24,7 @@ class Decision:
     returncode: int
     restart: restarts.Restart | None   # None: give up (the node keeps dying)
     line: str                          # what up says on its console
+    announcement: restarts.Restart     # what the run in progress hears: the restart, or the give-up (gave_up)
 
 
 class Supervisor:
@@ -40,14 +41,17 @@ class Supervisor:
         self.exits[who] = recent
         how = restarts.exit_cause(returncode)
         if len(recent) > self.limit:
-            return Decision(who, returncode, None, (
-                "%s keeps exiting: %s, its %d%s exit within %.0f s; not restarting it again: stopping the testbed"
-                % (restarts.node_name(who), how, len(recent), _ordinal(len(recent)), self.window)))
+            which = "%s, its %d%s exit within %.0f s" % (how, len(recent), _ordinal(len(recent)), self.window)
+            # The run in progress hears it: without it, it named whichever node it missed first (up stops them all)
+            gave_up = restarts.Restart(who=who, cause="kept exiting (%s)" % which, by=restarts.BY_UP,
+                                       count=self.count[who], at=now, old_pid=pid, gave_up=True)
+            return Decision(who, returncode, None, "%s keeps exiting: %s; not restarting it again: stopping the "
+                            "testbed" % (restarts.node_name(who), which), gave_up)
         self.count[who] += 1
         restart = restarts.Restart(who=who, cause="exited (%s)" % how, by=restarts.BY_UP, count=self.count[who],
                                    at=now, old_pid=pid)
         return Decision(who, returncode, restart, "%s exited (%s); restarted it (restart %d)" % (
-            restarts.node_name(who), how, restart.count))
+            restarts.node_name(who), how, restart.count), restart)
 
 
 def _ordinal(n):

@@ -17,7 +17,8 @@ class TestbedLost(RuntimeError):
 class NodeRestarted(TestbedLost):
     """A node of the testbed that the experiment needs (the simulator, the safety node) was restarted mid-run (by
     ./robotarium up, or in place after its DDS stalled): the run's state on it is gone. Its message is the run's
-    cause, "testbed node restarted at step k: ..." (robotarium_core.restarts.ended_run)."""
+    cause, "testbed node restarted at step k: ..." (robotarium_core.restarts.ended_run); or "the testbed stopped at
+    step k: ..." where a node kept exiting and up gave up on it."""
 
 
 class TestbedBusy(RuntimeError):

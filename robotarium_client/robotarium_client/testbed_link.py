@@ -448,7 +448,8 @@ class TestbedLink:
 
     def _on_restart(self, msg: String) -> None:
         """A node of the testbed was restarted (robotarium_core.restarts): during this run, the recorder's restart
-        stops its recording (the run goes on); the simulator's or the safety node's ends the run, named so."""
+        stops its recording (the run goes on); the simulator's or the safety node's ends the run, named so, as does
+        any node's give-up (`up` stopped the testbed: the node kept exiting)."""
         restart = restarts.parse(msg.data)
         if restart is not None and self.started_at is None:
             # The latched announcement of a restart before this run (heard as the topic matched): never this
@@ -462,7 +463,7 @@ class TestbedLink:
         self.restarts_heard.add(restart)
         # where its presence lapsed, if it did
         step = (self.suspects.get(restart.who) or self.awaiting_restart.get(restart.who) or (None, self.step))[1]
-        if restart.who == presence.RECORDER:
+        if restart.who == presence.RECORDER and not restart.gave_up:   # (a give-up stops the whole testbed)
             if self.recorder_lost_at is not None and not outcomes.recorder_lost(self.recording_stopped_because):
                 return   # its recording stopped already, for a cause it named (a full disk): keep that one
             self.suspects.pop(presence.RECORDER, None)

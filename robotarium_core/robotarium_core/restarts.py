@@ -8,7 +8,9 @@ restart_in_place). Either way a `Restart` is announced on the hidden, latched `<
 at once (it saw the exit), a node restarted in place once it is back (its DDS was stuck until then). A
 client whose run that node served reads it and names the restart as its run's cause ("testbed node
 restarted at step k: the safety node exited (killed by SIGKILL) and ./robotarium up restarted it"), where it
-would otherwise only have seen the node go; a run whose recorder restarted goes on, its recording stopped.
+would otherwise only have seen the node go; a run whose recorder restarted goes on, its recording stopped. A node
+that keeps exiting is not restarted: `up` announces that it gave up (`gave_up`) and stops the whole testbed, and the
+run in progress ends naming that node.
 The record travels to the restarted process in ENV (a recorder restarted mid-run leaves that run alone: its
 bag is the one the old recorder wrote). Measured: docs/faults.md.
 """
@@ -67,12 +69,15 @@ class Restart:
     at: float         # epoch seconds the old process was found gone (or stuck)
     old_pid: int = 0  # the process that ended (in place: the same pid goes on)
     back_at: float = 0.0   # in place: epoch seconds the node was back, announcing it (0: not known)
+    gave_up: bool = False  # not restarted: it kept exiting and `up` stopped the whole testbed (Supervisor)
 
     def to_json(self):
         return json.dumps(dataclasses.asdict(self))
 
     def describe(self):
         """"the safety node exited (killed by SIGKILL) and ./robotarium up restarted it (restart 1)"."""
+        if self.gave_up:
+            return "%s %s and %s stopped the testbed" % (node_name(self.who), self.cause, self.by)
         if self.by == IN_PLACE:
             return "%s stopped answering (%s) and restarted in place (restart %d)" % (
                 node_name(self.who), self.cause, self.count)
@@ -97,7 +102,7 @@ def parse(text):
         value = json.loads(text)
         return Restart(who=str(value["who"]), cause=str(value["cause"]), by=str(value["by"]),
                        count=int(value["count"]), at=float(value["at"]), old_pid=int(value.get("old_pid", 0)),
-                       back_at=float(value.get("back_at", 0.0)))
+                       back_at=float(value.get("back_at", 0.0)), gave_up=bool(value.get("gave_up", False)))
     except (ValueError, TypeError, KeyError, AttributeError):
         return None
 
@@ -115,7 +120,10 @@ def in_place(who, cause, previous=None):
 
 
 def ended_run(restart, step):
-    """What ended a run that the restart of its simulator or safety node hit at `step`."""
+    """What ended a run that the restart of its simulator or safety node hit at `step` (or any node's give-up:
+    `up` then stopped the whole testbed)."""
+    if restart.gave_up:
+        return "the testbed stopped at step %d: %s; the experiment cannot go on" % (step, restart.describe())
     return ("testbed node restarted at step %d: %s; the experiment cannot go on (the run's state on that node was "
             "lost with its process)" % (step, restart.describe()))
 

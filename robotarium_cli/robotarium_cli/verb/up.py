@@ -112,8 +112,8 @@ def _restarted(testbed, failed, watcher, announcer):
         pid = testbed.processes[name][0].pid
         decision = watcher.exited(ANNOUNCED.get(name, name), returncode, pid)
         say(decision.line)
+        announcer.announce(decision.announcement)   # at once: a run in progress names it as its end (or its recording's)
         if decision.restart is None:
             return False
-        announcer.announce(decision.restart)   # at once: a run in progress names it as its end (or its recording's)
         testbed.restart(name, decision.restart)
     return True
