@@ -319,7 +319,7 @@ class Up:
         self.restarts_counted = 0
 
     def start(self):
-        self._log_start = os.path.getsize(self.log_path) if os.path.exists(self.log_path) else 0
+        self._log_start = _size(self.log_path)
         self.restarts_counted = 0   # of this start's node restarts (Soak._node_restarted)
         with open(self.log_path, "ab") as log:
             self.process = subprocess.Popen([sys.executable, "-m", "robotarium_cli", "up", "--bags-dir", self.bags],

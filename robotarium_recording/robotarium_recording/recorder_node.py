@@ -159,12 +159,12 @@ class RunRecorder:
                 self.finish("a new run began")
             self._start(run_id, self.pending.pop(run_id, pub_ns))
             self.end_step = step
-            self._write(topic, data, recv_ns, pub_ns)
+            self._write(topic, data, recv_ns, pub_ns, None)   # (a status: no poses' run and step)
         elif not running and run_id in self.pending:   # that run ended before we started
             self.finished[run_id] = max(pub_ns, self.pending.pop(run_id))
             self.on_message(topic, data, recv_ns, pub_ns)
         elif self.state == "recording" and run_id == self.run_id:
-            self._write(topic, data, recv_ns, pub_ns)
+            self._write(topic, data, recv_ns, pub_ns, None)
             self.end_ns = pub_ns
             if running and step is not None:
                 self.end_step = step
@@ -254,12 +254,13 @@ class RunRecorder:
         # Messages that overtook the RUNNING status (poses of step 0, first commands).
         for topic, data, recv_ns, pub_ns in self.preroll:
             if pub_ns >= start_ns:
-                self._write(topic, data, recv_ns, pub_ns)
+                self._write(topic, data, recv_ns, pub_ns, self.run_step_of(topic, data))
         self.preroll.clear()
         self.log("recording run %s to %s" % (run_id, self.writer.path))
         self.on_started(self.writer.path)
 
-    def _write(self, topic, data, recv_ns, pub_ns, run_step=False):
+    def _write(self, topic, data, recv_ns, pub_ns, run_step):
+        """Into the run's bag; run_step: run_step_of(topic, data), which the caller has (parsed once)."""
         if self.writer is None:   # this run's recording stopped on a write error
             self.not_recorded += 1
             return
@@ -268,7 +269,6 @@ class RunRecorder:
                 type_name, offered_qos = self.describe(topic)
                 self.writer.add_topic(topic, type_name, offered_qos)
             self.writer.write(topic, data, recv_ns, pub_ns)
-            run_step = self.run_step_of(topic, data) if run_step is False else run_step
             if run_step is not None and run_step[1] > self.poses_step:
                 self.poses_step = run_step[1]
             self.writer.maybe_flush()
