@@ -675,6 +675,7 @@ def test_a_node_whose_shared_memory_port_was_deleted_restarts_and_the_next_clien
         r.call_at_scripts_end()
         assert r.run_info.steps == 20 and r.run_info.outcome == "completed", r.run_info
         from robotarium_recording.bag import Bag
+        assert r.run_info.recording, lab.nodes["recorder"].output()   # (what the recorder made of the run)
         assert lab.probe.spin_until(lambda: Bag(r.run_info.recording).complete, 10)   # the recorder closed it
         assert Bag(r.run_info.recording).topics[NS + "/cmd_requested"].count == 20
     finally:

@@ -237,7 +237,7 @@ def test_requirements_pin_every_python_package_the_code_imports():
     pinned = {canonicalize_name(r.name) for r in requirements(EVERYTHING)}
     modules = set().union(*(imported(p, tests) for p in packages() for tests in (False, True)))
     unknown = sorted(m for m in modules if m not in PYTHON_DEPENDENCIES and not m.startswith(("rcl", "robotarium_"))
-                     and not m.endswith(("_msgs", "_srvs")) and m not in ("rps", "launch", "launch_ros",
+                     and not m.endswith(("_msgs", "_srvs", "_interfaces")) and m not in ("rps", "launch", "launch_ros",
                                                                              "ament_index_python", "rclpy",
                                                                              "ros2cli"))   # a ROS install's (ros2 robotarium)
     assert not unknown, "imports not mapped in PYTHON_DEPENDENCIES (test_manifests.py): %s" % unknown

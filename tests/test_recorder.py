@@ -428,6 +428,30 @@ def test_the_first_poses_of_a_restarted_simulators_run_go_into_that_runs_bag(tmp
     assert [m.data[4:] for m in bagmod.Bag(started[1]).messages()] == [b"new:0", b"new", b"new:1"]
 
 
+def test_a_restarted_recorder_leaves_a_run_from_before_its_restart_alone_and_records_a_later_one_whole(tmp_path):
+    """A recorder restarted in place matched a new client's commands before the simulator's status stream
+    (a whole-suite run): the first status it heard was of step 3, it took that run for the one it had been
+    restarted in and left it alone (no bag: "no recorder was running"). The status says when its run
+    started: a run from before the restart is left alone, a later one is recorded from its start, the
+    commands that came before its first status heard here included."""
+    topics = {"/ns/cmd_requested": "robotarium_msgs/msg/TwistArray", "/ns/status": "robotarium_msgs/msg/TestbedStatus"}
+    started, logs = [], []
+    s = 10**9
+    rec = RunRecorder(tmp_path, lambda t: (topics[t], []), on_started=started.append, log=logs.append,
+                      live_after_ns=0, restarted_ns=10 * s)
+    rec.on_status("/ns/status", b"\x00\x01\x00\x00b40", 11 * s, 11 * s, True, "before", step=40, started_ns=9 * s)
+    rec.on_status("/ns/status", b"\x00\x01\x00\x00b41", 11 * s + 1, 11 * s + 1, True, "before", step=41,
+                  started_ns=9 * s)
+    assert rec.writer is None and "run before was running at step 40 when this recorder was restarted" in logs[-1]
+    rec.on_status("/ns/status", b"\x00\x01\x00\x00b-idle", 11 * s + 2, 11 * s + 2, False, "before", started_ns=9 * s)
+    rec.on_message("/ns/cmd_requested", b"\x00\x01\x00\x00c1", 12 * s + 1, 12 * s + 1)
+    rec.on_message("/ns/cmd_requested", b"\x00\x01\x00\x00c2", 12 * s + 2, 12 * s + 2)
+    rec.on_status("/ns/status", b"\x00\x01\x00\x00a3", 12 * s + 3, 12 * s + 3, True, "after", step=3, started_ns=12 * s)
+    rec.close()
+    assert [os.path.basename(p) for p in started] == ["after"]
+    assert [m.data[4:] for m in bagmod.Bag(started[0]).messages()] == [b"c1", b"c2", b"a3"]
+
+
 def test_run_recorder_ignores_a_finished_run_handed_over_as_history(tmp_path):
     """Transient-local history arrives when the recorder matches: a run that ended before the
     recorder started is not recorded; one still going is, from its first RUNNING status."""

@@ -339,7 +339,8 @@ MARKER = Layout("visualization_msgs/msg/Marker", HEADER + (
 # (rclpy's message object costs ~0.1 ms a step). Read with max_string=len(data): an experiment's name
 # may be longer than MAX_STRING, and a string cannot take more than the message's bytes anyway.
 TESTBED_STATUS_HEAD = Layout("robotarium_msgs/msg/TestbedStatus", HEADER + (
-    ("state", UINT8), ("experiment", STRING), ("run_id", STRING), ("mode", STRING), ("number_of_robots", UINT32),
+    ("state", UINT8), ("experiment", STRING), ("run_id", STRING), ("started_sec", INT32), ("started_nanosec", UINT32),
+    ("mode", STRING), ("number_of_robots", UINT32),
     ("step", UINT64),
 ))
 

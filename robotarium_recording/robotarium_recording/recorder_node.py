@@ -86,7 +86,7 @@ class RunRecorder:
 
     def __init__(self, bags_dir, describe, on_started=None, on_finished=None, log=None,
                  preroll_ns=3_000_000_000, grace_ns=500_000_000, chunk_seconds=1.0, live_after_ns=None,
-                 on_write_error=None, run_step_of=None, catch_up_ns=4_000_000_000, restarted=False):
+                 on_write_error=None, run_step_of=None, catch_up_ns=4_000_000_000, restarted_ns=None):
         self.bags_dir = os.path.abspath(bags_dir)
         self.describe = describe
         self.on_started = on_started or (lambda path: None)
@@ -120,8 +120,10 @@ class RunRecorder:
         self.stopped_path = None      # the bag of the current run whose recording stopped ("" if none was made)
         # A recorder restarted mid-run (robotarium_core.restarts) leaves the run it finds running alone: its bag is
         # the one the recorder before it wrote (the client names the restart as where its recording stopped); a
-        # second bag of the run's rest would be taken for it. A run first heard at a step past 0 is such a run.
-        self.restarted = restarted
+        # second bag of the run's rest would be taken for it. Such a run started before the restart (epoch ns,
+        # restarted_ns); one started after it is recorded whole, even when its first status heard here is of a
+        # later step (this process matched the simulator's status stream late).
+        self.restarted_ns = restarted_ns
         self.left_alone = set()       # run ids
 
     def on_message(self, topic, data, recv_ns, pub_ns, log_line=False):
@@ -141,12 +143,14 @@ class RunRecorder:
             self.preroll.append((topic, data, recv_ns, pub_ns))
             self._prune(recv_ns)
 
-    def on_status(self, topic, data, recv_ns, pub_ns, running, run_id, step=None):
-        if self.restarted and running and run_id and step and self.run_id is None and run_id not in self.pending \
-                and run_id not in self.left_alone:
+    def on_status(self, topic, data, recv_ns, pub_ns, running, run_id, step=None, started_ns=0):
+        """A status of the simulator: `started_ns` is its run's start (TestbedStatus.started; 0: not known)."""
+        if self.restarted_ns is not None and running and run_id and self.run_id is None \
+                and run_id not in self.pending and run_id not in self.left_alone \
+                and (started_ns < self.restarted_ns if started_ns else step):
             self.left_alone.add(run_id)
             self.log("run %s was running at step %d when this recorder was restarted: its recording is the bag the "
-                     "recorder before wrote; the rest of the run is not recorded" % (run_id, step))
+                     "recorder before wrote; the rest of the run is not recorded" % (run_id, step or 0))
         if run_id in self.left_alone:
             self.on_message(topic, data, recv_ns, pub_ns)
             return
@@ -157,7 +161,8 @@ class RunRecorder:
                 return
             if self.writer is not None:
                 self.finish("a new run began")
-            self._start(run_id, self.pending.pop(run_id, pub_ns))
+            # From the run's start: what overtook a status heard late (its first commands, poses) is in the preroll.
+            self._start(run_id, min(self.pending.pop(run_id, pub_ns), started_ns or pub_ns))
             self.end_step = step
             self._write(topic, data, recv_ns, pub_ns, None)   # (a status: no poses' run and step)
         elif not running and run_id in self.pending:   # that run ended before we started
@@ -347,10 +352,11 @@ class RecorderNode(Node):
         # Log lines of this namespace's nodes: logger names are the namespace with dots.
         self.logger_prefix = self.ns.strip("/").replace("/", ".") + "." if self.ns else ""
         self.topics = {}            # full name -> type name (None: cannot be recorded)
+        restart = restarts.of_this_process()   # (its `at`: when the process before this one ended)
         self.session = RunRecorder(bags_dir, self.describe, self.announce_start, self.announce_end,
                                    self.get_logger().info, chunk_seconds=chunk_seconds,
                                    on_write_error=self.announce_write_error, run_step_of=self.poses_run_step_of,
-                                   restarted=restarts.of_this_process() is not None)
+                                   restarted_ns=None if restart is None else int(restart.at * 1e9))
         self.session.namespace = self.ns or "/"
         self.recording_pub = self.create_publisher(String, RECORDING, LATCHED)
         self.recording_error_pub = self.create_publisher(String, RECORDING_ERROR, LATCHED)
@@ -447,7 +453,8 @@ class RecorderNode(Node):
             return   # not a TestbedStatus: not the simulator's
         pub = msg.sec * 1_000_000_000 + msg.nanosec or recv
         self.session.on_status(self.status_topic, data, recv, pub,
-                               msg.state == TestbedStatus.STATE_RUNNING, msg.run_id, msg.step)
+                               msg.state == TestbedStatus.STATE_RUNNING, msg.run_id, msg.step,
+                               msg.started_sec * 1_000_000_000 + msg.started_nanosec)
 
     def on_simulator_restart(self, msg):
         restart = restarts.parse(msg.data)

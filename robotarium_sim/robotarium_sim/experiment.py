@@ -86,6 +86,7 @@ class Experiment:
     audit: bool = False            # a verification run: the safety node lets the script's commands through
     holder: str = ""               # who holds it (StartExperiment.holder)
     started_at: str = ""           # local time of day it started
+    started_ns: int = 0            # epoch ns of its first RUNNING status (TestbedStatus.started); 0 until then
     # The client's token, the safety node's key on cmd_safe, the key on every poses message.
     token: str = ""
     safety_key: str = ""

@@ -242,7 +242,9 @@ class SimulatorNode(Node):
         self.watch_client(run.run_id)
         if run.real_time:
             self._tick_timer = self.create_timer(1.0 / c.rate, self.tick)
-        self.publish_state()
+        now = self.get_clock().now()
+        run.started_ns = now.nanoseconds
+        self.publish_state(now)
         # After the first RUNNING status, so that the recorder keeps them in the run's bag.
         self.config_pub.publish(String(data=c.to_yaml()))
         self.experiment_pub.publish(String(data=rps2_io.settings_yaml(self.run.run_id, request.api, self.testbed)))
@@ -614,6 +616,7 @@ class SimulatorNode(Node):
         msg.header.frame_id = "arena"
         msg.experiment = self.run.name
         msg.run_id = self.run.run_id
+        msg.started.sec, msg.started.nanosec = divmod(self.run.started_ns, 1_000_000_000)
         msg.mode = "realtime" if self.run.real_time else "lockstep"
         msg.commands_accepted = self.run.commands_accepted
         msg.dropped_cmd_safe = drop_counts(self.run.dropped)
