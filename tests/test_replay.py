@@ -117,8 +117,19 @@ def test_replay_loops_until_stopped(tmp_path, sample):
     finally:
         probe.close()
         process.close()
+    # Passes of the bag, each in order from its start: the steps start again where the bag does. (Not every
+    # sample: the replay's writers keep 100 samples, as rosbag2 play's do, and a reader starved for longer
+    # at 8x, a whole-suite run under load, missed one.)
     got = [m.step for _, m in received]
-    assert got[:2 * len(steps)] == steps + steps
+    passes = [[got[0]]]
+    for before, step in zip(got, got[1:]):
+        if step < before:
+            passes.append([])
+        passes[-1].append(step)
+    assert len(passes) >= 3, passes   # looped at least twice
+    for one in passes[1:-1]:   # the whole passes
+        assert one == sorted(set(one)) and set(one) <= set(steps) and len(one) >= 0.9 * len(steps), (one, steps)
+        assert one[0] == steps[0] and one[-1] == steps[-1], (one, steps)
 
 
 def test_replay_clock_rate_and_pause():

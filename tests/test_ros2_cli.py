@@ -311,8 +311,8 @@ def test_ros2_topic_echo_once_shows_the_newest_status_and_no_old_stream_sample(r
         outputs = cli.gather([("topic", "echo", "--once", "--timeout", "3", "/robotarium/" + topic,
                                "robotarium_msgs/msg/" + type_name) for topic, type_name in streams])
         for (topic, _), out in zip(streams, outputs):
-            stamps = [int(sec) + int(nanosec) * 1e-9
-                      for sec, nanosec in re.findall(r"sec: (\d+)\s+nanosec: (\d+)", out)]
+            stamps = [int(sec) + int(nanosec) * 1e-9   # (the header's: a status's `started` is its run's start)
+                      for sec, nanosec in re.findall(r"header:\s+stamp:\s+sec: (\d+)\s+nanosec: (\d+)", out)]
             assert all(stamp > asked for stamp in stamps), (topic, asked, out)
             assert topic == "_status/stream" or not stamps, (topic, out)
     finally:
