@@ -113,9 +113,10 @@ def own_up(tmp_path_factory):
                 pass
 
 
-def run(testbed, cwd, kill=None, steps=STEPS, kill_at=KILL_AT):
+def run(testbed, cwd, kill=None, steps=STEPS, kill_at=KILL_AT, resumed=None):
     """./robotarium run turns_and_saves.py on the module's testbed, SIGKILL to node `kill` at step `kill_at` of its
-    run; (exit code, output, run.json, report.txt's first line, seconds from the kill to the run's exit)."""
+    run; (exit code, output, run.json, report.txt's first line, seconds from the kill to the run's exit). `resumed`
+    (a list): gets the seconds from the kill to the first new step after the longest pause of the run's steps."""
     command = [sys.executable, "-m", "robotarium_cli", "run", "--no-local-testbed", "--no-video", "--lockstep",
                "--bags-dir", str(testbed["bags"]), "--results-dir", str(testbed["root"] / "results"), SCRIPT,
                str(steps), "2"]
@@ -132,8 +133,16 @@ def run(testbed, cwd, kill=None, steps=STEPS, kill_at=KILL_AT):
                     os.kill(runner[0], signal.SIGSTOP)
                 else:
                     os.kill(testbed["up"].nodes()[kill], signal.SIGKILL)
-                killed_at = time.monotonic()
+                killed_at, killed_step = time.monotonic(), status["step"]
             time.sleep(0.01)
+        changes = [(killed_at, killed_step)] if killed_at else []   # (when, step) each time the step moved
+        while resumed is not None and changes and process.poll() is None and time.monotonic() < killed_at + 120:
+            status = testbed["watch"].get(run_id)
+            if status and status["step"] != changes[-1][1]:
+                changes.append((time.monotonic(), status["step"]))
+            time.sleep(0.01)
+        if resumed is not None and len(changes) > 1:
+            resumed.append(max(zip(changes, changes[1:]), key=lambda pair: pair[1][0] - pair[0][0])[1][0] - killed_at)
         out, _ = process.communicate(timeout=180)
     finally:
         if process.poll() is None:
@@ -182,22 +191,55 @@ def test_a_killed_recorder_is_restarted_and_its_run_goes_on_its_recording_stoppe
 
 
 @pytest.mark.e2e   # whole runs through ./robotarium on an `up` testbed
-@pytest.mark.parametrize("node", ["safety", "simulator"])
-def test_a_killed_node_the_run_needs_is_restarted_and_its_run_ends_naming_the_restart(testbed, tmp_path, node):
-    code, out, info, first, took = run(testbed, tmp_path, kill=node)
-    name = restarts.node_name(node)
+def test_a_killed_safety_node_is_restarted_armed_again_and_its_run_goes_on_step_for_step(testbed, tmp_path):
+    """The run survives its safety node's restart: `up` restarts the killed node, the simulator arms the new
+    process with the run's keys and where the robots are, the client sends again the array the old one lost, and
+    the lockstep run completes all its steps, recorded whole in one bag, its report naming the restart."""
+    from robotarium_recording.bag import Bag
+    resumed = []
+    code, out, info, first, took = run(testbed, tmp_path, kill="safety", resumed=resumed)
+    assert code == info["exit_code"] == 0 and info["outcome"] == "completed", out
+    assert info["steps"] == STEPS, info
+    (went_on,) = info["safety_restarts"]
+    k = int(re.search(r"at step (\d+);", went_on).group(1))
+    assert went_on.startswith("the safety node exited (killed by SIGKILL) and ./robotarium up restarted it (restart 1) "
+                              "at step %d; the testbed armed it again at step %d and the run went on" % (k, k)), went_on
+    assert KILL_AT <= k < STEPS, went_on
+    assert first == "Run completed.", first
+    assert "the robots stopped; the experiment goes on once the testbed has armed the new safety node" in out, out
+    assert "the testbed armed the restarted safety node again at step %d: the experiment goes on" % k in out, out
+    with open(os.path.join(str(tmp_path), re.findall(r"results in (\S+) \(open", out)[-1], "report.txt")) as f:
+        assert went_on + " (the robots stood still meanwhile; in lockstep the run waited" in f.read()
+    bag = Bag(info["recording"])
+    counts = {topic.rsplit("/", 1)[-1]: t.count for topic, t in bag.topics.items()}
+    steps = sorted(m.step for _, m in bag.decoded([t for t in bag.topics if t.endswith("/poses")]))
+    assert steps == list(range(STEPS + 1)), "poses of steps %s missing" % sorted(set(range(STEPS + 1)) - set(steps))
+    # One safe array a step, the one the old process lost sent again by the client; the old process's last array,
+    # applied by the simulator, may be missing: a writer killed before every reader acknowledged a sample takes
+    # it with it (a whole-suite run: the recorder missed it).
+    safe = {m.step for _, m in bag.decoded([t for t in bag.topics if t.endswith("/cmd_safe")])}
+    missing = sorted(set(range(1, STEPS + 1)) - safe)
+    assert len(missing) <= 1 and all(abs(m - k) <= 1 for m in missing), (k, missing)
+    assert counts["cmd_safe"] == STEPS - len(missing), counts
+    print("safety node killed at step %d: the run went on %.1f s after the kill and completed %d steps (%.1f s from "
+          "the kill to its exit; steps whose cmd_safe the bag lacks: %s)\n  %s" % (
+              k, resumed[0], info["steps"], took, missing, went_on))
+    back_up(testbed, "safety", "the safety node exited (killed by SIGKILL); restarted it")
+
+
+@pytest.mark.e2e   # whole runs through ./robotarium on an `up` testbed
+def test_a_killed_simulator_is_restarted_and_its_run_ends_naming_the_restart(testbed, tmp_path):
+    code, out, info, first, took = run(testbed, tmp_path, kill="simulator")
     words = "testbed node restarted at step"
     assert info["outcome"] == "testbed_lost" and code == info["exit_code"] == 4, out
-    assert info["detail"].startswith(words) and ("%s exited (killed by SIGKILL) and ./robotarium up restarted it"
-                                                 % name) in info["detail"], info
+    assert info["detail"].startswith(words) and "the simulator exited (killed by SIGKILL) and ./robotarium up " \
+        "restarted it" in info["detail"], info
     assert first.startswith("Run did not complete: " + words), first
     assert "SIGINT" not in first and soak.NODE_WORDS["safety"] not in first, first
-    assert soak.NODE_WORDS["simulator"] not in first, first
-    other = restarts.node_name("simulator" if node == "safety" else "safety")
-    assert other not in first, first
-    print("%s killed: the run exited %.1f s after the kill\n  run.json: %s / %s\n  report.txt: %s"
-          % (node, took, info["outcome"], info["detail"], first))
-    back_up(testbed, node, "%s exited (killed by SIGKILL); restarted it" % name)
+    assert soak.NODE_WORDS["simulator"] not in first and "the safety node" not in first, first
+    print("simulator killed: the run exited %.1f s after the kill\n  run.json: %s / %s\n  report.txt: %s"
+          % (took, info["outcome"], info["detail"], first))
+    back_up(testbed, "simulator", "the simulator exited (killed by SIGKILL); restarted it")
     code, out, info, first, _ = run(testbed, tmp_path, steps=30)   # the next run on the same up
     assert code == 0 and info["outcome"] == "completed", out
 

@@ -7,9 +7,10 @@ node fault in each stretch of 8 runs. Mostly short lockstep runs of the guide's 
 examples; the runs a fault goes into run long enough for it.
 
 Every run must complete or end with the true cause of the fault that hit it, in run.json and in its
-report.txt, with its results: a killed safety node's or simulator's run "testbed node restarted at step k:
-... exited (killed by SIGKILL) and ./robotarium up restarted it" (issue 41, item 2), a killed recorder's run
-completed with its recording stopped, and `up` never stops. Nothing the soak started may stay running.
+report.txt, with its results: a killed safety node's run goes on and completes, its record naming the restart
+(the simulator arms the new process; issue 41, item 2), a killed simulator's ends "testbed node restarted at
+step k: ... exited (killed by SIGKILL) and ./robotarium up restarted it", a killed recorder's run completes with
+its recording stopped, and `up` never stops. Nothing the soak started may stay running.
 """
 import os
 
@@ -79,6 +80,8 @@ def test_a_run_whose_node_was_killed_names_that_node(soaked):
         if r.fault == "kill:recorder":   # the run goes on; its recording stopped where the recorder died
             assert r.report_first_line.startswith("Run completed. Recording stopped at step"), text
             assert "the recorder was restarted" in r.report_first_line, text
+        elif r.fault == "kill:safety":   # the run goes on on the restarted safety node, armed again
+            assert r.report_first_line == "Run completed.", text
         else:
             assert r.report_first_line.startswith("Run did not complete: " + soak.RESTARTED), text
 

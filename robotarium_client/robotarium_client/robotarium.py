@@ -126,7 +126,7 @@ class Robotarium(RobotariumABC):
             first_collision_step=response.first_collision_step or None,
             first_boundary_step=response.first_boundary_step or None,
             safety_interventions=response.safety_interventions, ideal_interventions=response.ideal_interventions,
-            api=self.API)
+            safety_restarts=link.safety_restarts_said(), api=self.API)
         self._errors = {k: v for k, v in (("boundary", response.boundary_violations), ("collision", response.collisions),
                                           ("actuator", response.actuator_limit_iterations)) if v}
         return report
@@ -147,7 +147,7 @@ class Robotarium(RobotariumABC):
         link = self._link
         info = run_record.Experiment(run_id=link.run_id or "", recording=link.announced_recording(), steps=link.step,
                                      real_time=self.sim_in_real_time, number_of_robots=self.number_of_robots,
-                                     api=self.API)
+                                     safety_restarts=link.safety_restarts_said(), api=self.API)
         if link.unsent_end_at is not None:
             info.ended, info.ended_by_unsent_request_at_step = True, link.unsent_end_at
         return info

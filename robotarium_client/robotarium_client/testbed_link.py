@@ -75,6 +75,9 @@ if TYPE_CHECKING:
 
 STARTUP_WAIT = 60.0   # s for a testbed started here to come up
 STEP_TIMEOUT = 10.0   # s without poses after a step() before we give up with an explanation
+# s a run waits, once a restart of its safety node was announced, for the testbed to arm the new process (the
+# simulator does as soon as the node is back: ~1-3 s after a kill under ./robotarium up, at once in place)
+REARM_WAIT = 30.0
 # s one step() may take under ./robotarium run (HANG_WATCH, the runner's) before its process counts as stuck in a
 # call into its own Fast DDS that never came back: a deadlock inside Fast DDS met while a call held the GIL, so
 # nothing of Python runs, the watch below included. The kernel's timer ends the process then (SIGALRM's default
@@ -201,6 +204,13 @@ class TestbedLink:
         self.started_at = None        # epoch s this client asked to start its run: restarts from then on are its
         self.restarts_heard = set()   # robotarium_core.restarts.Restart records acted on
         self.awaiting_restart = {}    # {node: (monotonic deadline, step)}: lost, its process alive here (a DDS stall)
+        # A safety node restarted mid-run: the simulator arms the new process with the run and the run goes on.
+        self.safety_rearms = 0        # this run's status: times the testbed armed a restarted safety node again
+        self._rearms_paired = 0       # of those, the ones paired with a restart heard
+        self.safety_restart = None    # (Restart, step, monotonic deadline): heard, the new node not armed yet
+        self.safety_restarts = []     # what the run went on through (restarts.went_on's words)
+        self._resend_due = False      # armed again: the array the old process may have lost goes again
+        self._last_command = None
         self._own_dds = OwnDdsWatch()   # this process's own Fast DDS: a stuck event thread is named, not the testbed
         self.claims = {}              # {node: its claim's identity (host, pid)}: robotarium_core.claim
         # The testbed's Fast DDS settings for the script's participant too (dds_settings.init_context): UDP
@@ -327,8 +337,10 @@ class TestbedLink:
     def send(self, velocities: np.ndarray, step: int) -> None:
         v, w = velocities
         sec, nanosec = self.node.get_clock().now().seconds_nanoseconds()
-        self.command_pub.publish(cdr.TWIST_ARRAY.build(sec=sec, nanosec=nanosec, frame_id="arena", token=self.token,
-                                                       step=step, ids=self._ids, twists=cdr.twists(v, w)))
+        self._last_command = cdr.TWIST_ARRAY.build(sec=sec, nanosec=nanosec, frame_id="arena", token=self.token,
+                                                   step=step, ids=self._ids, twists=cdr.twists(v, w))
+        self._resend_due = False   # (this one reaches a safety node armed again already)
+        self.command_pub.publish(self._last_command)
 
     def publish_drawing(self, message: dict[str, object]) -> None:
         self._drawing_message.data = recording.encode_drawing(message)
@@ -340,12 +352,36 @@ class TestbedLink:
             self._on_poses(data)
 
     def wait_for_step(self, target: int) -> np.ndarray:
-        """The newest poses once those of step `target` came (3 x N); raises what stopped the run."""
+        """The newest poses once those of step `target` came (3 x N); raises what stopped the run. Across a
+        restart of the safety node: until the testbed armed the new process (REARM_WAIT), then the array the
+        old one may have lost goes again (in lockstep the testbed waits for it)."""
         global DDS_STUCK
         own = self._own_dds
-        arrived = self.spin_until(lambda: self.confirm_losses() or (
-            self.latest is not None and self.latest.step >= target) or own.look(), STEP_TIMEOUT)
-        self.check()
+
+        def came():
+            return self.latest is not None and self.latest.step >= target
+
+        deadline = time.monotonic() + STEP_TIMEOUT
+        while True:
+            self.spin_until(lambda: self.confirm_losses() or self._resend_due or came() or own.look(),
+                            deadline - time.monotonic())
+            self.check()
+            if came():
+                break
+            if self._resend_due:
+                self._resend_due = False
+                if self._last_command is not None:
+                    self.command_pub.publish(self._last_command)
+                deadline = time.monotonic() + STEP_TIMEOUT
+            elif time.monotonic() >= deadline and self.safety_restart is not None:
+                restart, step, until = self.safety_restart
+                if time.monotonic() >= until:
+                    self.failure_kind, self.failure = NodeRestarted, restarts.not_armed_again(restart, step, REARM_WAIT)
+                    self.check()
+                deadline = until
+            elif time.monotonic() >= deadline:
+                break
+        arrived = came()
         if not arrived:
             stuck = own.stuck()
             if stuck:   # this process heard nothing because its own DDS stopped, not the testbed
@@ -448,8 +484,9 @@ class TestbedLink:
 
     def _on_restart(self, msg: String) -> None:
         """A node of the testbed was restarted (robotarium_core.restarts): during this run, the recorder's restart
-        stops its recording (the run goes on); the simulator's or the safety node's ends the run, named so, as does
-        any node's give-up (`up` stopped the testbed: the node kept exiting)."""
+        stops its recording (the run goes on); the safety node's stops the robots until the testbed arms the new
+        process with the run, and the run goes on; the simulator's ends the run, named so, as does any node's
+        give-up (`up` stopped the testbed: the node kept exiting)."""
         restart = restarts.parse(msg.data)
         if restart is not None and self.started_at is None:
             # The latched announcement of a restart before this run (heard as the topic matched): never this
@@ -475,8 +512,42 @@ class TestbedLink:
                                        self.recorder_lost_at), file=sys.stderr)
             return
         self.awaiting_restart.pop(restart.who, None)
+        if restart.who == presence.SAFETY and not restart.gave_up:
+            self.suspects.pop(presence.SAFETY, None)
+            if self.safety_rearms > self._rearms_paired:   # armed again before the news of its restart came
+                self._rearms_paired = self.safety_rearms
+                self._went_on(restart, step)
+                return
+            self.safety_restart = (restart, step, time.monotonic() + REARM_WAIT)
+            print("[robotarium] %s at step %d: the robots stopped; the experiment goes on once the testbed has armed "
+                  "the new safety node." % (restart.describe(), step), file=sys.stderr)
+            return
         if self.failure is None:
             self.failure_kind, self.failure = NodeRestarted, restarts.ended_run(restart, step)
+
+    def _went_on(self, restart: restarts.Restart, step: int) -> None:
+        self.safety_restarts.append(restarts.went_on(restart, step, self.step))
+        print("[robotarium] the testbed armed the restarted safety node again at step %d: the experiment goes on."
+              % self.step, file=sys.stderr)
+
+    def _on_safety_rearmed(self, rearms: int) -> None:
+        """This run's status says the testbed armed a restarted safety node again: it is back and guards the run."""
+        self.safety_rearms = rearms
+        self._resend_due = True
+        self.suspects.pop(presence.SAFETY, None)
+        self.awaiting_restart.pop(presence.SAFETY, None)
+        if self.safety_restart is not None:
+            restart, step, _ = self.safety_restart
+            self.safety_restart, self._rearms_paired = None, rearms
+            self._went_on(restart, step)
+
+    def safety_restarts_said(self) -> list[str]:
+        """What the run's record says of its safety node's restarts, one still waiting to be armed again included."""
+        if self.safety_restart is None:
+            return list(self.safety_restarts)
+        restart, step, _ = self.safety_restart
+        return self.safety_restarts + ["%s at step %d; the run ended before the testbed armed it again (the robots "
+                                       "stood still from then on)" % (restart.describe(), step)]
 
     def _alive_here(self, who: str) -> bool:
         """Whether the process of node `who` (its claim) runs on this machine, neither stopped nor a zombie: a
@@ -498,7 +569,11 @@ class TestbedLink:
             head = cdr.TESTBED_STATUS_HEAD.parse(data, max_string=len(data))
         except cdr.CdrError:
             return   # not a TestbedStatus: not the simulator's
-        if head.run_id == self.run_id and head.state == TestbedStatus.STATE_IDLE:
+        if head.run_id != self.run_id:
+            return
+        if head.safety_rearms > self.safety_rearms:
+            self._on_safety_rearmed(head.safety_rearms)
+        if head.state == TestbedStatus.STATE_IDLE:
             self._on_status(deserialize_message(data, TestbedStatus))
 
     def _on_status(self, msg: TestbedStatus) -> None:
@@ -530,6 +605,8 @@ class TestbedLink:
     def _on_node_lost(self, who: str) -> None:
         if self.run_id is None or self.end_sent:
             return
+        if who == presence.SAFETY and self.safety_restart is not None:
+            return   # its restart was announced: the new process is awaited
         if who == "recorder" and self.recorder_lost_at is not None:
             return
         self.suspects.setdefault(who, (time.monotonic(), self.step))
@@ -584,7 +661,7 @@ class TestbedLink:
         """Raise what ended the run (a node lost, ended by someone else) where it cannot go on."""
         if self.confirm_losses():
             if self.failure is None:   # a node deaf to DDS: its restart in place names the cause, or its wait ends
-                self.spin_until(lambda: self.confirm_losses() and self.failure is not None, STALL_RESTART_WAIT + 1.0)
+                self.spin_until(lambda: not self.confirm_losses() or self.failure is not None, STALL_RESTART_WAIT + 1.0)
             if self.failure is not None:
                 raise self.failure_kind(self.failure)
 

@@ -340,7 +340,7 @@ MARKER = Layout("visualization_msgs/msg/Marker", HEADER + (
 # may be longer than MAX_STRING, and a string cannot take more than the message's bytes anyway.
 TESTBED_STATUS_HEAD = Layout("robotarium_msgs/msg/TestbedStatus", HEADER + (
     ("state", UINT8), ("experiment", STRING), ("run_id", STRING), ("started_sec", INT32), ("started_nanosec", UINT32),
-    ("mode", STRING), ("number_of_robots", UINT32),
+    ("safety_rearms", UINT32), ("mode", STRING), ("number_of_robots", UINT32),
     ("step", UINT64),
 ))
 

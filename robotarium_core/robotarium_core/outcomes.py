@@ -126,10 +126,14 @@ def lost_poses(count, first_step):
 
 def run_notes(run):
     """What the report adds about a run beyond its recording (a run_record.RunRecord, or None): a
-    recording that stopped early, data files left out of the run folder."""
+    recording that stopped early, a safety node restarted mid-run, data files left out of the run folder."""
     notes = []
     if recording_stopped(run):
         notes.append("%s. The recording is incomplete, so there is no acceptance estimate." % recording_stopped(run))
+    for restart in getattr(run, "safety_restarts", None) or ():
+        notes.append("%s (the robots stood still meanwhile%s)." % (
+            restart, "" if getattr(run, "real_time", True) else "; in lockstep the run waited, so its steps are "
+            "those of an uninterrupted run"))
     for name, why in sorted((getattr(run, "data_not_saved", None) or {}).items()):
         notes.append("data file %s not saved in the run folder: %s" % (name, why))
     return notes

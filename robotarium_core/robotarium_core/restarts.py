@@ -119,6 +119,18 @@ def in_place(who, cause, previous=None):
                    at=time.time(), old_pid=os.getpid())
 
 
+def not_armed_again(restart, step, wait):
+    """What ended a run whose safety node was restarted at `step` and not armed again within `wait` s."""
+    return ("testbed node restarted at step %d: %s, and the testbed did not arm it again within %.0f s; the experiment "
+            "cannot go on" % (step, restart.describe(), wait))
+
+
+def went_on(restart, step, armed_at):
+    """What a run says of a safety node restarted at `step` that the testbed armed again at `armed_at`."""
+    return "%s at step %d; the testbed armed it again at step %d and the run went on" % (restart.describe(), step,
+                                                                                         armed_at)
+
+
 def ended_run(restart, step):
     """What ended a run that the restart of its simulator or safety node hit at `step` (or any node's give-up:
     `up` then stopped the whole testbed)."""

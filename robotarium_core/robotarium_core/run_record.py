@@ -45,6 +45,8 @@ class Experiment:
     ideal_interventions: int = 0          # of those, what a verification's certificate would have changed
     ended_by_unsent_request_at_step: int | None = None
     time_limit: dict | None = None        # {"limit", "step", "sim_time", "note"} where the time limit ended it
+    # the safety node restarted mid-run, armed again by the testbed, the run going on (restarts.went_on's words)
+    safety_restarts: list = dataclasses.field(default_factory=list)
     api: str = ""                         # the script's Robotarium API: "guide" (rps 0.0.0) or "2" (the 2.x
                                           # simulator's); "" in a file from before it was kept
 

@@ -136,8 +136,9 @@ def test_safety_report_is_rclpys_message_byte_for_byte(solver_status):
 def test_testbed_status_head_reads_rclpys_message(run_id, experiment):
     """The client reads a status's head (TESTBED_STATUS_HEAD) and deserialises the rest only for
     its run's IDLE status: the head's fields are those of the message's first fields, in order."""
-    head = list(TestbedStatus.get_fields_and_field_types())[:8]
-    assert head == ["header", "state", "experiment", "run_id", "started", "mode", "number_of_robots", "step"]
+    head = list(TestbedStatus.get_fields_and_field_types())[:9]
+    assert head == ["header", "state", "experiment", "run_id", "started", "safety_rearms", "mode", "number_of_robots",
+                    "step"]
     assert list(cdr.TESTBED_STATUS_HEAD.Message._fields) == (["sec", "nanosec", "frame_id"] + head[1:4]
                                                              + ["started_sec", "started_nanosec"] + head[5:])
     msg = TestbedStatus(state=TestbedStatus.STATE_IDLE, experiment=experiment, run_id=run_id, mode="lockstep",
@@ -145,9 +146,10 @@ def test_testbed_status_head_reads_rclpys_message(run_id, experiment):
                         dropped_cmd_safe=DropCounts(stale=3))
     msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id = 12, 34, "arena"
     msg.started.sec, msg.started.nanosec = 1_800_000_000, 999_999_999
+    msg.safety_rearms = 2
     data = serialize_message(msg)
     parsed = cdr.TESTBED_STATUS_HEAD.parse(data, max_string=len(data))   # as the client and the recorder read it
-    assert parsed == (12, 34, "arena", TestbedStatus.STATE_IDLE, experiment, run_id, 1_800_000_000, 999_999_999,
+    assert parsed == (12, 34, "arena", TestbedStatus.STATE_IDLE, experiment, run_id, 1_800_000_000, 999_999_999, 2,
                       "lockstep", 5, 2 ** 40 + 3)
 
 

@@ -34,10 +34,9 @@ from robotarium_hardware import fleet as fleets
 from robotarium_hardware.steady import steady
 from robotarium_hardware.tracking import FleetTestbed, Roster
 from robotarium_msgs.msg import TwistArray
-from robotarium_msgs.srv import ArmSafety
 from robotarium_sim import experiment
 from robotarium_sim.experiment import Experiment
-from robotarium_sim.simulator_node import SimulatorNode
+from robotarium_sim.simulator_node import SimulatorNode, arm_request
 
 FLEET = "fleet"               # the roster topic (relative to the namespace)
 FAULT_CHECK = 0.01            # s between looks for a robot that lost tracking or stopped answering
@@ -155,9 +154,7 @@ class HardwareArenaNode(SimulatorNode):
     async def drive_on(self, run_id, testbed, goals, config):
         drive = Experiment.started(run_id + "_drive_on", "drive_on", True)
         n = testbed.number_of_robots
-        armed = await self.arm_safety(ArmSafety.Request(
-            run_id=drive.run_id, number_of_robots=n, real_time=True, token=drive.token, safety_key=drive.safety_key,
-            poses_key=drive.poses_key, latency=testbed.latency))
+        armed = await self.arm_safety(arm_request(drive, testbed, self.recorded()))
         if armed is not True:
             return armed
         self.get_logger().info("driving %d robots (%s) on to the initial conditions of %s" % (

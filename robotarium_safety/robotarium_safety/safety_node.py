@@ -99,14 +99,23 @@ class SafetyNode(Node):
         return not self.armed.run_id
 
     def on_arm(self, request, response):
-        """The simulator starts (run_id set) or ends (empty) an experiment: guard that one only."""
+        """The simulator starts (run_id set) or ends (empty) an experiment: guard that one only. Asked again
+        for the experiment it guards (the simulator re-arms whenever this node's presence comes back), it
+        changes nothing; a node restarted mid-run is armed with where the run is (step, poses) and goes on."""
         if request.run_id and request.number_of_robots < 1:
             response.message = "an experiment needs at least one robot."
+            return response
+        if request.run_id and (request.run_id, request.token) == (self.armed.run_id, self.armed.token):
+            response.success = response.already_armed = True
+            response.message = "guarding %s already" % request.run_id
+            return response
+        n = request.number_of_robots if request.run_id else 0
+        if request.step and not len(request.x) == len(request.y) == len(request.theta) == n:
+            response.message = "a re-arm at step %d needs the poses of all %d robots." % (request.step, n)
             return response
         self.armed = request
         self.certificate.latency = request.latency
         self.certificate.real_time = bool(request.real_time)
-        n = request.number_of_robots if request.run_id else 0
         self.api = ""   # until this run's settings arrive (on_experiment)
         self.poses, self.poses_step, self.poses_time = None, -1, -np.inf
         self.commands = np.zeros((2, n))   # nobody has a command yet
@@ -115,9 +124,14 @@ class SafetyNode(Node):
         self.last_step = 0
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
         self._dropped_reported = dict(self.dropped)
+        if request.step:   # mid-run: the poses it is at, as if they had just come
+            self.poses = np.array([request.x, request.y, request.theta])
+            self.poses_step, self.poses_time = request.step, time.monotonic()
+            self.guard.on_poses(request.step, self.poses_time)
         response.success = True
-        response.message = ("%s %s (%d robots)" % ("auditing (verification: the script's own commands go through)"
-                                                   if request.audit else "guarding", request.run_id, n)
+        response.message = ("%s %s (%d robots)%s" % ("auditing (verification: the script's own commands go through)"
+                                                     if request.audit else "guarding", request.run_id, n,
+                                                     " from step %d on" % request.step if request.step else "")
                             if request.run_id else "disarmed")
         self.get_logger().info(response.message)
         return response
@@ -127,8 +141,9 @@ class SafetyNode(Node):
         self.warn_once("drop_" + reason, "dropped a command array on cmd_requested: %s (%s)" % (model.DROP_REASONS[reason], text))
 
     def report_drops(self):
-        """Drops with no array filtered since: say so at most once a second (the simulator puts them in status)."""
-        if self.dropped != self._dropped_reported:
+        """Drops with no array filtered since: say so at most once a second (the simulator puts them in status).
+        Unarmed, none: a node restarted mid-run would count the client's arrays before its re-arm into the run."""
+        if self.armed.run_id and self.dropped != self._dropped_reported:
             sec, nanosec = self.get_clock().now().seconds_nanoseconds()
             self._dropped_reported = dict(self.dropped)
             self.report_pub.publish(cdr.SAFETY_REPORT.build(
@@ -205,7 +220,8 @@ class SafetyNode(Node):
         counts = (self.safe_pub.get_subscription_count(), self.report_pub.get_subscription_count())
         matched, checked_at = self._simulator_matched
         if not matched or counts != checked_at:
-            readers = [presence.SIMULATOR] + ([presence.RECORDER] if presence.RECORDER in node_names(self) else [])
+            recorded = self.armed.recorded or presence.RECORDER in node_names(self)
+            readers = [presence.SIMULATOR] + ([presence.RECORDER] if recorded else [])
             missing = listeners(self, [(publisher, who) for publisher in (self.safe_pub, self.report_pub)
                                        for who in readers])
             self._simulator_matched = (not missing, counts)

@@ -102,6 +102,8 @@ class Experiment:
     last_command_at: float = -math.inf   # time.monotonic() when it came (the client's sign of life too)
     dropped: dict = dataclasses.field(default_factory=lambda: dict.fromkeys(model.DROP_REASONS, 0))   # on cmd_safe
     dropped_requested: object = None   # the safety node's drop counts (robotarium_msgs DropCounts), from its reports
+    requested_drops_before: dict = dataclasses.field(default_factory=dict)   # ... of its processes before a re-arm
+    safety_rearms: int = 0         # times the safety node was restarted mid-run and armed again (the run went on)
     logged_drops: set = dataclasses.field(default_factory=set)   # drop reasons said in the log already
     last_tick: float = 0.0         # time.monotonic() of the last real-time tick (at first: the start)
     end_reason: str = ""           # who ended it ("ended by its client at step k", ...)
@@ -146,6 +148,19 @@ class Experiment:
         if stale_stop:
             self.stale_pose_stops += 1
         self.dropped_requested = dropped
+
+    def safety_rearmed(self):
+        """The safety node was restarted mid-run and armed again: its process counts its drops afresh (those of
+        the one before are kept), and the reports of the last arrays the one before sent will never come."""
+        self.safety_rearms += 1
+        self.requested_drops_before = self.requested_drop_counts()
+        self.dropped_requested = None
+        self.reports_heard = self.safe_arrays_heard
+
+    def requested_drop_counts(self):
+        """{reason: count} of the arrays the safety node dropped during this run, over its restarts."""
+        return {reason: self.requested_drops_before.get(reason, 0) + getattr(self.dropped_requested, reason, 0)
+                for reason in model.DROP_REASONS}
 
     @property
     def reports_missing(self):

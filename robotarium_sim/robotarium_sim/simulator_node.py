@@ -70,6 +70,7 @@ from robotarium_sim.experiment import Experiment, RunIds, build_testbed
 SAFETY_WAIT = 10.0          # s a start waits for the safety node to answer (discovery is slow on a loaded machine)
 SAFETY_WAIT_SETTLED = 2.0   # s it waits when the simulator has run longer than SAFETY_WAIT without seeing one
 ARM_RESEND = 1.0            # s before an unanswered ArmSafety request is sent again
+REARM_POLL = 0.1            # s between looks at a re-arm that is due (a safety node back during a run)
 REPORT_WAIT = 3.0           # s an end waits for the safety node's reports of the arrays already applied
 CLIENT_DISCOVERY_WAIT = 10.0  # s after a start for the client's presence to appear before it counts as lost
 
@@ -175,7 +176,9 @@ class SimulatorNode(Node):
         self.presence = presence.Presence(self, presence.alive_topic(presence.SIMULATOR), self.config.node_lease)
         self.ready_at = time.monotonic()
         self.safety_watch = presence.Watch(self, presence.alive_topic(presence.SAFETY), self.config.node_lease,
-                                           on_lost=self.on_safety_lost)
+                                           on_lost=self.on_safety_lost, on_seen=self.on_safety_seen)
+        self._rearm = None   # (run id, the ArmSafety future or None, when it was sent) while a re-arm is due
+        self.create_timer(REARM_POLL, self.rearm_safety)
         self.create_timer(1.0, self.publish_status_heartbeat)
         self.create_timer(1.0 / self.config.viewer_rate, self.publish_markers)
         self.create_timer(0.2, self.check_client)
@@ -223,9 +226,7 @@ class SimulatorNode(Node):
         try:
             armed = await self.before_arming(request, testbed, run)
             if armed is None:
-                armed = await self.arm_safety(ArmSafety.Request(
-                    run_id=run.run_id, number_of_robots=n, real_time=run.real_time, token=run.token,
-                    safety_key=run.safety_key, poses_key=run.poses_key, audit=run.audit, latency=testbed.latency))
+                armed = await self.arm_safety(arm_request(run, testbed, self.recorded()))
             if armed is True:
                 if isinstance(testbed, rps2.Testbed2):
                     self.standard_sensors.start(testbed)
@@ -305,6 +306,10 @@ class SimulatorNode(Node):
             self.arm_client.remove_pending_request(future)
         return NoSafetyNode("the safety node did not answer on %s within %.0f s." % (self.arm_client.srv_name, SAFETY_WAIT))
 
+    def recorded(self):
+        """Whether a recorder records this testbed's runs (./robotarium up's, or one the graph shows)."""
+        return self.wait_for_recorder or presence.RECORDER in node_names(self)
+
     async def wait_for_listeners(self, client_node, testbed):
         """The streams are volatile (robotarium_core.topics): a run's first poses, status and sensors
         go out once the readers that need all of the run matched our writers (the client's, the safety
@@ -380,6 +385,42 @@ class SimulatorNode(Node):
         if self.testbed is not None:
             self.get_logger().warning("the safety node is gone: every robot stops")
             self.testbed.set_commands(np.arange(self.testbed.number_of_robots), 0.0, 0.0, now=time.monotonic())
+
+    def on_safety_seen(self):
+        """A safety node's presence came (back) during a run: one restarted mid-run guards nothing until it is
+        armed again, with the run's keys and where the robots are; the run then goes on (docs/faults.md).
+        One that guards the run already (its presence only lapsed) says so and changes nothing."""
+        if self.testbed is not None and self._rearm is None:
+            self._rearm = (self.run.run_id, None, 0.0)
+
+    def rearm_safety(self):
+        """Every REARM_POLL s while a re-arm is due: ask (again after ARM_RESEND), and take the answer."""
+        if self._rearm is None:
+            return
+        run_id, future, sent = self._rearm
+        if self.testbed is None or self.run.run_id != run_id:   # that run ended meanwhile
+            if future is not None:
+                self.arm_client.remove_pending_request(future)
+            self._rearm = None
+            return
+        if future is not None and future.done():
+            self._rearm = None
+            result = future.result()
+            if not result.success:
+                self.get_logger().error("could not arm the safety node again for %s: %s" % (run_id, result.message))
+            elif not result.already_armed:
+                self.run.safety_rearmed()
+                self.get_logger().warning("the safety node was restarted: armed it again for %s at step %d; the run "
+                                          "goes on" % (run_id, self.testbed.steps))
+                self.publish_status()   # (its safety_rearms tells the client to send its array again)
+            return
+        if future is not None and time.monotonic() - sent < ARM_RESEND:
+            return
+        if future is not None:
+            self.arm_client.remove_pending_request(future)
+        if self.arm_client.service_is_ready():
+            future = self.arm_client.call_async(arm_request(self.run, self.testbed, self.recorded(), mid_run=True))
+            self._rearm = (run_id, future, time.monotonic())
 
     async def on_end(self, request, response):
         if self.testbed is None:
@@ -458,7 +499,7 @@ class SimulatorNode(Node):
         response.recording = self.recording
         response.end_reason = reason
         response.dropped_cmd_safe = drop_counts(self.run.dropped)
-        response.dropped_cmd_requested = self.run.dropped_requested or DropCounts()
+        response.dropped_cmd_requested = self.requested_drops()
         response.message = "%s: %s" % (self.run.run_id, reason)
         self.publish_status()  # the final counters, still marked running, so recorders keep them
         self.testbed = None
@@ -548,10 +589,16 @@ class SimulatorNode(Node):
         self.run.count_safety_report(
             is_intervention(msg, self.config.intervention_tolerance), msg.max_change,
             of_an_array=msg.status != SafetyReport.STATUS_COUNTS_ONLY,
-            stale_stop=msg.status == SafetyReport.STATUS_STOP_NO_POSES, dropped=self.requested_drops(msg),
+            stale_stop=msg.status == SafetyReport.STATUS_STOP_NO_POSES, dropped=self.drops_in_report(msg),
             ideal=msg.ideal_change > self.config.intervention_tolerance)
 
-    def requested_drops(self, report):
+    def requested_drops(self):
+        """The safety node's drop counts of this run (a DropCounts), over its restarts."""
+        if not self.run.safety_rearms:
+            return self.run.dropped_requested or DropCounts()
+        return DropCounts(**self.run.requested_drop_counts())
+
+    def drops_in_report(self, report):
         """The report's drop counts (cdr.SAFETY_REPORT flattens them) as a DropCounts, the same object
         while they stay the same (they change only when the safety node drops an array)."""
         counts = tuple(getattr(report, reason) for reason in model.DROP_REASONS)
@@ -617,10 +664,11 @@ class SimulatorNode(Node):
         msg.experiment = self.run.name
         msg.run_id = self.run.run_id
         msg.started.sec, msg.started.nanosec = divmod(self.run.started_ns, 1_000_000_000)
+        msg.safety_rearms = self.run.safety_rearms
         msg.mode = "realtime" if self.run.real_time else "lockstep"
         msg.commands_accepted = self.run.commands_accepted
         msg.dropped_cmd_safe = drop_counts(self.run.dropped)
-        msg.dropped_cmd_requested = self.run.dropped_requested or DropCounts()
+        msg.dropped_cmd_requested = self.requested_drops()
         msg.safety_interventions = self.run.safety_interventions
         msg.ideal_interventions = self.run.ideal_interventions
         msg.end_reason = self.run.end_reason
@@ -642,6 +690,18 @@ class SimulatorNode(Node):
         data = serialize_message(msg)
         self.status_stream_pub.publish(data)
         self.status_pub.publish(data)
+
+
+def arm_request(run, testbed, recorded, mid_run=False):
+    """The ArmSafety request for experiment `run` on `testbed` (`recorded`: a recorder records it); mid_run: with
+    the step and poses it is at (a safety node restarted during the run)."""
+    request = ArmSafety.Request(run_id=run.run_id, number_of_robots=testbed.number_of_robots, real_time=run.real_time,
+                                token=run.token, safety_key=run.safety_key, poses_key=run.poses_key, audit=run.audit,
+                                latency=testbed.latency, recorded=recorded)
+    if mid_run:
+        request.step = testbed.steps
+        request.x, request.y, request.theta = (to_float_array(row) for row in testbed.poses)
+    return request
 
 
 def main(args=None):
