@@ -113,11 +113,11 @@ def own_up(tmp_path_factory):
                 pass
 
 
-def run(testbed, cwd, kill=None, steps=STEPS, kill_at=KILL_AT, resumed=None):
+def run(testbed, cwd, kill=None, steps=STEPS, kill_at=KILL_AT, resumed=None, mode="--lockstep"):
     """./robotarium run turns_and_saves.py on the module's testbed, SIGKILL to node `kill` at step `kill_at` of its
     run; (exit code, output, run.json, report.txt's first line, seconds from the kill to the run's exit). `resumed`
     (a list): gets the seconds from the kill to the first new step after the longest pause of the run's steps."""
-    command = [sys.executable, "-m", "robotarium_cli", "run", "--no-local-testbed", "--no-video", "--lockstep",
+    command = [sys.executable, "-m", "robotarium_cli", "run", "--no-local-testbed", "--no-video", mode,
                "--bags-dir", str(testbed["bags"]), "--results-dir", str(testbed["root"] / "results"), SCRIPT,
                str(steps), "2"]
     began, killed_at = time.monotonic(), None
@@ -224,6 +224,24 @@ def test_a_killed_safety_node_is_restarted_armed_again_and_its_run_goes_on_step_
     print("safety node killed at step %d: the run went on %.1f s after the kill and completed %d steps (%.1f s from "
           "the kill to its exit; steps whose cmd_safe the bag lacks: %s)\n  %s" % (
               k, resumed[0], info["steps"], took, missing, went_on))
+    back_up(testbed, "safety", "the safety node exited (killed by SIGKILL); restarted it")
+
+
+@pytest.mark.e2e   # whole runs through ./robotarium on an `up` testbed
+def test_a_real_time_run_goes_on_across_its_safety_nodes_restart_its_robots_still_meanwhile(testbed, tmp_path):
+    """In real time the testbed ticks on while the new safety node comes up: the robots stand still (no safe
+    commands come; the simulator stopped them when the node's presence lapsed), then move again on the script's
+    commands once the simulator armed the new node; the run completes all its steps and says so."""
+    code, out, info, first, took = run(testbed, tmp_path, kill="safety", steps=240, kill_at=60, mode="--real-time")
+    assert code == info["exit_code"] == 0 and info["outcome"] == "completed" and not info["audit"], out
+    assert info["steps"] >= 240 and info["real_time"], info   # (the testbed ticks on while a step waits)
+    (went_on,) = info["safety_restarts"]
+    assert re.match(r"the safety node exited \(killed by SIGKILL\) and \./robotarium up restarted it \(restart \d+\) at "
+                    r"step \d+; the testbed armed it again at step \d+ and the run went on$", went_on), went_on
+    k, armed_at = (int(n) for n in re.findall(r"step (\d+)", went_on))
+    assert 60 <= k < armed_at < info["steps"], went_on
+    print("safety node killed in real time: the robots stood still for %d steps (%.1f s); %s"
+          % (armed_at - k, (armed_at - k) / 30.0, went_on))
     back_up(testbed, "safety", "the safety node exited (killed by SIGKILL); restarted it")
 
 
