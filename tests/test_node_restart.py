@@ -240,8 +240,10 @@ def test_a_real_time_run_goes_on_across_its_safety_nodes_restart_its_robots_stil
                     r"step \d+; the testbed armed it again at step \d+ and the run went on$", went_on), went_on
     k, armed_at = (int(n) for n in re.findall(r"step (\d+)", went_on))
     assert 60 <= k < armed_at < info["steps"], went_on
-    print("safety node killed in real time: the robots stood still for %d steps (%.1f s); %s"
-          % (armed_at - k, (armed_at - k) / 30.0, went_on))
+    dropped = {name: {reason: n for reason, n in counts.items() if n} for name, counts in info["dropped"].items()}
+    assert not dropped["cmd_requested"], dropped   # (the new node's drops before its arming are not the run's)
+    print("safety node killed in real time: the robots stood still for %d steps (%.1f s); arrays dropped: %s; %s"
+          % (armed_at - k, (armed_at - k) / 30.0, dropped, went_on))
     back_up(testbed, "safety", "the safety node exited (killed by SIGKILL); restarted it")
 
 

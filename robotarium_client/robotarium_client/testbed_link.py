@@ -183,6 +183,7 @@ class TestbedLink:
         self.ns = ns
         self.config = config          # the testbed's, once adopted: its node_lease judges lost nodes
         self.run_id = None
+        self.real_time = True
         self.token = ""
         self.poses_key = None
         self.latest = None            # the newest poses message of this run (cdr.ROBOT_POSES)
@@ -286,6 +287,7 @@ class TestbedLink:
             # testbed started a moment ago: its presence may not have reached us).
             raise RobotariumError("The testbed refused to start the experiment: %s" % response.message)
         self.run_id, self.token, self.poses_key = response.run_id, response.token, response.poses_key
+        self.real_time = response.real_time
         self._number_of_robots = request.number_of_robots
         self._ids = np.arange(request.number_of_robots)
         self.presence = presence.Presence(self.node, response.client_alive_topic, response.client_lease)
@@ -370,7 +372,7 @@ class TestbedLink:
                 break
             if self._resend_due:
                 self._resend_due = False
-                if self._last_command is not None:
+                if self._last_command is not None and not self.real_time:   # (real time: the next tick's comes)
                     self.command_pub.publish(self._last_command)
                 deadline = time.monotonic() + STEP_TIMEOUT
             elif time.monotonic() >= deadline and self.safety_restart is not None:
