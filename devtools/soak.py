@@ -471,6 +471,7 @@ class Result:
     outcome: str = ""
     detail: str = ""
     recording_stopped: str = ""
+    safety_restarts: str = ""   # what the run went on through (run.json's safety_restarts)
     report_first_line: str = ""
     folder: str = ""
     verdict: str = ""           # "completed", "by fault", "lost"
@@ -732,6 +733,7 @@ class Soak:
         if record is not None:
             result.outcome, result.detail = record.outcome, record.detail
             result.recording_stopped = record.recording_stopped_because or ""
+            result.safety_restarts = "; ".join(record.safety_restarts)
             if result.exit_code is None or result.fault == "run_sigkill":
                 result.exit_code = record.exit_code
         try:
@@ -878,7 +880,7 @@ def summary(soak, plans):
         right = [r for r in hit if r.verdict == "by fault"]
         causes = {}
         for r in right:
-            key = re.sub(r"\d+", "k", r.report_first_line or r.detail)[:150]
+            key = re.sub(r"\d+", "k", " ".join(filter(None, (r.report_first_line or r.detail, r.safety_restarts))))[:150]
             causes[key] = causes.get(key, 0) + 1
         lines.append("  %-16s planned %3d, hit %3d, right cause %3d%s" % (
             kind, sum(r.fault == kind for r in results), len(hit), len(right),
