@@ -65,6 +65,8 @@ def test_a_restart_record_reads_back_and_says_what_a_run_makes_of_it():
         "testbed node restarted at step 31: the safety node exited (killed by SIGKILL) and ./robotarium up restarted "
         "it (restart 1)")
     assert up.during(2000.5) and not up.during(2005.0) and not up.during(None)
+    # a run begun on the process up started in place of pid 7 was never served by pid 7, however close in time
+    assert up.during(2000.5, pid_at_start=7) and not up.during(2000.5, pid_at_start=8)
     stall = restarts.in_place("simulator", "its Fast DDS stopped: dds.ev.0 has not run for 5.0 s", previous=up)
     assert stall.count == 2 and stall.by == restarts.IN_PLACE
     assert stall.describe().startswith("the simulator stopped answering (its Fast DDS stopped")

@@ -214,6 +214,7 @@ class TestbedLink:
         self._last_command = None
         self._own_dds = OwnDdsWatch()   # this process's own Fast DDS: a stuck event thread is named, not the testbed
         self.claims = {}              # {node: its claim's identity (host, pid)}: robotarium_core.claim
+        self.pids_at_start = {}       # {node: its process when this run began}: a restart of another is not this run's
         # The testbed's Fast DDS settings for the script's participant too (dds_settings.init_context): UDP
         # only; its writers' heartbeat every 0.1 s, so a lost packet of cmd_requested is sent again at once.
         self._context = Context()
@@ -288,6 +289,7 @@ class TestbedLink:
             raise RobotariumError("The testbed refused to start the experiment: %s" % response.message)
         self.run_id, self.token, self.poses_key = response.run_id, response.token, response.poses_key
         self.real_time = response.real_time
+        self.pids_at_start = {who: ident["pid"] for who, ident in self.claims.items()}
         self._number_of_robots = request.number_of_robots
         self._ids = np.arange(request.number_of_robots)
         self.presence = presence.Presence(self.node, response.client_alive_topic, response.client_lease)
@@ -497,7 +499,7 @@ class TestbedLink:
             self.restarts_heard.add(restart)
             return
         if (restart is None or self.run_id is None or self.end_sent or restart in self.restarts_heard
-                or not restart.during(self.started_at)):
+                or not restart.during(self.started_at, self.pids_at_start.get(restart.who))):
             return
         self.restarts_heard.add(restart)
         # where its presence lapsed, if it did

@@ -83,11 +83,15 @@ class Restart:
                 node_name(self.who), self.cause, self.count)
         return "%s %s and %s restarted it (restart %d)" % (node_name(self.who), self.cause, self.by, self.count)
 
-    def during(self, started_at):
+    def during(self, started_at, pid_at_start=None):
         """Whether it happened during a run started at epoch `started_at`. A node restarted in place that was
         back before the run began (within CLOCK_SLACK) served the run afresh: a client that started right
-        after such a restart heard its latched announcement late, and ended at step 0 (a whole-suite run)."""
+        after such a restart heard its latched announcement late, and ended at step 0 (a whole-suite run).
+        `pid_at_start`: the node's process when the run began (its claim), if known: a run begun on the
+        process `up` started in place of the old one was never served by the old one, however close in time."""
         if started_at is None or (self.back_at and self.back_at < started_at + CLOCK_SLACK):
+            return False
+        if self.by == BY_UP and self.old_pid and pid_at_start and pid_at_start != self.old_pid:
             return False
         return self.at >= started_at - CLOCK_SLACK
 
