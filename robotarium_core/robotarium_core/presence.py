@@ -47,8 +47,9 @@ class Presence:
 
 class Watch:
     """Tells when `who` is gone: `on_lost()` when, after a writer was alive, none has been alive for
-    `lease` seconds; `on_seen()` when one is alive (again). `seen`, `alive` and `lost` say where it
-    stands."""
+    `lease` seconds; `on_seen()` whenever a writer becomes alive: the first, one back, or a new one beside
+    an old one not yet known to be gone (a restarted node's, which can come before the old process's lease
+    ran out on a loaded machine). `seen`, `alive` and `lost` say where it stands."""
 
     def __init__(self, node, topic, lease, on_lost=None, on_seen=None):
         self.node = node
@@ -66,12 +67,12 @@ class Watch:
         self.alive = alive
         if alive and not was:
             self.seen, self.lost = True, False
-            if self.on_seen is not None:
-                self.on_seen()
         elif was and not alive:
             self.lost = True
             if self.on_lost is not None:
                 self.on_lost()
+        if info.alive_count_change > 0 and self.on_seen is not None:
+            self.on_seen()
 
     def destroy(self):
         self.node.destroy_subscription(self.subscription)

@@ -26,7 +26,7 @@ from rclpy.task import Future
 from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
-from robotarium_core import cdr, markers, model, outcomes, presence, rps2, scene
+from robotarium_core import cdr, markers, model, outcomes, presence, restarts, rps2, scene
 from robotarium_core.dds_health import fast_dds_watchdogs
 from robotarium_core.line import Line
 from robotarium_core.node_main import run_node
@@ -179,6 +179,9 @@ class SimulatorNode(Node):
                                            on_lost=self.on_safety_lost, on_seen=self.on_safety_seen)
         self._rearm = None   # (run id, the ArmSafety future or None, when it was sent) while a re-arm is due
         self.create_timer(REARM_POLL, self.rearm_safety)
+        # ... due too when ./robotarium up announces it restarted the safety node (should its new presence be missed)
+        self.create_subscription(String, restarts.topic(presence.SAFETY), lambda msg: self.on_safety_seen(),
+                                 restarts.QOS)
         self.create_timer(1.0, self.publish_status_heartbeat)
         self.create_timer(1.0 / self.config.viewer_rate, self.publish_markers)
         self.create_timer(0.2, self.check_client)
