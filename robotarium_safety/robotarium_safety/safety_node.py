@@ -110,7 +110,8 @@ class SafetyNode(Node):
             response.message = "guarding %s already" % request.run_id
             return response
         n = request.number_of_robots if request.run_id else 0
-        if request.step and not len(request.x) == len(request.y) == len(request.theta) == n:
+        mid_run = bool(len(request.x) or len(request.y) or len(request.theta))   # (step 0 too: before the first step)
+        if mid_run and not len(request.x) == len(request.y) == len(request.theta) == n:
             response.message = "a re-arm at step %d needs the poses of all %d robots." % (request.step, n)
             return response
         self.armed = request
@@ -124,14 +125,14 @@ class SafetyNode(Node):
         self.last_step = 0
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
         self._dropped_reported = dict(self.dropped)
-        if request.step:   # mid-run: the poses it is at, as if they had just come
+        if mid_run:   # the poses it is at, as if they had just come
             self.poses = np.array([request.x, request.y, request.theta])
             self.poses_step, self.poses_time = request.step, time.monotonic()
             self.guard.on_poses(request.step, self.poses_time)
         response.success = True
         response.message = ("%s %s (%d robots)%s" % ("auditing (verification: the script's own commands go through)"
                                                      if request.audit else "guarding", request.run_id, n,
-                                                     " from step %d on" % request.step if request.step else "")
+                                                     " from step %d on" % request.step if mid_run else "")
                             if request.run_id else "disarmed")
         self.get_logger().info(response.message)
         return response
