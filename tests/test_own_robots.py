@@ -106,12 +106,15 @@ def path_distance(path, reference):
 RELAXED = dict(answer_timeout=1.0, lost_after=1.0, lost_behind=1.0)
 
 
+@pytest.mark.realtime   # the paths match the simulator's only where the fleet keeps real time
 @pytest.mark.tracking("mocap", **RELAXED)
 def test_a_guide_listing_completes_on_a_simulated_fleet_as_on_the_simulator(fleet_testbed, tmp_path):
     """Guide listing 3.6.1 (leader-follower with data saving; 150 iterations: run_seeded --set) through
     `up --fleet` on a fleet tracked by motion capture: it completes with no collision and no robot outside,
     with its report, bag, results page, video and data files as on the simulator; and its robots' paths stay
-    within a few centimetres of the simulator's for the same script and seed."""
+    within a few centimetres of the simulator's for the same script and seed. In the real-time lane: beside the
+    suite's other workers the leader's path was 88 mm from the simulator's (95th percentile; 12 mm alone), its
+    commands late on a machine that did not keep real time (a whole-suite run, 2026-11-30)."""
     fleet, env, bags, _ = fleet_testbed
     script = os.path.join(REPO, "examples", "guide", "3_6_1_leader_follower_data_saving.py")
     args = ("--", "--set", "iterations=150", "1", script)
