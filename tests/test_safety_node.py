@@ -33,6 +33,20 @@ def stack(tmp_path):
             node.close()
 
 
+@pytest.fixture
+def lone_safety(tmp_path):
+    """A safety node alone on a domain of its own, the probe playing the simulator: (node, probe, the cmd_safe
+    arrays, the safety reports) it receives."""
+    domain = unique_domain_id()
+    safety = NodeProcess("robotarium_safety.safety_node", domain, log_path=tmp_path / "safety.log")
+    probe = RosProbe(domain)
+    try:
+        yield safety, probe, probe.collect(TwistArray, NS + "/cmd_safe"), probe.collect(SafetyReport, NS + "/safety_report")
+    finally:
+        probe.close()
+        safety.close()
+
+
 def start(probe, poses, real_time=False):
     request = StartExperiment.Request(name="safety", number_of_robots=poses.shape[1], real_time=real_time)
     request.x, request.y, request.theta = (list(map(float, row)) for row in poses)
@@ -119,30 +133,22 @@ def test_bad_request_becomes_a_stop(stack):
     assert np.array_equal(as_array(poses[-1])[:2], as_array(poses[-2])[:2])
 
 
-def test_no_poses_means_stop(tmp_path):
-    domain = unique_domain_id()
-    safety = NodeProcess("robotarium_safety.safety_node", domain, log_path=tmp_path / "safety.log")
-    probe = RosProbe(domain)
-    try:
-        safe = probe.collect(TwistArray, NS + "/cmd_safe")
-        reports = probe.collect(SafetyReport, NS + "/safety_report")
-        probe.wait_for_publishers()
-        # the probe plays the simulator: it arms the safety node with an experiment of three robots
-        arm = ArmSafety.Request(run_id="alone", number_of_robots=3, token="t" * 32, safety_key="s" * 32,
-                                poses_key="p" * 32)
-        assert probe.call(ArmSafety, NS + "/safety/arm", arm, resend=1.0).success
-        requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
-        connected(probe, requests)
-        msg = command([0, 1, 2], [0.2, 0.2, 0.2], [1.0, 0.0, -1.0])
-        msg.token = arm.token
-        requests.publish(msg)
-        assert probe.spin_until(lambda: safe and reports, 10)
-        assert reports[-1].status == SafetyReport.STATUS_STOP_NO_POSES
-        assert list(safe[-1].ids) == [0, 1, 2] and safe[-1].token == arm.safety_key
-        assert all(t.linear.x == 0.0 and t.angular.z == 0.0 for t in safe[-1].twists)
-    finally:
-        probe.close()
-        safety.close()
+def test_no_poses_means_stop(lone_safety):
+    _, probe, safe, reports = lone_safety
+    probe.wait_for_publishers()
+    # the probe plays the simulator: it arms the safety node with an experiment of three robots
+    arm = ArmSafety.Request(run_id="alone", number_of_robots=3, token="t" * 32, safety_key="s" * 32,
+                            poses_key="p" * 32)
+    assert probe.call(ArmSafety, NS + "/safety/arm", arm, resend=1.0).success
+    requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
+    connected(probe, requests)
+    msg = command([0, 1, 2], [0.2, 0.2, 0.2], [1.0, 0.0, -1.0])
+    msg.token = arm.token
+    requests.publish(msg)
+    assert probe.spin_until(lambda: safe and reports, 10)
+    assert reports[-1].status == SafetyReport.STATUS_STOP_NO_POSES
+    assert list(safe[-1].ids) == [0, 1, 2] and safe[-1].token == arm.safety_key
+    assert all(t.linear.x == 0.0 and t.angular.z == 0.0 for t in safe[-1].twists)
 
 
 def test_robots_stop_when_the_safety_node_dies(stack):
@@ -260,40 +266,32 @@ def test_late_poses_stop_robots_only_past_the_bound(stack):
     assert "more than pose_timeout" in log and "fresh poses again" in log, log
 
 
-def test_a_safety_node_armed_mid_run_filters_at_the_poses_it_was_handed_and_a_second_arm_changes_nothing(tmp_path):
+def test_a_safety_node_armed_mid_run_filters_at_the_poses_it_was_handed_and_a_second_arm_changes_nothing(lone_safety):
     """A safety node restarted mid-run (docs/faults.md) is armed with where the run stands: the client's next
     array goes out at once, filtered at the poses of the request (no poses message comes in lockstep until the
     testbed steps); arming it again for the same run resets nothing; poses that are not the run's robots' are
     refused. Unarmed, it reports no drop counts (a restarted node's would count the client's arrays into the run)."""
-    domain = unique_domain_id()
-    safety = NodeProcess("robotarium_safety.safety_node", domain, log_path=tmp_path / "safety.log")
-    probe = RosProbe(domain)
-    try:
-        safe = probe.collect(TwistArray, NS + "/cmd_safe")
-        reports = probe.collect(SafetyReport, NS + "/safety_report")
-        requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
-        connected(probe, requests)
-        requests.publish(command([0, 1], [0.1, 0.1], [0.0, 0.0], step=3))   # no run armed: dropped, not reported
-        arm = ArmSafety.Request(run_id="run_1", number_of_robots=2, real_time=False, token="tok", safety_key="key",
-                                poses_key="poses", step=5, x=[-0.5, 0.5], y=[0.0, 0.0], theta=[0.0, np.pi])
-        wrong = ArmSafety.Request(run_id="run_1", number_of_robots=2, token="tok", step=5, x=[0.0], y=[0.0], theta=[0.0])
-        refused = probe.call(ArmSafety, NS + "/safety/arm", wrong, resend=1.0)
-        assert not refused.success and "needs the poses of all 2 robots" in refused.message, refused.message
-        probe.spin_for(1.5)   # (a report of drop counts goes out at most once a second)
-        assert not reports, reports
-        step_6 = command([0, 1], [0.1, 0.1], [0.0, 0.0], step=6)
-        step_6.token = "tok"
-        armed = probe.call(ArmSafety, NS + "/safety/arm", arm, resend=1.0)
-        assert armed.success and not armed.already_armed and "from step 5 on" in armed.message, armed.message
-        requests.publish(step_6)
-        # (no simulator here: the node sends once lockstep_wait ran out waiting for its reader)
-        assert probe.spin_until(lambda: safe, 10), safety.output()
-        assert safe[-1].step == 6 and safe[-1].token == "key" and [t.linear.x for t in safe[-1].twists] == [0.1, 0.1]
-        again = probe.call(ArmSafety, NS + "/safety/arm", arm, resend=1.0)
-        assert again.success and again.already_armed, again.message
-        requests.publish(step_6)
-        probe.spin_for(1.0)
-        assert len(safe) == 1   # step 6 was forwarded already: the second arm reset nothing
-    finally:
-        probe.close()
-        safety.close()
+    safety, probe, safe, reports = lone_safety
+    requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
+    connected(probe, requests)
+    requests.publish(command([0, 1], [0.1, 0.1], [0.0, 0.0], step=3))   # no run armed: dropped, not reported
+    arm = ArmSafety.Request(run_id="run_1", number_of_robots=2, real_time=False, token="tok", safety_key="key",
+                            poses_key="poses", step=5, x=[-0.5, 0.5], y=[0.0, 0.0], theta=[0.0, np.pi])
+    wrong = ArmSafety.Request(run_id="run_1", number_of_robots=2, token="tok", step=5, x=[0.0], y=[0.0], theta=[0.0])
+    refused = probe.call(ArmSafety, NS + "/safety/arm", wrong, resend=1.0)
+    assert not refused.success and "needs the poses of all 2 robots" in refused.message, refused.message
+    probe.spin_for(1.5)   # (a report of drop counts goes out at most once a second)
+    assert not reports, reports
+    step_6 = command([0, 1], [0.1, 0.1], [0.0, 0.0], step=6)
+    step_6.token = "tok"
+    armed = probe.call(ArmSafety, NS + "/safety/arm", arm, resend=1.0)
+    assert armed.success and not armed.already_armed and "from step 5 on" in armed.message, armed.message
+    requests.publish(step_6)
+    # (no simulator here: the node sends once lockstep_wait ran out waiting for its reader)
+    assert probe.spin_until(lambda: safe, 10), safety.output()
+    assert safe[-1].step == 6 and safe[-1].token == "key" and [t.linear.x for t in safe[-1].twists] == [0.1, 0.1]
+    again = probe.call(ArmSafety, NS + "/safety/arm", arm, resend=1.0)
+    assert again.success and again.already_armed, again.message
+    requests.publish(step_6)
+    probe.spin_for(1.0)
+    assert len(safe) == 1   # step 6 was forwarded already: the second arm reset nothing
