@@ -550,8 +550,7 @@ class TestbedLink:
         if self.safety_restart is None:
             return list(self.safety_restarts)
         restart, step, _ = self.safety_restart
-        return self.safety_restarts + ["%s at step %d; the run ended before the testbed armed it again (the robots "
-                                       "stood still from then on)" % (restart.describe(), step)]
+        return self.safety_restarts + [restarts.not_armed_before_end(restart, step)]
 
     def _alive_here(self, who: str) -> bool:
         """Whether the process of node `who` (its claim) runs on this machine, neither stopped nor a zombie: a

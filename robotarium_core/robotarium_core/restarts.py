@@ -135,6 +135,12 @@ def went_on(restart, step, armed_at):
                                                                                          armed_at)
 
 
+def not_armed_before_end(restart, step):
+    """What a run says of a safety node restarted at `step` that the run ended before the testbed armed it again."""
+    return ("%s at step %d; the run ended before the testbed armed it again (the robots stood still from then on)"
+            % (restart.describe(), step))
+
+
 def ended_run(restart, step):
     """What ended a run that the restart of its simulator or safety node hit at `step` (or any node's give-up:
     `up` then stopped the whole testbed)."""
