@@ -154,6 +154,14 @@ def test_check_commands_finds_each_problem():
     assert model.check_commands(np.array([0, 1]), np.array([0.1, 0.1]), np.array([np.inf, 0.2]), 2) == "nonfinite"
 
 
+def test_dropped_arrays_are_described_by_what_each_reason_means():
+    """A late array of the script's own (stale) is said to be late, not called foreign or invalid."""
+    text = model.describe_drops({"foreign": 0, "stale": 1, "nonfinite": 2})
+    assert text == "1 stale (%s); 2 nonfinite (%s)" % (model.DROP_REASONS["stale"], model.DROP_REASONS["nonfinite"])
+    assert "filtered at poses the testbed has left" in text and "token" not in text
+    assert model.describe_drops(dict.fromkeys(model.DROP_REASONS, 0)) == ""
+
+
 @pytest.mark.parametrize("n", [1, 5, 20, 50])
 def test_random_initial_conditions_are_valid_and_seeded(n):
     a = model.random_initial_conditions(n, np.random.default_rng(3))

@@ -156,8 +156,7 @@ class Robotarium(RobotariumABC):
         info, link = self.run_info, self._link
         for name, counts in info.dropped.items():
             if any(counts.values()):
-                print("[robotarium] the testbed dropped command arrays on %s that were not this script's or not "
-                      "valid: %s" % (name, ", ".join("%d %s" % (n, reason) for reason, n in counts.items() if n)),
+                print("[robotarium] the testbed dropped command arrays on %s: %s" % (name, model.describe_drops(counts)),
                       file=sys.stderr)
         if info.stale_pose_stops:
             print("The safety node stopped the robots %d time(s) because the testbed's newest poses were older than "

@@ -277,6 +277,12 @@ DROP_REASONS = {
 }
 
 
+def describe_drops(counts: dict) -> str:
+    """{reason: count} of dropped arrays in words, each reason with what it means ("1 stale (not for the step
+    ...)"): a late array of the script's own is not a foreign one."""
+    return "; ".join("%d %s (%s)" % (n, reason, DROP_REASONS[reason]) for reason, n in counts.items() if n)
+
+
 def check_commands(ids: np.ndarray, v: np.ndarray, w: np.ndarray, number_of_robots: int) -> str | None:
     """Why an incoming command array must be dropped, or None if it is fine.
 
