@@ -96,23 +96,29 @@ def test_the_trajectory_plot_shows_every_robot_in_its_colour_and_the_goals(tmp_p
     assert count(faded_blue) > 100
 
 
-def test_headless_idle_draws_are_skipped_and_real_draws_are_not():
+@pytest.mark.parametrize("patched", ["before the script imports matplotlib", "after"])
+def test_headless_idle_draws_are_skipped_and_real_draws_are_not(patched):
     """./robotarium run without a display: a script's canvas.draw_idle() renders nothing (nobody
     sees an Agg canvas; ekf_experiment.py spent 4/5 of its time there), while draw() and
-    savefig() still render (their draw events counted). In a process of its own: it patches
-    matplotlib."""
+    savefig() still render (their draw events counted). The runner asks for it before the script
+    runs, which imports no matplotlib (a script with no figure never pays for it): the patch comes
+    with the script's own import. In a process of its own: it patches matplotlib."""
+    before = patched.startswith("before")
     code = (
-        "import io, matplotlib; matplotlib.use('Agg')\n"
-        "import matplotlib.pyplot as plt\n"
+        "import io, sys\n"
         "from robotarium_client.figure import skip_headless_idle_draws\n"
+        + ("skip_headless_idle_draws(); assert 'matplotlib' not in sys.modules, 'imported matplotlib'\n" if before else "")
+        + "import matplotlib; matplotlib.use('Agg')\n"
+        "import matplotlib.pyplot as plt\n"
         "fig, ax = plt.subplots(); ax.plot([0, 1], [0, 1])\n"
         "draws = []; fig.canvas.mpl_connect('draw_event', lambda e: draws.append(1))\n"
-        "fig.canvas.draw_idle(); before = len(draws)\n"
-        "skip_headless_idle_draws(); skip_headless_idle_draws()\n"
+        + ("" if before else "fig.canvas.draw_idle(); skip_headless_idle_draws(); skip_headless_idle_draws()\n")
+        + "first = len(draws)\n"
         "for _ in range(5): fig.canvas.draw_idle()\n"
-        "idle = len(draws) - before\n"
+        "idle = len(draws) - first\n"
         "fig.canvas.draw(); fig.savefig(io.BytesIO(), format='png')\n"
-        "print(before, idle, len(draws) - before - idle)\n")
+        "print(first, idle, len(draws) - first - idle)\n")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
-    assert done.stdout.split() == ["1", "0", "2"], done.stdout   # Agg rendered at once before; not after
+    # Agg rendered at once before the patch; not after
+    assert done.stdout.split() == ["0" if before else "1", "0", "2"], done.stdout
