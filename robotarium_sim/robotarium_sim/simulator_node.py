@@ -519,15 +519,18 @@ class SimulatorNode(Node):
 
     def wind_down(self, reason):
         """Stopping (a signal, or the process that started the testbed is gone: node_main.run_node):
-        end the running experiment as end_experiment does, and wait until its last statuses reached
-        every subscriber, so the recorder records the end and closes the run."""
+        end the running experiment as end_experiment does, and wait until the last statuses reached
+        every subscriber, so the recorder records the end and closes the run. Also when the run had
+        just ended otherwise: a client gone with `./robotarium run` (SIGKILL) ends its run a moment
+        before the lifeline says stop, and a process that leaves at once takes that IDLE status
+        along unsent (a whole-suite run: the bag's last status RUNNING)."""
         if self.testbed is not None:
             self.get_logger().warning("ending experiment %s: %s" % (self.run.run_id, reason))
             steps = self.testbed.steps
             self.end_experiment("the testbed stopped at step %d (%s)" % (steps, reason), outcome=outcomes.INTERRUPTED,
                                 detail="interrupted: the testbed was stopped at step %d (%s)" % (steps, reason))
-            self.status_stream_pub.wait_for_all_acked(Duration(seconds=1.0))
-            self.status_pub.wait_for_all_acked(Duration(seconds=0.2))
+        self.status_stream_pub.wait_for_all_acked(Duration(seconds=1.0))   # at once when nothing is unacknowledged
+        self.status_pub.wait_for_all_acked(Duration(seconds=0.2))
         return None
 
     # -- commands ----------------------------------------------------------------------------
