@@ -149,6 +149,21 @@ def _realtime_arrivals(track, by_step):
     return ticks, (sent, latest)
 
 
+def _likeliest_stale(commands, track, by_step, count):
+    """The `count` arrays of `commands` the simulator most likely dropped as stale (the testbed counts
+    them, the bag cannot tell which): those sent closest to, or after, the tick that made them too
+    late (the one that produced step s + 1 for an array marked s)."""
+    if count <= 0:
+        return commands
+    tick_of = {int(s): int(track.stamp_ns[i]) for s, i in by_step.items()}
+
+    def margin(c):
+        after = tick_of.get(c.step + 1)
+        return np.inf if after is None else after - (c.stamp_ns or c.log_ns)
+    late = set(sorted(range(len(commands)), key=lambda k: margin(commands[k]))[:count])
+    return [c for k, c in enumerate(commands) if k not in late]
+
+
 def _bag_count(counts, testbed_count):
     """One count from those the bag allows (by when arrays arrived): the testbed's where it lies
     among them (the bag confirms it), else the first (then _cross_check reports the difference)."""
@@ -202,10 +217,14 @@ def recompute(bag, run=None):
     actuator = 0
     if settings["mode"] == "realtime":
         ticks, arrivals = _realtime_arrivals(track, by_step)
+        # Arrays that came too late (a tick after the poses they were filtered at) were dropped as stale: the
+        # testbed counts them (a loaded machine's safety node), the bag holds them; without them too.
+        stale = (_dropped(settings["final"]).get("cmd_safe") or {}).get("stale", 0) if settings["final"] else 0
+        applied = [commands] + ([_likeliest_stale(commands, track, by_step, stale)] if stale else [])
         actuator = _bag_count(
             [sum(model.is_actuator_limit_iteration(velocities, requested_over, **config.limits)
                  for velocities, requested_over in _commands_in_force_realtime(
-                     commands, n, ticks, config.command_timeout, arrival)) for arrival in arrivals],
+                     these, n, ticks, config.command_timeout, arrival)) for these in applied for arrival in arrivals],
             _final_count(settings, "actuator_limit_iterations"))
     else:
         applied = 0
