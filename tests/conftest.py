@@ -41,6 +41,13 @@ def pytest_sessionstart(session):
         shm.remove_unused()
 
 
+def pytest_sessionfinish(session, exitstatus):
+    """A process that left a participant Fast DDS deadlocked behind (dds_health.close_unless_stuck)
+    leaves without DDS's teardown, with pytest's own exit status."""
+    from robotarium_core import dds_health
+    dds_health.exit_status = int(exitstatus)
+
+
 def pytest_collection_modifyitems(items):
     """A test without a layer marker is a unit test (pytest.ini lists the layers)."""
     for item in items:

@@ -69,7 +69,7 @@ def wait_moving(fleet, robots, env, timeout=60.0):
         return probe.spin_until(lambda: status and status[-1] == TestbedStatus.STATE_RUNNING and np.all(
             np.abs(fleet.world.read()[robots, V]) > 0.05), timeout)
     finally:
-        probe.node.destroy_node()
+        probe.close()
 
 
 def stop_time(fleet, robots, since, timeout=3.0):
@@ -165,7 +165,7 @@ def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
         response = probe.call(StartExperiment, "/robotarium/start_experiment",
                               StartExperiment.Request(name="too_many", number_of_robots=ROBOTS + 1, real_time=True))
     finally:
-        probe.node.destroy_node()
+        probe.close()
     assert not response.success
     assert "asks for %d robots, but only %d" % (ROBOTS + 1, ROBOTS) in response.message, response.message
     assert all("r%d" % k in response.message for k in range(ROBOTS)), response.message
@@ -175,7 +175,7 @@ def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
         response = probe.call(StartExperiment, "/robotarium/start_experiment",
                               StartExperiment.Request(name="fewer", number_of_robots=ROBOTS - 1, real_time=True))
     finally:
-        probe.node.destroy_node()
+        probe.close()
     assert not response.success and "r%d of fleet simulated stand in the arena" % (ROBOTS - 1) in response.message, \
         response.message
 
@@ -240,7 +240,7 @@ def test_a_hidden_tag_stops_every_robot(fleet_testbed):
         assert stopped <= 0.2, "robots stood %.3f s after r1's tag was first hidden:\n%s" % (stopped, out)
         assert code != 0 and "robot r1 lost tracking at step" in out, out
     finally:
-        probe.node.destroy_node()
+        probe.close()
 
 
 @pytest.mark.tracking("camera", **RELAXED)

@@ -28,6 +28,7 @@ from std_msgs.msg import String
 from robotarium_bringup import local_testbeds
 from robotarium_core import claim, lifeline, presence, restarts
 from robotarium_core.config import DEFAULT, DEFAULT_FILE
+from robotarium_core.dds_health import close_unless_stuck
 from robotarium_core.dds_settings import init_context
 from robotarium_core.discovery import wait_for_quiet_discovery, wait_for_service
 from robotarium_core.topics import (
@@ -393,9 +394,12 @@ def close_probe_contexts():
     """Tear down the probe contexts (for a long-lived process that leaves a domain, such as the tests)."""
     while _probe_contexts:
         _, (context, anchor) = _probe_contexts.popitem()
-        wait_for_quiet_discovery(anchor)   # the participant goes with the anchor
-        anchor.destroy_node()
-        rclpy.try_shutdown(context=context)
+
+        def close(context=context, anchor=anchor):
+            anchor.destroy_node()   # the participant goes with the anchor
+            rclpy.try_shutdown(context=context)
+        close_unless_stuck(close, "the probe context of %s" % anchor.get_name(),   # not for ever in a deadlock
+                           settle=lambda anchor=anchor: wait_for_quiet_discovery(anchor))
 
 
 @contextlib.contextmanager

@@ -2,10 +2,15 @@
 shared-memory port Fast DDS deleted under its listener (SharedMemoryPortWatch, under a user's own
 profile), and a participant deadlocked inside (DdsStallWatch, under ours). Each is read from /proc
 and handed to node_main.run_node by the node (fast_dds_watchdogs()); a node that finds one starts
-afresh in the same process. The faults, as seen and as tested: docs/faults.md.
+afresh in the same process. A process that is no node (the tests, with their probes) closes its DDS
+entities with close_unless_stuck, which leaves a deadlocked participant where it is rather than wait
+for it for ever. The faults, as seen and as tested: docs/faults.md.
 """
+import atexit
+import faulthandler
 import os
 import re
+import sys
 import time
 
 from robotarium_core.dds_settings import profile_is_ours
@@ -164,3 +169,78 @@ def fast_dds_watchdogs():
     Only a user's own profile brings the shared-memory transport back (ours has no port to lose);
     ours has the event thread announce every 0.2 s, and only then is 5 s without it running a stall."""
     return [DdsStallWatch()] if profile_is_ours() else [SharedMemoryPortWatch()]
+
+
+# -- closing where Fast DDS may be deadlocked -------------------------------------------------------
+# Destroying a node, a publisher or a context waits for the participant's event thread (every timer
+# is unregistered there), inside rclpy's C++ and holding the GIL. When that thread is caught in Fast DDS
+# 2.14's own deadlock (a receive thread removing a leaving participant's writer holds the discovery
+# mutex and waits for the event thread, which waits for that mutex: eProsima/Fast-DDS#6502), the destroy
+# waits for ever, and nothing else of the process's Python runs: a test whose probe closed just after a
+# testbed stopped hung its pytest worker, and with it the whole suite (2026-11-30). A node starts afresh
+# (node_main); a process that is no node looks first, and leaves a stuck participant where it is.
+
+SETTLED_AT_LEAST = 0.1   # s an event thread must stay blocked, unmoved, to count as stuck
+CLOSE_LIMIT = 120.0      # s a close that got stuck after the look may take before the process ends itself
+_FUTEX = "202"           # x86-64's futex syscall, as /proc/<pid>/task/<tid>/syscall shows it
+
+abandoned = []      # what close_unless_stuck left stuck: this process leaves without DDS's teardown
+exit_status = 1     # what it then exits with (os._exit skips sys.exit's); the tests' conftest sets pytest's
+_stuck_threads = set()
+
+
+def _blocked_for_good(tid):
+    """(how, context switches) where this process's thread `tid` cannot run by itself: waiting in a futex
+    with no deadline (a lock, or a condition with no timeout: an idle event thread always has one), or
+    stopped (a debugger, ptrace); None where it runs or waits with a deadline."""
+    state = _task_file(tid, "stat")
+    syscall = (_task_file(tid, "syscall") or "").split()
+    if state is None:
+        return None
+    stopped = state.rsplit(")", 1)[-1].split()[:1] in (["t"], ["T"])
+    if not stopped and not (syscall[:1] == [_FUTEX] and len(syscall) > 4 and int(syscall[4], 16) == 0):
+        return None
+    return ("stopped" if stopped else "futex %s" % syscall[1]), context_switches(tid)
+
+
+def close_unless_stuck(close, what, settle=None):
+    """settle() (e.g. a wait for quiet discovery), then close() (it destroys DDS entities: nodes, a
+    context), unless a Fast DDS event thread of this process stayed blocked for good all the while
+    (_blocked_for_good, unmoved: a deadlock inside Fast DDS), for which close() would wait for ever:
+    then close() is not called, a line on stderr names `what`, and the process will exit without
+    tearing DDS down (which would wait for the same thread). A deadlock that begins during close()
+    itself ends the process after CLOSE_LIMIT, its threads' tracebacks on stderr (faulthandler), rather
+    than hang it. Returns True when closed, False when left."""
+    began = time.monotonic()
+    before = {tid: _blocked_for_good(tid) for tid in dds_event_threads()}
+    if settle is not None:
+        settle()
+    time.sleep(max(0.0, SETTLED_AT_LEAST - (time.monotonic() - began)))
+    stuck = [(tid, name) for tid, name in dds_event_threads().items()
+             if tid not in _stuck_threads and before.get(tid) is not None and _blocked_for_good(tid) == before[tid]]
+    if stuck:
+        _stuck_threads.update(tid for tid, _ in stuck)
+        if not abandoned:
+            atexit.register(_exit_without_dds_teardown)
+        abandoned.append(what)
+        print("[robotarium] Fast DDS stopped in this process (%s blocked for good: a deadlock inside Fast DDS, "
+              "docs/faults.md): %s is left as it is, and the process will exit without tearing DDS down" % (
+                  ", ".join("%s (thread %d)" % (name, tid) for tid, name in stuck), what), file=sys.stderr, flush=True)
+        return False
+    faulthandler.dump_traceback_later(CLOSE_LIMIT, exit=True)
+    try:
+        close()
+    finally:
+        faulthandler.cancel_dump_traceback_later()
+    return True
+
+
+def _exit_without_dds_teardown():
+    """At exit (atexit runs before Python tears objects down and before the C++ destructors): leave
+    at once, as a participant that is stuck would hold either for ever."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(exit_status)

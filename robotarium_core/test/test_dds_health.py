@@ -61,3 +61,37 @@ def test_a_gap_in_the_checks_counts_for_nothing():
         assert second is None or "dds.ev.gap" not in second, second   # 0.3 s of checks: not yet
     finally:
         release.set()
+
+
+def test_close_unless_stuck_leaves_a_close_that_would_wait_for_a_thread_blocked_for_good():
+    """A thread waiting in a lock with no deadline (as Fast DDS's deadlocked event thread waits) is blocked
+    for good; one waiting with a deadline (as an idle event thread always does) is not. close_unless_stuck
+    does not call a close that would wait for the first (it says so and returns False), and calls it while
+    only the second is there."""
+    lock, release = threading.Lock(), threading.Event()
+    lock.acquire()
+    named_thread("dds.ev.timed", lambda: release.wait(30))   # a wait with a deadline
+    closed, blocked, tids = [], None, {}
+    try:
+        assert dds_health.close_unless_stuck(lambda: closed.append(1), "a free close") is True and closed == [1]
+        blocked = named_thread("dds.ev.locked", lock.acquire)   # a lock nothing releases: no deadline
+        time.sleep(0.1)
+        tids = {name: tid for tid, name in dds_health.dds_event_threads().items()}
+        assert dds_health._blocked_for_good(tids["dds.ev.locked"]) is not None
+        assert dds_health._blocked_for_good(tids["dds.ev.timed"]) is None
+        abandoned, registered = list(dds_health.abandoned), []
+        real_register = dds_health.atexit.register
+        dds_health.atexit.register = registered.append   # (this test process must not exit without its teardown)
+        try:
+            assert dds_health.close_unless_stuck(lambda: closed.append(2), "a stuck close") is False
+        finally:
+            dds_health.atexit.register = real_register
+        assert closed == [1] and dds_health.abandoned[len(abandoned):] == ["a stuck close"]
+        assert registered or abandoned   # the exit without DDS's teardown is arranged once
+    finally:
+        release.set()
+        lock.release()
+        if blocked is not None:
+            blocked.join(5)
+        del dds_health.abandoned[:]
+        dds_health._stuck_threads.discard(tids.get("dds.ev.locked"))
