@@ -227,11 +227,16 @@ def close_unless_stuck(close, what, settle=None):
               "docs/faults.md): %s is left as it is, and the process will exit without tearing DDS down" % (
                   ", ".join("%s (thread %d)" % (name, tid) for tid, name in stuck), what), file=sys.stderr, flush=True)
         return False
-    faulthandler.dump_traceback_later(CLOSE_LIMIT, exit=True)
+    try:   # (a file descriptor it can write to: a test's capsys gives stderr none)
+        faulthandler.dump_traceback_later(CLOSE_LIMIT, exit=True, file=sys.__stderr__)
+        armed = True
+    except (AttributeError, ValueError, OSError):
+        armed = False
     try:
         close()
     finally:
-        faulthandler.cancel_dump_traceback_later()
+        if armed:
+            faulthandler.cancel_dump_traceback_later()
     return True
 
 
