@@ -9,6 +9,7 @@ for it for ever. The faults, as seen and as tested: docs/faults.md.
 import atexit
 import faulthandler
 import os
+import platform
 import re
 import sys
 import time
@@ -182,7 +183,8 @@ def fast_dds_watchdogs():
 
 SETTLED_AT_LEAST = 0.1   # s an event thread must stay blocked, unmoved, to count as stuck
 CLOSE_LIMIT = 120.0      # s a close that got stuck after the look may take before the process ends itself
-_FUTEX = "202"           # x86-64's futex syscall, as /proc/<pid>/task/<tid>/syscall shows it
+# the futex syscall's number, as /proc/<pid>/task/<tid>/syscall shows it (elsewhere only a stopped thread is seen)
+_FUTEX = {"x86_64": "202", "aarch64": "98"}.get(platform.machine())
 
 abandoned = []      # what close_unless_stuck left stuck: this process leaves without DDS's teardown
 exit_status = 1     # what it then exits with (os._exit skips sys.exit's); the tests' conftest sets pytest's
