@@ -57,6 +57,15 @@ def pytest_collection_modifyitems(items):
 
 def pytest_configure(config):
     config.pluginmanager.register(_Schedule(), "robotarium-schedule")
+    # Each worker keeps every ROS_DOMAIN_ID it drew (robotarium_bringup.domains): one that finds all 101 held
+    # takes back one of its own that no process runs on any more, rather than fail.
+    from robotarium_bringup import domains
+    domains.reusable = _nothing_runs_on
+
+
+def _nothing_runs_on(domain):
+    from devtools.rosutil import processes_on_domain
+    return not processes_on_domain(domain)
 
 
 class _Schedule:

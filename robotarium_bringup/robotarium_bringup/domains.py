@@ -13,11 +13,15 @@ import tempfile
 # held with an exclusive lock
 # on a file until this process exits, so no two processes on this machine (two pytest runs, a
 # benchmark, another checkout's tests) ever share a domain, and no test of this process gets a
-# domain an earlier test used (a module's testbed may still be running on it).
+# domain an earlier test used (a module's testbed may still be running on it) while another is free.
 _DOMAIN_LOCKS = os.path.join(tempfile.gettempdir(), "robotarium-domains")
 _MAX_DOMAIN_ID = 101
-_held = []        # lock file descriptors, closed (released) when the process exits
+_held = {}        # domain -> its lock file's descriptor, in the order drawn; closed when the process exits
 _cursor = [None]  # where the next search starts: after the last domain handed out
+# When every domain is held: whether a domain this process drew earlier may be handed out again (nothing
+# runs on it any more). The tests set it (tests/conftest.py): one whole suite's three workers drew up to N of
+# the 101, each keeping all of its own; None: never, the search fails.
+reusable = None
 
 
 def unique_domain_id():
@@ -33,7 +37,11 @@ def unique_domain_id():
         except BlockingIOError:   # held by another process, or by this one already
             os.close(fd)
             continue
-        _held.append(fd)
+        _held[candidate] = fd
         _cursor[0] = candidate   # 1 + candidate % N is the next one tried
         return candidate
+    for domain in list(_held) if reusable is not None else ():   # the earliest drawn first
+        if reusable(domain):
+            _held[domain] = _held.pop(domain)   # (now the newest drawn)
+            return domain
     raise RuntimeError("every ROS_DOMAIN_ID 1..%d is held by a process on this machine" % _MAX_DOMAIN_ID)
