@@ -72,6 +72,7 @@ SAFETY_WAIT_SETTLED = 2.0   # s it waits when the simulator has run longer than 
 ARM_RESEND = 1.0            # s before an unanswered ArmSafety request is sent again
 REARM_POLL = 0.1            # s between looks at a re-arm that is due (a safety node back during a run)
 REPORT_WAIT = 3.0           # s an end waits for the safety node's reports of the arrays already applied
+ENDED_JUST_NOW = 5.0        # s after a run's end in which stopping still waits for its IDLE status to be acknowledged
 CLIENT_DISCOVERY_WAIT = 10.0  # s after a start for the client's presence to appear before it counts as lost
 
 
@@ -134,6 +135,7 @@ class SimulatorNode(Node):
             low=0.0, high=60.0)
         self.testbed = None          # the running experiment's model (None: idle)
         self.run = Experiment()      # the running experiment, or the last one (how it ended)
+        self._ended_at = -np.inf     # monotonic time the last experiment ended (wind_down)
         self.run_ids = RunIds()
         self.recording = ""
         self._tick_timer = None
@@ -509,6 +511,7 @@ class SimulatorNode(Node):
         self.run.token = self.run.safety_key = self.run.poses_key = ""
         self.run.outcome, self.run.outcome_detail = outcome, detail
         self.publish_status()   # IDLE, with who ended the run and how it ended
+        self._ended_at = time.monotonic()
         self.disarm_safety()
         self.get_logger().info(response.message)
         return response
@@ -523,14 +526,16 @@ class SimulatorNode(Node):
         every subscriber, so the recorder records the end and closes the run. Also when the run had
         just ended otherwise: a client gone with `./robotarium run` (SIGKILL) ends its run a moment
         before the lifeline says stop, and a process that leaves at once takes that IDLE status
-        along unsent (a whole-suite run: the bag's last status RUNNING)."""
+        along unsent (a whole-suite run: the bag's last status RUNNING). Not after a run long over:
+        a reader that no longer answers (a killed client's, not yet unmatched) would cost the wait."""
         if self.testbed is not None:
             self.get_logger().warning("ending experiment %s: %s" % (self.run.run_id, reason))
             steps = self.testbed.steps
             self.end_experiment("the testbed stopped at step %d (%s)" % (steps, reason), outcome=outcomes.INTERRUPTED,
                                 detail="interrupted: the testbed was stopped at step %d (%s)" % (steps, reason))
-        self.status_stream_pub.wait_for_all_acked(Duration(seconds=1.0))   # at once when nothing is unacknowledged
-        self.status_pub.wait_for_all_acked(Duration(seconds=0.2))
+        if time.monotonic() - self._ended_at < ENDED_JUST_NOW:
+            self.status_stream_pub.wait_for_all_acked(Duration(seconds=1.0))
+            self.status_pub.wait_for_all_acked(Duration(seconds=0.2))
         return None
 
     # -- commands ----------------------------------------------------------------------------
