@@ -19,7 +19,7 @@ _MAX_DOMAIN_ID = 101
 _held = {}        # domain -> its lock file's descriptor, in the order drawn; closed when the process exits
 _cursor = [None]  # where the next search starts: after the last domain handed out
 # When every domain is held: whether a domain this process drew earlier may be handed out again (nothing
-# runs on it any more). The tests set it (tests/conftest.py): one whole suite's three workers drew up to N of
+# runs on it any more). The tests set it (tests/conftest.py): one whole suite's three workers held up to 87 of
 # the 101, each keeping all of its own; None: never, the search fails.
 reusable = None
 
