@@ -72,7 +72,10 @@ SAFETY_WAIT_SETTLED = 2.0   # s it waits when the simulator has run longer than 
 ARM_RESEND = 1.0            # s before an unanswered ArmSafety request is sent again
 REARM_POLL = 0.1            # s between looks at a re-arm that is due (a safety node back during a run)
 REPORT_WAIT = 3.0           # s an end waits for the safety node's reports of the arrays already applied
-ENDED_JUST_NOW = 5.0        # s after a run's end in which stopping still waits for its IDLE status to be acknowledged
+# s after a run's end in which stopping still waits for its IDLE status to be acknowledged: a run ended by its
+# client as the lifeline fires ends ms before the stop; after a script that exited (`run` stops its testbed once
+# the script's process is gone, 0.3 s or more) a reader of it not yet unmatched would never answer
+ENDED_JUST_NOW = 0.5
 CLIENT_DISCOVERY_WAIT = 10.0  # s after a start for the client's presence to appear before it counts as lost
 
 
