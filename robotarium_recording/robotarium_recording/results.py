@@ -130,6 +130,16 @@ def _commands_in_force_realtime(commands, n, tick_ns, timeout, arrival):
         yield velocities, flag
 
 
+def _tick_stamps(track, by_step):
+    """{step: stamp (ns) of the tick that produced its poses}."""
+    return {int(s): int(track.stamp_ns[i]) for s, i in by_step.items()}
+
+
+def _sent(command):
+    """When a command array was sent (its stamp; where it has none, when it was recorded)."""
+    return command.stamp_ns or command.log_ns
+
+
 def _realtime_arrivals(track, by_step):
     """Real time: the bag knows when an array was sent (its stamp), not when it reached the
     simulator, which applies it at the next tick and times it out `command_timeout` after it came.
@@ -137,16 +147,13 @@ def _realtime_arrivals(track, by_step):
     came at the earliest when it was sent and at the latest just before the tick that produced step
     s + 1: on a loaded machine a tick either way. Returns (ticks, (earliest, latest)): the tick
     stamps of steps 1.. and the two arrival-time functions."""
-    tick_of = {int(s): int(track.stamp_ns[i]) for s, i in by_step.items()}
+    tick_of = _tick_stamps(track, by_step)
     ticks = [tick_of[s] for s in sorted(tick_of) if s >= 1]
-
-    def sent(c):
-        return c.stamp_ns or c.log_ns
 
     def latest(c):
         after = tick_of.get(c.step + 1)
-        return sent(c) if after is None else max(sent(c), after - 1)
-    return ticks, (sent, latest)
+        return _sent(c) if after is None else max(_sent(c), after - 1)
+    return ticks, (_sent, latest)
 
 
 def _likeliest_stale(commands, track, by_step, count):
@@ -155,11 +162,11 @@ def _likeliest_stale(commands, track, by_step, count):
     late (the one that produced step s + 1 for an array marked s)."""
     if count <= 0:
         return commands
-    tick_of = {int(s): int(track.stamp_ns[i]) for s, i in by_step.items()}
+    tick_of = _tick_stamps(track, by_step)
 
     def margin(c):
         after = tick_of.get(c.step + 1)
-        return np.inf if after is None else after - (c.stamp_ns or c.log_ns)
+        return np.inf if after is None else after - _sent(c)
     late = set(sorted(range(len(commands)), key=lambda k: margin(commands[k]))[:count])
     return [c for k, c in enumerate(commands) if k not in late]
 
