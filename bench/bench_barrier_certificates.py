@@ -21,6 +21,7 @@ import time
 import numpy as np
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(REPO, "tests"))   # the dense QP the certificates are checked against
 
 import test_barrier_dense_qp as dense  # noqa: E402
 

@@ -57,9 +57,10 @@ def wall(argv):
     from bench_wall_to_prompt import SCRIPT, Up, timed
 
     from devtools.reference import REFERENCE_PYTHON, _reference_env
-    parser = argparse.ArgumentParser(prog="bench verify --wall")
-    parser.add_argument("--repeat", type=int, default=5)
-    parser.add_argument("--baseline", metavar="CHECKOUT")
+    parser = argparse.ArgumentParser(prog="./robotarium bench verify --wall",
+                                     description="A verdict in seconds (issue 40, goal 2): see ./robotarium bench verify --help.")
+    parser.add_argument("--repeat", type=int, default=5, help="runs of each row, interleaved (the median is shown)")
+    parser.add_argument("--baseline", metavar="CHECKOUT", help="also time that checkout's ./robotarium verify")
     args = parser.parse_args(argv)
     print("a verdict in seconds, %s, %s, %d cores, Python %s, load average %.2f %.2f %.2f" % (
         time.strftime("%Y-%m-%d %H:%M"), platform.machine(), os.cpu_count(), platform.python_version(),
@@ -132,7 +133,15 @@ def wall(argv):
 def main(argv):
     if argv[:1] == ["--wall"]:
         return wall(argv[1:])
-    cases = argv or CASES
+    import argparse
+    parser = argparse.ArgumentParser(prog="./robotarium bench verify", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("cases", nargs="*", metavar="SCRIPT[:NAME=VALUE]",
+                        help="scripts (in tests/data/ unless absolute), a module constant to set after the colon "
+                             "(default: %s)" % " ".join(CASES))
+    parser.add_argument("--wall", action="store_true",
+                        help="the wall-time table instead (first argument; its options: --wall --help)")
+    cases = parser.parse_args(argv).cases or CASES
     env = node_env(unique_domain_id())
     print("verdicts, %s, %s, %d cores, load average %.1f" % (time.strftime("%Y-%m-%d %H:%M"), platform.machine(),
                                                             os.cpu_count(), os.getloadavg()[0]))

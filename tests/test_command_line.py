@@ -44,6 +44,14 @@ def test_every_command_has_help(capsys):
         assert "usage" in capsys.readouterr().out, command
 
 
+@pytest.mark.parametrize("bench", sorted(name[len("bench_"):-len(".py")] for name in os.listdir(os.path.join(REPO, "bench"))
+                                          if name.startswith("bench_") and name.endswith(".py")))
+def test_every_benchmark_has_help_and_starts_nothing_with_it(bench):
+    """`./robotarium bench verify --help` took --help for a script and began its runs (2026-11-30)."""
+    completed = robotarium("bench", bench, "--help", timeout=60)
+    assert completed.returncode == 0 and completed.stdout.lower().startswith("usage:"), completed.stdout
+
+
 def test_a_command_loads_its_own_verb_only():
     """`./robotarium verify ...` builds verify's parser alone: the other verbs' modules (the Foxglove view's,
     the simulated fleet's) are not imported on its way to the script (~0.1 s of every command's start)."""
