@@ -8,10 +8,16 @@ import runpy
 import sys
 import time
 
+USAGE = "usage: python devtools/cpu_profile.py OUTPUT -m MODULE [ARGS...]"
+
 
 def main():
-    output, flag, module, *rest = sys.argv[1:]
-    assert flag == "-m", "usage: cpu_profile.py OUTPUT -m MODULE [ARGS...]"
+    if sys.argv[1:2] in (["-h"], ["--help"]):
+        print(USAGE + "\n\n" + __doc__.split("Run:")[0].strip())
+        return
+    if len(sys.argv) < 4 or sys.argv[2] != "-m":
+        sys.exit(USAGE)
+    output, _, module, *rest = sys.argv[1:]
     sys.argv = [module] + rest
     profile = cProfile.Profile(time.thread_time)
     profile.enable()
