@@ -85,8 +85,8 @@ class Fleet:
     tracking: str = "mocap"
     lost_after: float = 0.06       # s without a pose before a robot counts as not tracked: 7 frames of a
                                    # 120 Hz motion capture (a camera's fleet: 0.15, 4.5 frames at 30 Hz)
-    lost_behind: float = 0.05      # s a robot's newest pose may lag the fleet's newest: a 30 Hz camera's robot
-                                   # missing from 2 frames in a row (1 is forgiven) while the others are seen
+    lost_behind: float = 0.05      # s a robot may be missing from frames the others are in, counted in frames
+                                   # at their usual interval: at 30 Hz 2 frames in a row (1 is forgiven)
     answer_timeout: float = 0.1    # s: 5 messages of a 50 Hz odometry
     drive_on_position_error: float = 0.03   # m: the drive-on phase ends when every robot is this close to its
     drive_on_rotation_error: float = 0.05   # rad ... and its heading this close: tighter than the simulator's 2.x

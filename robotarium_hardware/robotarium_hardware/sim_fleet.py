@@ -52,7 +52,7 @@ def fleet_of(number, tracking):
                    for k in range(number))
     latency = robot_node.COMMAND_LATENCY + robot_node.COMMAND_JITTER
     if tracking == "camera":
-        # 30 Hz frames: a robot missing from one frame (taken up to 60 ms after the one before) is forgiven, from two not
+        # 30 Hz frames: a robot missing from one frame is forgiven, from two in a row not (tracking.Roster counts frames)
         return fleets.Fleet(robots=robots, name="simulated", tracking="camera", lost_after=0.15, lost_behind=0.06,
                             answer_timeout=0.06, command_latency=latency, tracking_latency=0.05)
     return fleets.Fleet(robots=robots, name="simulated", tracking="mocap", lost_after=0.06, answer_timeout=0.06,

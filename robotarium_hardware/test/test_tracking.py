@@ -126,3 +126,28 @@ def test_a_frame_still_arriving_puts_nobody_behind():
     for k in range(5, 11):   # all but r11 have it
         roster.pose(k, 0.3 * k - 1.5, 0.0, 0.0, now=1.07, stamp=10.06)
     assert roster.faults(np.arange(12), now=1.08) == ["robot r11 lost tracking"]
+
+
+def test_a_robot_missing_from_frames_is_judged_by_the_frames_it_missed_not_by_their_jitter():
+    """A camera at 30 Hz on a loaded machine takes its frames 26-40 ms apart. A robot missing from two frames in a
+    row is lost even where they came 55 ms after its last (by the lag alone it would wait for a third: the stop
+    came a frame late); one missing from a single frame that came 65 ms after the one before is not."""
+    fleet = fleets.from_dict({"robots": ["r0", "r1", "r2", "r3"], "lost_after": 0.15, "lost_behind": 0.06})
+    run = np.arange(4)
+
+    def frame(stamp, robots):
+        for k in robots:
+            roster.pose(k, 0.3 * k - 0.5, 0.0, 0.0, now=stamp + 0.02, stamp=stamp)
+        return roster.faults(run, now=stamp + 0.03)
+
+    roster = Roster(fleet)
+    for n in range(10):   # the usual interval: 1/30 s
+        assert frame(10.0 + n / 30, run) == []
+    last = 10.0 + 9 / 30
+    assert frame(last + 0.030, [0, 2, 3]) == []                              # r1 missed one frame: forgiven
+    assert frame(last + 0.055, [0, 2, 3]) == ["robot r1 lost tracking"]      # two in a row: lost, 55 ms behind
+    roster = Roster(fleet)
+    for n in range(10):
+        frame(10.0 + n / 30, run)
+    assert frame(last + 0.065, [0, 2, 3]) == []                              # one late frame missed: forgiven
+    assert frame(last + 0.095, run) == []                                    # and seen again
