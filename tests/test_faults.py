@@ -46,6 +46,12 @@ NODES = {"simulator": "robotarium_sim.simulator_node", "safety": "robotarium_saf
 SLACK = 3.0
 
 
+def ready(node):
+    """Whether a node's process says it is ready, not starting afresh since (its log; node_main.run_node)."""
+    said = [line for line in node.output().splitlines() if " ready" in line or "afresh" in line or "restarting:" in line]
+    return bool(said) and " ready" in said[-1]
+
+
 class Lab:
     """One testbed on a domain of its own, a probe on it, and this process's clients joined to it."""
 
@@ -65,7 +71,10 @@ class Lab:
         self.probe.wait_for_publishers(60)
 
     def start(self, name, **env):
-        args = ["-p", "bags_dir:=%s" % self.bags] if name == "recorder" else []
+        # as ./robotarium up runs them: the simulator's starts wait for the recorder's readers even where its graph
+        # does not show the recorder yet (a simulator restarted in place on a user's own Fast DDS profile, announcing
+        # at Fast DDS's default pace, began a run before it and the recorder had met: not recorded, a whole suite)
+        args = {"recorder": ["-p", "bags_dir:=%s" % self.bags], "simulator": ["-p", "wait_for_recorder:=true"]}.get(name, [])
         self.nodes[name] = NodeProcess(NODES[name], self.domain, ros_args=args, env=node_env(self.domain, **env) if env else None,
                                        log_path=self.tmp / ("%s_%d.log" % (name, time.time_ns())))
 
@@ -82,7 +91,10 @@ class Lab:
             if not node.alive():
                 node.close()
                 self.start(name)
-        if not self.probe.spin_until(lambda: all(w.alive for w in self.watches.values()), 60):
+        # each node's own process ready too: a watch still holds the presence of a process closed a moment ago for
+        # its lease (a test that found no Fast DDS thread in a safety node started just before)
+        if not self.probe.spin_until(lambda: all(w.alive for w in self.watches.values())
+                                     and all(map(ready, self.nodes.values())), 60):
             stuck = {name: w.alive for name, w in self.watches.items()}
             stacks = "".join("\n%s (%s):\n%s" % (name, "alive" if node.alive() else "exited", node.stacks()[-6000:])
                              for name, node in self.nodes.items() if not stuck[name])
