@@ -270,7 +270,8 @@ def test_a_safety_node_armed_mid_run_filters_at_the_poses_it_was_handed_and_a_se
     """A safety node restarted mid-run (docs/faults.md) is armed with where the run stands: the client's next
     array goes out at once, filtered at the poses of the request (no poses message comes in lockstep until the
     testbed steps); arming it again for the same run resets nothing; poses that are not the run's robots' are
-    refused. Unarmed, it reports no drop counts (a restarted node's would count the client's arrays into the run)."""
+    refused; asked again before any array went through (its answer lost), it is armed again. Unarmed, it reports no drop
+    counts (a restarted node's would count the client's arrays into the run)."""
     safety, probe, safe, reports = lone_safety
     requests = probe.node.create_publisher(TwistArray, NS + "/cmd_requested", TESTBED_QOS)
     connected(probe, requests)
@@ -286,6 +287,9 @@ def test_a_safety_node_armed_mid_run_filters_at_the_poses_it_was_handed_and_a_se
     step_6.token = "tok"
     armed = probe.call(ArmSafety, NS + "/safety/arm", arm, resend=1.0)
     assert armed.success and not armed.already_armed and "from step 5 on" in armed.message, armed.message
+    # asked again before any array went through (the simulator's resend: it never heard the first answer): armed
+    again = probe.call(ArmSafety, NS + "/safety/arm", arm, resend=1.0)
+    assert again.success and not again.already_armed and "from step 5 on" in again.message, again.message
     requests.publish(step_6)
     # (no simulator here: the node sends once lockstep_wait ran out waiting for its reader)
     assert probe.spin_until(lambda: safe, 10), safety.output()

@@ -66,6 +66,7 @@ class SafetyNode(Node):
         self.commands = None         # 2 x N, the current requested command of every robot
         self.guard = Guard(True, c.lockstep_wait, c.command_timeout)   # what is forwarded, at which poses (issue 22)
         self.last_step = 0           # the last step forwarded
+        self.forwarded = 0           # the client's arrays forwarded since the node was armed
         self.held = deque()          # (request, received) commands waiting for the simulator to match cmd_safe
         self._simulator_matched = (False, -1)   # (matched, our writer's match count when last checked)
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
@@ -105,12 +106,16 @@ class SafetyNode(Node):
         if request.run_id and request.number_of_robots < 1:
             response.message = "an experiment needs at least one robot."
             return response
-        if request.run_id and (request.run_id, request.token) == (self.armed.run_id, self.armed.token):
+        mid_run = bool(len(request.x) or len(request.y) or len(request.theta))   # (step 0 too: before the first step)
+        if request.run_id and (request.run_id, request.token) == (self.armed.run_id, self.armed.token) and not (
+                mid_run and len(self.armed.x) and not self.forwarded):
             response.success = response.already_armed = True
             response.message = "guarding %s already" % request.run_id
             return response
+        # (Armed mid-run and asked again before any array went through: the simulator never heard the answer; a
+        # restarted node's first answers can go out before its writer matched the simulator's reader, "failed to
+        # send response", and the run waited 30 s for a re-arm that had happened. Armed again, where the run is now.)
         n = request.number_of_robots if request.run_id else 0
-        mid_run = bool(len(request.x) or len(request.y) or len(request.theta))   # (step 0 too: before the first step)
         if mid_run and not len(request.x) == len(request.y) == len(request.theta) == n:
             response.message = "a re-arm at step %d needs the poses of all %d robots." % (request.step, n)
             return response
@@ -122,7 +127,7 @@ class SafetyNode(Node):
         self.commands = np.zeros((2, n))   # nobody has a command yet
         self.guard = Guard(bool(request.real_time), self.config.lockstep_wait, self.config.command_timeout)
         self.held.clear()
-        self.last_step = 0
+        self.last_step = self.forwarded = 0
         self.dropped = dict.fromkeys(model.DROP_REASONS, 0)
         self._dropped_reported = dict(self.dropped)
         if mid_run:   # the poses it is at, as if they had just come
@@ -269,6 +274,7 @@ class SafetyNode(Node):
         ids, v, w = request.ids, request.v, request.omega
         report = {"step": step, "refreshed": refreshed}   # the SafetyReport's fields (cdr.SAFETY_REPORT)
         self.last_step = max(self.last_step, step)
+        self.forwarded += not refreshed
 
         # In lockstep time stands still between steps: only real-time poses age.
         now = time.monotonic()
