@@ -68,7 +68,8 @@ from robotarium_sim import rps2_io
 from robotarium_sim.experiment import Experiment, RunIds, build_testbed
 
 SAFETY_WAIT = 10.0          # s a start waits for the safety node to answer (discovery is slow on a loaded machine)
-SAFETY_WAIT_SETTLED = 2.0   # s it waits when the simulator has run longer than SAFETY_WAIT without seeing one
+SAFETY_WAIT_SETTLED = 2.0   # s it waits when the simulator has run longer than SAFETY_WAIT without seeing one (or
+                            # since it lost one)
 ARM_RESEND = 1.0            # s before an unanswered ArmSafety request is sent again
 REARM_POLL = 0.1            # s between looks at a re-arm that is due (a safety node back during a run)
 REPORT_WAIT = 3.0           # s an end waits for the safety node's reports of the arrays already applied
@@ -183,6 +184,7 @@ class SimulatorNode(Node):
         self.safety_watch = presence.Watch(self, presence.alive_topic(presence.SAFETY), self.config.node_lease,
                                            on_lost=self.on_safety_lost, on_seen=self.on_safety_seen)
         self._rearm = None   # (run id, the ArmSafety future or None, when it was sent) while a re-arm is due
+        self._safety_lost_at = -np.inf   # monotonic time the safety node's presence was last lost
         self.create_timer(REARM_POLL, self.rearm_safety)
         # ... due too when ./robotarium up announces it restarted the safety node (should its new presence be missed)
         self.create_subscription(String, restarts.topic(presence.SAFETY), lambda msg: self.on_safety_seen(),
@@ -289,10 +291,12 @@ class SimulatorNode(Node):
         request is sent again every ARM_RESEND s: a safety node started a moment ago may not have
         matched it yet (and one killed a moment ago may still look present), and arming is the
         same however often it is done. A simulator up longer than SAFETY_WAIT that sees no safety node
-        alive has given discovery its time: it waits only SAFETY_WAIT_SETTLED (one just started) so
-        that a client of an incomplete testbed hears it in moments, not after 10 s."""
+        alive, and lost none in that time, has given discovery its time: it waits only SAFETY_WAIT_SETTLED
+        (one just started) so that a client of an incomplete testbed hears it in moments, not after 10 s. One
+        lost a moment ago may be back under a new participant not yet discovered (restarted in place, or by up:
+        a client right after a restart in place was told "no safety node answers" 2 s later, a loaded machine)."""
         now = time.monotonic()
-        settled = now - self.ready_at > SAFETY_WAIT and not self.safety_watch.alive
+        settled = (now - max(self.ready_at, self._safety_lost_at) > SAFETY_WAIT) and not self.safety_watch.alive
         wait = SAFETY_WAIT_SETTLED if settled else SAFETY_WAIT
         deadline = now + wait
         while not self.arm_client.service_is_ready():
@@ -390,6 +394,7 @@ class SimulatorNode(Node):
                                                           self.run.last_command_step))
 
     def on_safety_lost(self):
+        self._safety_lost_at = time.monotonic()
         if self.testbed is not None:
             self.get_logger().warning("the safety node is gone: every robot stops")
             self.testbed.set_commands(np.arange(self.testbed.number_of_robots), 0.0, 0.0, now=time.monotonic())
