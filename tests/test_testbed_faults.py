@@ -429,10 +429,12 @@ def test_a_script_whose_own_fast_dds_stops_says_so_and_ends(testbed, tmp_path, s
         assert "This script's own Fast DDS stopped (dds.ev.0 (thread" in out or outcomes.OWN_DDS_HUNG in out, out
         assert info["outcome"] == "testbed_lost" and "own Fast DDS stopped" in info["detail"], info
         assert process.returncode == 4, out
-    elif outcomes.OWN_DDS_HUNG in out:
+    elif outcomes.OWN_DDS_HUNG in out or "This script's own Fast DDS stopped (dds.ev.0 (thread" in out:
         # the freeze caught the event thread inside a lock that a publish or a take needs too (a writer's, which its
         # heartbeats take every 0.1 s): the step() hung in Fast DDS and the kernel's timer ended it, as it says (a
-        # whole-suite run under load, 2026-11-30)
+        # whole-suite run under load, 2026-11-30); or a poses sample lost on the wire waits for a repair that the
+        # stopped thread's timed events would ask for: no poses for STEP_TIMEOUT, and step() names its own DDS, as
+        # in `all` (a whole-suite run, 2026-11-30: at step 2652 of 3000)
         assert info["outcome"] == "testbed_lost" and "own Fast DDS stopped" in info["detail"], info
         assert process.returncode == 4, out
     else:
