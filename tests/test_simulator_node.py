@@ -174,10 +174,8 @@ def test_a_runs_first_poses_wait_for_the_client_readers_it_names(testbed):
     assert started.success and time.monotonic() - began >= LISTENERS_WAIT_HERE, started.message
     assert end(probe, started).success
     said = "starting without %s/nobody's reader of %s/poses" % (NS, NS)
-    deadline = time.monotonic() + 5   # (the node's log is its own process's file: read it until the line is there)
-    while said not in sim.output() and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert said in sim.output(), sim.output()
+    # (the node's log is its own process's file: read it until the line is there)
+    assert probe.spin_until(lambda: said in sim.output(), 5), sim.output()
 
 
 def test_an_invalid_start_is_refused_with_its_reason(testbed):
