@@ -20,6 +20,7 @@ import numpy as np
 DICTIONARY = cv2.aruco.DICT_4X4_50
 CELLS = 6            # a 4x4 marker with its black border is 6 cells wide
 MARKER_PIXELS = 60   # the marker images drawn (10 pixels a cell), before they are warped into a frame
+NOISE_SHIFT = 128    # pixels: the sensor noise of a frame is a window this far at most into a larger field
 
 
 def dictionary():
@@ -102,17 +103,23 @@ class Renderer:
         cv2.polylines(self.background, [edge], True, 110, 2, cv2.LINE_AA)
         for tag, (x, y) in zip(corner_tags, corner_positions(arena)):
             self._paste(self.background, tag, square(x, y, 0.0, corner_tag_size))
-        self._noise = np.empty((camera.height, camera.width), np.int16)
+        # Sensor noise: a window at a random offset into one larger field drawn once (16 384 different frames of
+        # it), not a field drawn each frame: drawing a 1280 x 800 field took 3 ms of the 7.5 a frame took here.
+        self._noise = np.rint(self.rng.normal(0.0, noise, (camera.height + NOISE_SHIFT, camera.width + NOISE_SHIFT)))
+        self._noise = self._noise.astype(np.int16)
 
     def _marker(self, tag):
         if tag not in self.markers:
             self.markers[tag] = marker_image(tag)
         return self.markers[tag]
 
-    def _paste(self, image, tag, corners):
+    def _paste(self, image, tag, corners, card=False):
         """Warp the marker (with its margin) onto the floor quadrilateral `corners` (the marker's own
-        square; the margin goes around it), within its bounding box only."""
+        square; the margin goes around it), within its bounding box only; card=True: the white card it is
+        printed on (the marker with its margin, all white)."""
         marker = self._marker(tag)
+        if card:
+            marker = np.full_like(marker, 255)
         m = marker.shape[0]
         centre = corners.mean(axis=0)
         outer = centre + (corners - centre) * (m / MARKER_PIXELS)   # the margin's corners on the floor
@@ -139,14 +146,20 @@ class Renderer:
             rim = self.camera.project(np.array([[x, y], [x + self.robot_radius, y]]))   # body over a neighbour's)
             radius = int(round(np.hypot(*(rim[1] - rim[0]))))
             cv2.circle(image, tuple(int(round(v)) for v in rim[0]), radius, 40, -1, cv2.LINE_AA)
-        for k, (x, y, theta) in enumerate(poses.T):
-            if k not in hidden:
-                self._paste(image, tags[k], square(x, y, theta, self.tag_size))
+        # Then the cards the tags are printed on, then the tags: a card's white margin reaches past its robot's
+        # body, and drawn over a neighbour's tag it cut that tag's corner off (two robots 11 cm apart, a still
+        # one unreadable frame after frame). On the floor a card lies on its own robot, never over another's tag.
+        shown = [(tags[k], square(x, y, theta, self.tag_size)) for k, (x, y, theta) in enumerate(poses.T)
+                 if k not in hidden]
+        for tag, corners in shown:
+            self._paste(image, tag, corners, card=True)
+        for tag, corners in shown:
+            self._paste(image, tag, corners)
         if self.blur:
             image = cv2.GaussianBlur(image, (0, 0), self.blur)
         if self.noise:
-            cv2.randn(self._noise, 0, self.noise)
-            image = cv2.add(image, self._noise, dtype=cv2.CV_8U)
+            dy, dx = self.rng.integers(0, NOISE_SHIFT, 2)
+            image = cv2.add(image, self._noise[dy:dy + image.shape[0], dx:dx + image.shape[1]], dtype=cv2.CV_8U)
         return image
 
 
@@ -155,7 +168,8 @@ class TagTracker:
     image that showed all four, so a corner hidden for a moment costs nothing), each robot's tag its pose.
     `tags`: {tag id: robot index}."""
 
-    RETRY = 40   # pixels around a missing tag's last place that a second, slower detector looks at
+    RETRY = 40          # pixels around a missing tag's last place that a second, slower detector looks at
+    RETRY_FRAMES = 30   # frames (a second at 30 Hz) it looks there again, each frame, while the tag stays missing
 
     def __init__(self, arena, corner_tags, tags):
         self.detector = detector()
@@ -166,7 +180,7 @@ class TagTracker:
         self.corners = corner_positions(arena).astype(np.float32)
         self.tags = dict(tags)
         self.homography = None
-        self.last = {}   # tag -> its corners' pixels in the frame before
+        self.last = {}   # tag -> (its corners' pixels where it was last found, frames missing since)
         self.retries = self.recovered = 0
 
     def track(self, image):
@@ -174,21 +188,24 @@ class TagTracker:
         were seen once)."""
         found, ids, _ = self.detector.detectMarkers(image)
         by_id = {} if ids is None else {int(i): c.reshape(4, 2) for i, c in zip(ids.ravel(), found)}
-        # A robot's tag seen in the frame before and missing now: OpenCV's slower detector looks again around its
-        # last place (a tag that noise and JPEG made unreadable to one threshold window is read by another); a
-        # tag that is really hidden stays missing at the cost of a small crop.
-        for tag in self.tags:
-            if tag not in by_id and tag in self.last:
+        # A robot's tag found lately and missing now: OpenCV's slower detector looks again around its last place
+        # (a tag that noise and JPEG, or a neighbour's tag close by, made unreadable to one threshold window is
+        # read by another), every frame while it stays missing, not only the first: a robot standing still stays
+        # as hard to read frame after frame. A tag that is really hidden stays missing at the cost of a small crop.
+        for tag, (corners, _) in self.last.items():
+            if tag not in by_id:
                 self.retries += 1
-                x0, y0 = np.maximum(self.last[tag].min(axis=0).astype(int) - self.RETRY, 0)
-                x1, y1 = self.last[tag].max(axis=0).astype(int) + self.RETRY
+                x0, y0 = np.maximum(corners.min(axis=0).astype(int) - self.RETRY, 0)
+                x1, y1 = corners.max(axis=0).astype(int) + self.RETRY
                 crop = np.ascontiguousarray(image[y0:y1, x0:x1])
                 again, again_ids, _ = self.thorough.detectMarkers(crop)
                 for i, c in zip(() if again_ids is None else again_ids.ravel(), again):
                     if int(i) == tag:
                         by_id[tag] = c.reshape(4, 2) + np.float32([x0, y0])
                         self.recovered += 1
-        self.last = {t: c for t, c in by_id.items() if t in self.tags}
+        self.last = {t: (by_id[t], 0) if t in by_id else (corners, missing + 1)
+                     for t, (corners, missing) in self.last.items() if t in by_id or missing + 1 < self.RETRY_FRAMES}
+        self.last.update((t, (c, 0)) for t, c in by_id.items() if t in self.tags)
         if not by_id:
             return {}
         if all(t in by_id for t in self.corner_tags):
