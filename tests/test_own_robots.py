@@ -187,7 +187,9 @@ def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
     stopped = stop_time(fleet, [0, 2, 3], killed)
     code, out = finish(process)
     assert stopped <= 0.2, "robots stood %.3f s after r1 was killed:\n%s" % (stopped, out)
-    assert code != 0 and "robot r1 stopped answering at step" in out, out
+    # (the cause names every robot found faulty at that look: one whose odometry a loaded machine held back
+    # as long is named too, "robot r3 stopped answering")
+    assert code != 0 and "robot r1 stopped answering" in out and " at step " in out, out
     assert "the experiment runs in real time (30 Hz), not in lockstep" in out, out   # sim_in_real_time=False
     assert "results in" in out and ".mcap" in out and "report.txt" in out, out   # nothing else of the run is lost
 
@@ -202,7 +204,8 @@ def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
     stopped = stop_time(fleet, robots, stopped_at)
     code, out = finish(process)
     assert stopped <= 0.2, "robots stood %.3f s after the motion capture stopped:\n%s" % (stopped, out)
-    assert code != 0 and "lost tracking at step" in out, out
+    # (the first look that finds one robot's poses too old ends the run: the others' may be a ms younger)
+    assert code != 0 and "lost tracking" in out and " at step " in out, out
 
     # The arena killed -9 mid-run: each robot stops on its own command timeout, within 0.5 s.
     fleet.restart("mocap")
@@ -238,7 +241,7 @@ def test_a_hidden_tag_stops_every_robot(fleet_testbed):
         stopped = stop_time(fleet, [0, 1, 2, 3], hidden[0]["since"])
         code, out = finish(process)
         assert stopped <= 0.2, "robots stood %.3f s after r1's tag was first hidden:\n%s" % (stopped, out)
-        assert code != 0 and "robot r1 lost tracking at step" in out, out
+        assert code != 0 and "robot r1 lost tracking" in out and " at step " in out, out
     finally:
         probe.close()
 

@@ -191,15 +191,16 @@ class Roster:
                     ", ".join(names), self.fleet.name, len(indices)))
 
     def faults(self, indices, now):
-        """Why robots `indices` cannot go on (lost tracking, stopped answering), one phrase per robot
-        ("robot r3 lost tracking"), in fleet order; [] when they all can."""
+        """Why robots `indices` cannot go on, one phrase per robot naming all it found ("robot r3 lost
+        tracking", "robot r1 stopped answering", "robot r2 lost tracking and stopped answering": a stalled
+        machine can delay both at once, and naming one would hide the other), in fleet order; [] when they
+        all can."""
         tracked, answering = self.tracked(now)[indices], self.answering(now)[indices]
         faults = []
         for k, i in enumerate(indices):
-            if not answering[k]:
-                faults.append("robot %s stopped answering" % self.fleet.robots[i].name)
-            elif not tracked[k]:
-                faults.append("robot %s lost tracking" % self.fleet.robots[i].name)
+            what = [w for w, bad in (("lost tracking", not tracked[k]), ("stopped answering", not answering[k])) if bad]
+            if what:
+                faults.append("robot %s %s" % (self.fleet.robots[i].name, " and ".join(what)))
         return faults
 
     def measured(self, indices):

@@ -88,7 +88,11 @@ def test_faults_name_the_robot_that_lost_tracking_or_stopped_answering():
     assert roster.faults(run, now=1.07) == []
     # a tracking system that stops loses every robot after lost_after; a robot that stops answering says so
     assert roster.faults(run[:2], now=1.15) == ["robot r0 lost tracking", "robot r1 lost tracking"]
-    assert roster.faults(run[:2], now=1.17) == ["robot r0 stopped answering", "robot r1 lost tracking"]
+    assert roster.faults(run[:2], now=1.17) == ["robot r0 lost tracking and stopped answering",
+                                                 "robot r1 lost tracking"]
+    roster.pose(0, 0.0, 0.0, 0.0, now=1.17, stamp=100.17)
+    roster.pose(1, 0.0, 0.1, 0.0, now=1.17, stamp=100.17)
+    assert roster.faults(run[:2], now=1.18) == ["robot r0 stopped answering"]
 
 
 def test_the_arenas_testbed_counts_on_measured_poses_and_thresholds_its_commands():
