@@ -177,7 +177,7 @@ def test_a_slow_real_time_loop_gets_fresh_poses(testbed):
     assert np.mean(np.diff(steps)) > 1.5   # each step() skips the ticks its loop missed: about 2 per loop
 
 
-@pytest.mark.realtime   # the first command applied, not dropped as late: beside other workers a starved machine broke it (2026-11-30)
+@pytest.mark.realtime   # the first command applied, not dropped as late: a starved machine broke it (2026-11-30)
 def test_after_a_pause_the_next_step_shows_what_the_command_timeout_allowed(testbed):
     # Drive at 0.1 m/s, then sleep 2 s: the robot drives 0.5 s (the command timeout) and stops;
     # the poses after the next step() are the newest, so they show the whole 0.050 m (a tick is one
