@@ -15,6 +15,8 @@ import socket
 import tempfile
 import time
 
+from robotarium_core.processes import process_start
+
 REGISTRY = os.path.join(tempfile.gettempdir(), "robotarium-testbeds-%d" % os.getuid())
 
 # How a node shows in a process's command line: `-m MODULE`, or the installed console script.
@@ -31,31 +33,6 @@ def domain_id(env=None):
 
 
 # -- processes ------------------------------------------------------------------------------------
-
-def process_start(pid):
-    """When process `pid` started (clock ticks since boot, from /proc/<pid>/stat), or None if there
-    is no such process (or no /proc: then any live process of that id counts)."""
-    try:
-        with open("/proc/%d/stat" % pid) as f:
-            stat = f.read()
-    except FileNotFoundError:
-        if os.path.isdir("/proc/self"):
-            return None
-        try:
-            os.kill(pid, 0)
-            return 0
-        except ProcessLookupError:
-            return None
-        except PermissionError:
-            return 0
-    except OSError:
-        return None
-    # the command name (field 2) may hold spaces and parentheses: count from the last ')'
-    fields = stat[stat.rindex(")") + 2:].split()
-    if fields[0] == "Z":   # a zombie: exited, not yet reaped by its parent
-        return None
-    return int(fields[19])
-
 
 def process(pid):
     """{"pid", "start"} for a live process, or None."""

@@ -39,7 +39,7 @@ from robotarium_client.errors import (
     TestbedIncomplete,
     TestbedLost,
 )
-from robotarium_core import cdr, claim, outcomes, presence, restarts
+from robotarium_core import cdr, claim, outcomes, presence, processes, restarts
 from robotarium_core.dds_health import DDS_STALL_CHECK, DDS_STALL_LIMIT, DdsStallWatch
 from robotarium_core.dds_settings import init_context, profile_is_ours
 from robotarium_core.discovery import wait_for_quiet_discovery, wait_for_service
@@ -555,15 +555,7 @@ class TestbedLink:
     def _alive_here(self, who: str) -> bool:
         """Whether the process of node `who` (its claim) runs on this machine, neither stopped nor a zombie: a
         node alive but deaf to DDS, which its DdsStallWatch restarts in place."""
-        ident = self.claims.get(who)
-        if ident is None or ident["host"] != socket.gethostname():
-            return False
-        try:
-            with open("/proc/%d/stat" % ident["pid"]) as f:
-                state = f.read().rsplit(")", 1)[1].split()[0]
-        except (OSError, IndexError):
-            return False
-        return state not in ("T", "t", "Z", "X")
+        return processes.runs_here(self.claims.get(who))
 
     def _on_status_bytes(self, data: bytes) -> None:
         """A status as its bytes: its head (state, run_id) read with cdr, the whole message

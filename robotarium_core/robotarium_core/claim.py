@@ -16,6 +16,7 @@ import time
 
 from std_msgs.msg import String
 
+from robotarium_core.processes import process_start
 from robotarium_core.topics import LATCHED
 
 ENV_SINCE = "ROBOTARIUM_TESTBED_SINCE"       # epoch seconds the testbed started (its nodes share it)
@@ -35,7 +36,7 @@ def claim_topic(who):
 
 def identity(who):
     """What this process says about itself on its claim topic."""
-    return {"who": who, "host": socket.gethostname(), "pid": os.getpid(),
+    return {"who": who, "host": socket.gethostname(), "pid": os.getpid(), "started": process_start(os.getpid()),
             "since": float(os.environ.get(ENV_SINCE) or time.time()),
             "testbed": int(os.environ.get(ENV_TESTBED) or os.getpid()),
             "owner": os.environ.get(ENV_OWNER, "")}
@@ -45,7 +46,9 @@ def parse(text):
     """An identity from a claim message, or None for anything malformed (never raises)."""
     try:
         value = json.loads(text)
+        started = value.get("started")
         ident = {"who": str(value["who"]), "host": str(value["host"]), "pid": int(value["pid"]),
+                 "started": None if started is None else int(started),
                  "since": float(value["since"]), "testbed": int(value["testbed"]),
                  "owner": str(value.get("owner", ""))}
     except (ValueError, TypeError, KeyError, AttributeError):
