@@ -44,6 +44,7 @@ FLEET = "fleet"               # the roster topic (relative to the namespace)
 FAULT_CHECK = 0.005
 STALLED = 0.03                # s since the last look that mean this process stalled (its poses may still wait)
 ROSTER_PERIOD = 1.0           # s between roster messages
+START_READY_WAIT = 1.0        # s a start waits for the robots it needs to be present and tracked before it refuses
 # 2.x's drive-on controller (robotarium_client robotarium2.DRIVE_ON_CONTROLLER), from core's control laws; it
 # stops driving within position_error - position_epsilon (2 cm) and turning within rotation_error (0.03 rad),
 # inside the fleet's drive_on_position_error and drive_on_rotation_error (3 cm, 0.05 rad: 2.x's 0.1 rad would not do).
@@ -123,6 +124,12 @@ class HardwareArenaNode(SimulatorNode):
         if request.name != "!":   # (the client's first, always refused probe)
             request.real_time = True    # real robots have no lockstep
             request.hardware = False    # nor a model of hardware: they are the hardware
+            # Robots a moment behind (one odometry message a loaded machine held back past answer_timeout: a
+            # start was refused "r2 not answering", 2026-11-30) are waited for a little before the start is refused.
+            deadline = time.monotonic() + START_READY_WAIT
+            while np.count_nonzero(self.roster.ready(time.monotonic())) < request.number_of_robots \
+                    and time.monotonic() < deadline:
+                await self.sleep(0.02)
         return await super().on_start(request, response)
 
     def build_testbed(self, request):
