@@ -118,8 +118,6 @@ class Renderer:
         square; the margin goes around it), within its bounding box only; card=True: the white card it is
         printed on (the marker with its margin, all white)."""
         marker = self._marker(tag)
-        if card:
-            marker = np.full_like(marker, 255)
         m = marker.shape[0]
         centre = corners.mean(axis=0)
         outer = centre + (corners - centre) * (m / MARKER_PIXELS)   # the margin's corners on the floor
@@ -132,8 +130,8 @@ class Renderer:
         source = np.float32([[0, 0], [m - 1, 0], [m - 1, m - 1], [0, m - 1]])
         homography = cv2.getPerspectiveTransform(source, pixels - np.float32([x0, y0]))
         size = (x1 - x0, y1 - y0)
-        warped = cv2.warpPerspective(marker, homography, size, flags=cv2.INTER_LINEAR)
         mask = cv2.warpPerspective(np.full_like(marker, 255), homography, size, flags=cv2.INTER_LINEAR)
+        warped = mask if card else cv2.warpPerspective(marker, homography, size, flags=cv2.INTER_LINEAR)   # (a card is all white)
         roi = image[y0:y1, x0:x1]
         alpha = mask.astype(np.float32) / 255.0
         roi[:] = (roi * (1 - alpha) + warped * alpha).astype(np.uint8)
