@@ -320,12 +320,12 @@ def sent_by(flood_process):
 
 
 @pytest.mark.slow
-def test_a_flood_on_both_command_topics_costs_the_experiment_nothing(healthy, tmp_path):
+@pytest.mark.realtime   # no command 0.5 s late: beside the soak and two workers a starved machine broke it (2026-11-30)
+def test_a_flood_on_both_command_topics_costs_a_real_time_run_nothing(healthy, tmp_path):
     """1 kHz of foreign and malformed arrays (and a 2.4 MB one twice a second) on cmd_requested and
     on cmd_safe: a real-time 8-robot run has no command timeout and counts every array of the
-    flood, by reason, on both inputs; a lockstep run gives the same poses as without it (a flood
-    once pushed the client's commands out of the queues: 16-24 command timeouts, lockstep runs
-    that differed)."""
+    flood, by reason, on both inputs (a flood once pushed the client's commands out of the queues:
+    16-24 command timeouts)."""
     lab = healthy
 
     # real time: the whole flood inside one experiment, so that its count is exact
@@ -350,7 +350,13 @@ def test_a_flood_on_both_command_topics_costs_the_experiment_nothing(healthy, tm
     r.call_at_scripts_end()
     assert r.run_info.collisions == 0 and r.run_info.dropped["cmd_safe"]["malformed"] > 0
 
-    # lockstep: the same run, quiet and flooded, step for step
+
+@pytest.mark.slow
+def test_a_flood_on_both_command_topics_changes_no_step_of_a_lockstep_run(healthy, tmp_path):
+    """The same lockstep run, quiet and under the flood, gives the same poses step for step (the
+    flood once pushed the client's commands out of the queues: lockstep runs that differed)."""
+    lab = healthy
+
     def lockstep_run():
         rng = np.random.default_rng(3)
         r = client(EIGHT)

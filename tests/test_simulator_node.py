@@ -1,5 +1,6 @@
 """The simulator node, started for real in a subprocess on its own DDS domain."""
 import os
+import re
 import subprocess
 import sys
 import time
@@ -329,7 +330,7 @@ def test_real_time_tick_rate_is_30_hz(testbed):
 
 @pytest.mark.realtime   # 15 ticks in the command's 0.5 s of wall time: a starved simulator skips ticks (13 under load 17)
 def test_command_held_for_half_a_second_then_robot_stops(testbed):
-    _, probe, safety = testbed
+    sim, probe, safety = testbed
     poses = probe.collect(RobotPoses, NS + "/poses")
     status = probe.collect(TestbedStatus, NS + "/status")
     probe.wait_for_publishers()
@@ -344,6 +345,10 @@ def test_command_held_for_half_a_second_then_robot_stops(testbed):
     assert x[-1] == pytest.approx(moving_steps * 0.033 * 0.1)
     assert x[-1] == x[-20]  # and it stays stopped
     assert status[-1].command_timeouts == 1
+    # the log says which robot stopped, when, and how late its command was
+    said = re.findall(r"robots 0 stopped at step (\d+): no command for (\d\.\d\d) s \(the command timeout is 0.50 s\)",
+                      sim.output())
+    assert len(said) == 1 and 0.5 < float(said[0][1]) < 0.6 and int(said[0][0]) >= 14, sim.output()
 
 
 def test_safety_interventions_are_counted(testbed):
