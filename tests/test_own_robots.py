@@ -185,6 +185,7 @@ def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
     killed = time.time()
     fleet.kill("r1")
     stopped = stop_time(fleet, [0, 2, 3], killed)
+    print("every other robot stood %.3f s after r1 was killed" % stopped)
     code, out = finish(process)
     assert stopped <= 0.2, "robots stood %.3f s after r1 was killed:\n%s" % (stopped, out)
     # (the cause names every robot found faulty at that look: one whose odometry a loaded machine held back
@@ -202,6 +203,7 @@ def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
     stopped_at = time.time()
     fleet.kill("mocap")
     stopped = stop_time(fleet, robots, stopped_at)
+    print("every robot stood %.3f s after the motion capture stopped" % stopped)
     code, out = finish(process)
     assert stopped <= 0.2, "robots stood %.3f s after the motion capture stopped:\n%s" % (stopped, out)
     # (the first look that finds one robot's poses too old ends the run: the others' may be a ms younger)
@@ -239,6 +241,7 @@ def test_a_hidden_tag_stops_every_robot(fleet_testbed):
         hide.publish(String(data="r1 0.5"))
         assert probe.spin_until(lambda: hidden, 5), "the camera never hid r1's tag"
         stopped = stop_time(fleet, [0, 1, 2, 3], hidden[0]["since"])
+        print("every robot stood %.3f s after the first frame without r1's tag" % stopped)
         code, out = finish(process)
         assert stopped <= 0.2, "robots stood %.3f s after r1's tag was first hidden:\n%s" % (stopped, out)
         assert code != 0 and "robot r1 lost tracking" in out and " at step " in out, out
