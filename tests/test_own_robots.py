@@ -278,6 +278,9 @@ def test_the_fleet_command_serves_a_fleet_and_up_refuses_a_bad_fleet_file(tmp_pa
         assert [line.split()[1] for line in lines if line.startswith("robot r")] == ["r0", "r1"] and len(pids) == 2
         assert all(os.path.exists("/proc/%d" % pid) for pid in pids)
         assert "robots:" in (tmp_path / "fleet.yaml").read_text()
+        # each process's log beside the fleet file, said at the start (none left in /tmp)
+        assert "logs in %s" % (tmp_path / "fleet-logs") in lines, lines
+        assert "robot r1 ready" in (tmp_path / "fleet-logs" / "r1.log").read_text()
         os.killpg(process.pid, signal.SIGINT)
         out, _ = process.communicate(timeout=30)
         assert process.returncode == 0 and "fleet stopped" in out, out

@@ -61,14 +61,16 @@ def fleet_of(number, tracking):
 
 class SimulatedFleet:
     """The processes of a simulated fleet (robots, then the stand-in), tied to this process by its lifeline.
-    env: their environment (a test's domain); log_dir: one log per process."""
+    env: their environment (a test's domain); log_dir: one log per process (default: beside the fleet file,
+    fleet-logs/ for fleet.yaml: where its user finds them, and no folder left behind in /tmp)."""
 
     def __init__(self, number, tracking="mocap", fleet_file=None, env=None, log_dir=None, **fleet_fields):
         # fleet_fields: fields of the fleet file it writes other than fleet_of's (a test's thresholds)
         self.fleet = dataclasses.replace(fleet_of(number, tracking), **fleet_fields)
         self.fleet_file = os.path.abspath(fleet_file or "fleet.yaml")
         self.env = dict(env or os.environ)
-        self.log_dir = log_dir or tempfile.mkdtemp(prefix="robotarium-fleet-")
+        self.log_dir = os.path.abspath(log_dir or os.path.splitext(self.fleet_file)[0] + "-logs")
+        os.makedirs(self.log_dir, exist_ok=True)
         self.world_file = os.path.join("/dev/shm" if os.path.isdir("/dev/shm") else tempfile.gettempdir(),
                                        "robotarium-world-%d-%d" % (os.getpid(), int(time.time() * 1000) % 10**9))
         self.processes = {}   # name -> Popen
@@ -212,6 +214,9 @@ def add_arguments(parser):
     parser.add_argument("--fleet", metavar="FILE", default="fleet.yaml",
                         help="where to write the fleet file it serves (default: fleet.yaml here); give it to "
                              "./robotarium up --fleet FILE")
+    parser.add_argument("--logs", metavar="DIR", default=None,
+                        help="where each robot and the stand-in write their log (default: beside the fleet file, "
+                             "fleet-logs/ for fleet.yaml)")
 
 
 def run(args):
@@ -223,8 +228,9 @@ def run(args):
     for name in ("SIGINT", "SIGTERM", "SIGHUP"):
         signal.signal(getattr(signal, name), lambda signum, frame: stop.append(signum))
     lifeline.watch(lambda: stop.append("lifeline"))
-    fleet = SimulatedFleet(args.robots, args.tracking, args.fleet)
+    fleet = SimulatedFleet(args.robots, args.tracking, args.fleet, log_dir=args.logs)
     print("fleet file %s (give it to ./robotarium up --fleet %s)" % (fleet.fleet_file, args.fleet), flush=True)
+    print("logs in %s" % fleet.log_dir, flush=True)
     fleet.start(say=lambda line: print(line, flush=True))
     try:
         if not fleet.wait_ready():
