@@ -14,6 +14,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -22,7 +23,7 @@ import pytest
 from devtools.e2e import check_bag, logs_of_the_testbed, own_domain_testbed, run, run_folder
 from devtools.rosutil import REPO, RosProbe, node_env, unique_domain_id
 from robotarium_hardware.sim_fleet import SimulatedFleet
-from robotarium_hardware.world import OMEGA, STAMP, V
+from robotarium_hardware.world import OMEGA, STAMP, THETA, V, X, Y
 
 pytestmark = pytest.mark.e2e
 ROBOTS = 4   # the fleet: as many robots as the scripts use (a robot of the fleet left in the arena is in the way)
@@ -178,6 +179,34 @@ def test_faults_stop_every_robot_and_name_the_robot(fleet_testbed):
         probe.close()
     assert not response.success and "r%d of fleet simulated stand in the arena" % (ROBOTS - 1) in response.message, \
         response.message
+
+    # A robot a moment behind (its process paused past answer_timeout): a start waits up to a second for it rather
+    # than refusing at once; one still silent after that second is refused, named.
+    from robotarium_msgs.srv import EndExperiment
+    r3 = fleet.processes["r3"].pid
+    here = fleet.world.read()[:, [X, Y, THETA]].T   # where the robots stand: no drive-on
+    request = StartExperiment.Request(name="waits", number_of_robots=ROBOTS, real_time=True, x=list(here[0]),
+                                      y=list(here[1]), theta=list(here[2]))
+    probe = RosProbe(int(env["ROS_DOMAIN_ID"]), "ready_wait_probe")
+    try:
+        os.kill(r3, signal.SIGSTOP)
+        try:
+            time.sleep(0.3)
+            asked = time.monotonic()
+            refused = probe.call(StartExperiment, "/robotarium/start_experiment", request)
+            waited = time.monotonic() - asked
+            time.sleep(0.3)
+            threading.Timer(0.4, os.kill, (r3, signal.SIGCONT)).start()
+            started = probe.call(StartExperiment, "/robotarium/start_experiment", request)
+        finally:
+            os.kill(r3, signal.SIGCONT)
+        assert not refused.success and "r3 not answering" in refused.message and waited >= 1.0, \
+            (waited, refused.message)
+        assert started.success, started.message
+        ended = probe.call(EndExperiment, "/robotarium/end_experiment", EndExperiment.Request(token=started.token))
+        assert ended.success, ended.message
+    finally:
+        probe.close()
 
     # A robot process killed mid-run: every other robot stops within 0.2 s; the run ends naming it.
     process = start_run(env, CIRCLES)
