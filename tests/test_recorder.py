@@ -401,6 +401,54 @@ def test_run_recorder_keeps_a_closing_bag_open_until_its_last_poses_came(tmp_pat
     assert "its poses from step 1 on never came (the last is 2)" in logs[-1]
 
 
+def test_a_whole_lockstep_runs_bag_closes_at_once_and_any_other_after_its_grace(tmp_path):
+    """A lockstep run's bag whose last step is all there (poses, the command arrays and the safety report of
+    that step, the run's config and experiment) closes lockstep_grace_ns after the run's end, not grace_ns: a
+    recorded lockstep run's results waited half a second for messages that could not come. One that lacks any
+    of them, and a real-time run's, wait out the grace as before."""
+    ns = "/ns"
+    steps = ("cmd_requested", "cmd_safe", "safety_report")
+    topics = {ns + "/" + t: "robotarium_msgs/msg/TwistArray" for t in steps}
+    topics.update({ns + "/poses": "robotarium_msgs/msg/RobotPoses", ns + "/status": "robotarium_msgs/msg/TestbedStatus",
+                   ns + "/config": "std_msgs/msg/String", ns + "/experiment": "std_msgs/msg/String",
+                   "/rosout": "rcl_interfaces/msg/Log"})
+    rec = RunRecorder(tmp_path, lambda t: (topics[t], []), grace_ns=500, lockstep_grace_ns=50, live_after_ns=0, catch_up_ns=1000,
+                      run_step_of=lambda topic, data: (None, int(data[5:])) if topic == ns + "/poses" else None,
+                      step_of=lambda topic, data: int(data[5:]), step_topics=[ns + "/" + t for t in steps],
+                      start_topics=[ns + "/config", ns + "/experiment"])
+
+    def run(t, lockstep=True, leave_out=()):
+        """A 3-step run starting at t, its end at t + 100; returns when its bag closed (ns after the end)."""
+        rec.on_status(ns + "/status", b"\x00\x01\x00\x00run", t, t, True, "exp_%d" % t, step=0, lockstep=lockstep)
+        for name in ("config", "experiment"):
+            if name not in leave_out:
+                rec.on_message(ns + "/" + name, b"\x00\x01\x00\x00" + name.encode(), t + 1, t + 1)
+        for k in range(4):
+            if k:
+                for name in steps:
+                    if (name, k) not in leave_out:
+                        rec.on_message(ns + "/" + name, b"\x00\x01\x00\x00s%d" % k, t + 10 * k, t + 10 * k)
+            rec.on_message(ns + "/poses", b"\x00\x01\x00\x00p%d" % k, t + 10 * k + 1, t + 10 * k + 1)
+            rec.on_status(ns + "/status", b"\x00\x01\x00\x00step", t + 10 * k + 2, t + 10 * k + 2, True, "exp_%d" % t,
+                          step=k, lockstep=lockstep)
+        rec.on_status(ns + "/status", b"\x00\x01\x00\x00idle", t + 100, t + 100, False, "exp_%d" % t, step=3,
+                      lockstep=lockstep)
+        rec.on_message("/rosout", b"\x00\x01\x00\x00ended", t + 120, t + 99, log_line=True)   # the end's log line
+        for tick in range(t + 110, t + 1000, 10):
+            rec.tick(tick)
+            if rec.writer is None:
+                return tick - (t + 100)
+        return None
+
+    assert run(10**9) == 50                                  # whole: closed 50 ns after the end, its log line in it
+    assert run(2 * 10**9, lockstep=False) == 500             # real time: the grace
+    assert run(3 * 10**9, leave_out=[("cmd_safe", 3)]) == 500          # the last step's safe array never came
+    assert run(4 * 10**9, leave_out=[("safety_report", 3)]) == 500
+    assert run(5 * 10**9, leave_out=["experiment"]) == 500
+    first = bagmod.Bag(os.path.join(tmp_path, "exp_%d" % 10**9))
+    assert [m.data[4:] for m in first.messages()][-2:] == [b"idle", b"ended"]
+
+
 def test_the_first_poses_of_a_restarted_simulators_run_go_into_that_runs_bag(tmp_path):
     """A simulator killed mid-run never ends its run; `up` restarts it and the next run starts. Its step 0 can
     reach the recorder before anything that says the old run is over (the restart's news, a lapse of the

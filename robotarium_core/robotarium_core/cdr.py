@@ -347,6 +347,11 @@ TESTBED_STATUS_HEAD = Layout("robotarium_msgs/msg/TestbedStatus", HEADER + (
 # The fields of a TwistArray up to its token: read first, so a foreign array costs no more.
 _TWIST_ARRAY_HEAD = Layout("robotarium_msgs/msg/TwistArray", HEADER + (("token", STRING),))
 
+# A command array's and a safety report's fields up to their step: the recorder reads which step each is for
+# (a lockstep run's bag is whole once it holds those of the run's last step).
+TWIST_ARRAY_STEP = Layout("robotarium_msgs/msg/TwistArray", HEADER + (("token", STRING), ("step", UINT64)))
+SAFETY_REPORT_STEP = Layout("robotarium_msgs/msg/SafetyReport", HEADER + (("step", UINT64),))
+
 # A parsed command array: ids, v (linear.x) and omega (angular.z) as numpy arrays.
 Commands = namedtuple("Commands", "token step ids v omega requested_exceeds_limits sec nanosec refreshed",
                       defaults=(False,))

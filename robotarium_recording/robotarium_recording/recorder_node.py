@@ -32,8 +32,10 @@ from robotarium_core.subscriptions import take_waiting
 from robotarium_core.topics import (
     CMD_REQUESTED,
     CMD_SAFE,
+    CONFIG,
     DEFAULT_NAMESPACE,
     DRAWING,
+    EXPERIMENT,
     LATCHED,
     MARKERS,
     POSE_ARRAY,
@@ -59,6 +61,8 @@ STREAMS = {CMD_REQUESTED: "robotarium_msgs/msg/TwistArray", CMD_SAFE: "robotariu
            SAFETY_REPORT: "robotarium_msgs/msg/SafetyReport", SENSORS: "robotarium_msgs/msg/SensorReadings"}
 LATCHED_STREAMS = {DRAWING: "std_msgs/msg/String"}
 
+# s between ticks (RunRecorder.tick): a whole lockstep run's bag closes at the first tick after its short grace
+TICK = 0.05
 # Deep queues: at N = 50 and 30 Hz a topic carries 30 messages a second; nothing may be dropped
 # while a chunk is compressed.
 SUBSCRIPTION_DEPTH = 1000
@@ -82,11 +86,18 @@ class RunRecorder:
     packet holds back every later poses message until the writer repairs it, which takes up to its
     heartbeat period (Fast DDS's 3 s; the testbed's profile makes it 0.1 s) when the recorder was
     starved of CPU: the bag then closed without them. Poses of another run never go into a run's bag.
+
+    A lockstep run's bag is whole once it holds its last step's poses, the step's message on each of
+    `step_topics` (step_of(topic, data) -> the step a command array or safety report is for) and a
+    message of each of `start_topics`: every one of them was sent before the simulator ended the run. It
+    closes lockstep_grace_ns after the end (for the log lines of the end) instead of grace_ns: a
+    recorded lockstep run's results no longer wait half a second for messages that cannot come.
     """
 
     def __init__(self, bags_dir, describe, on_started=None, on_finished=None, log=None,
                  preroll_ns=3_000_000_000, grace_ns=500_000_000, chunk_seconds=1.0, live_after_ns=None,
-                 on_write_error=None, run_step_of=None, catch_up_ns=4_000_000_000, restarted_ns=None):
+                 on_write_error=None, run_step_of=None, catch_up_ns=4_000_000_000, restarted_ns=None,
+                 step_of=None, step_topics=(), start_topics=(), lockstep_grace_ns=50_000_000):
         self.bags_dir = os.path.abspath(bags_dir)
         self.describe = describe
         self.on_started = on_started or (lambda path: None)
@@ -98,6 +109,12 @@ class RunRecorder:
         self.catch_up_ns = catch_up_ns
         self.end_step = None          # the current run's step in its last RUNNING status
         self.poses_step = -1          # the newest poses step in its bag
+        self.step_of = step_of or (lambda topic, data: None)
+        self.step_topics, self.start_topics = tuple(step_topics), tuple(start_topics)
+        self.lockstep_grace_ns = lockstep_grace_ns
+        self.lockstep = False         # the current run steps in lockstep (its statuses say so)
+        self.steps_written = {}       # step topic -> the newest step of it in the current run's bag
+        self.closing_ns = None        # when the current run's end came
         self.chunk_seconds = chunk_seconds
         self.preroll = deque()        # (topic, data, recv_ns, pub_ns) received while not recording
         self.writer = None
@@ -143,8 +160,9 @@ class RunRecorder:
             self.preroll.append((topic, data, recv_ns, pub_ns))
             self._prune(recv_ns)
 
-    def on_status(self, topic, data, recv_ns, pub_ns, running, run_id, step=None, started_ns=0):
-        """A status of the simulator: `started_ns` is its run's start (TestbedStatus.started; 0: not known)."""
+    def on_status(self, topic, data, recv_ns, pub_ns, running, run_id, step=None, started_ns=0, lockstep=False):
+        """A status of the simulator: `started_ns` is its run's start (TestbedStatus.started; 0: not known);
+        `lockstep`: its run steps in lockstep (TestbedStatus.mode)."""
         if self.restarted_ns is not None and running and run_id and self.run_id is None \
                 and run_id not in self.pending and run_id not in self.left_alone \
                 and (started_ns < self.restarted_ns if started_ns else step):
@@ -163,7 +181,7 @@ class RunRecorder:
                 self.finish("a new run began")
             # From the run's start: what overtook a status heard late (its first commands, poses) is in the preroll.
             self._start(run_id, min(self.pending.pop(run_id, pub_ns), started_ns or pub_ns))
-            self.end_step = step
+            self.end_step, self.lockstep = step, lockstep
             self._write(topic, data, recv_ns, pub_ns, None)   # (a status: no poses' run and step)
         elif not running and run_id in self.pending:   # that run ended before we started
             self.finished[run_id] = max(pub_ns, self.pending.pop(run_id))
@@ -172,9 +190,9 @@ class RunRecorder:
             self._write(topic, data, recv_ns, pub_ns, None)
             self.end_ns = pub_ns
             if running and step is not None:
-                self.end_step = step
+                self.end_step, self.lockstep = step, lockstep
             if not running:
-                self.state, self.grace_until = "closing", recv_ns + self.grace_ns
+                self.state, self.grace_until, self.closing_ns = "closing", recv_ns + self.grace_ns, recv_ns
         else:
             self.on_message(topic, data, recv_ns, pub_ns)
 
@@ -196,7 +214,8 @@ class RunRecorder:
                 self.writer.maybe_flush()
             except OSError as error:
                 self._write_failed(error)
-        if self.state == "closing" and now_ns >= self.grace_until:
+        if self.state == "closing" and (now_ns >= self.grace_until or (
+                now_ns >= self.closing_ns + self.lockstep_grace_ns and self.whole())):
             if self.end_step is None or self.poses_step >= self.end_step:
                 self.finish("the experiment ended")
             elif now_ns >= self.grace_until + self.catch_up_ns:
@@ -205,6 +224,13 @@ class RunRecorder:
         elif self.state == "recording" and not simulator_present:
             self.finish("the simulator went away without ending the experiment")
         self._prune(now_ns)
+
+    def whole(self):
+        """A closing lockstep run's bag holds everything its last step sent (see the class)."""
+        return (self.lockstep and self.writer is not None and self.end_step is not None
+                and self.poses_step >= self.end_step
+                and all(self.steps_written.get(topic, -1) >= self.end_step for topic in self.step_topics)
+                and all(topic in self.writer.topics for topic in self.start_topics))
 
     def simulator_restarted(self, restart):
         """The simulator was restarted (robotarium_core.restarts): the run being recorded ended with its old
@@ -238,6 +264,7 @@ class RunRecorder:
     def _start(self, run_id, start_ns):
         self.run_id, self.end_ns, self.start_ns = run_id, start_ns, start_ns
         self.end_step, self.poses_step = None, -1
+        self.lockstep, self.steps_written, self.closing_ns = False, {}, None
         self.state = "recording"
         self.stopped_path, self.not_recorded = None, 0
         try:
@@ -276,6 +303,10 @@ class RunRecorder:
             self.writer.write(topic, data, recv_ns, pub_ns)
             if run_step is not None and run_step[1] > self.poses_step:
                 self.poses_step = run_step[1]
+            if topic in self.step_topics:
+                step = self.step_of(topic, data)
+                if step is not None and step > self.steps_written.get(topic, -1):
+                    self.steps_written[topic] = step
             self.writer.maybe_flush()
         except OSError as error:
             self.not_recorded += 1
@@ -353,10 +384,15 @@ class RecorderNode(Node):
         self.logger_prefix = self.ns.strip("/").replace("/", ".") + "." if self.ns else ""
         self.topics = {}            # full name -> type name (None: cannot be recorded)
         restart = restarts.of_this_process()   # (its `at`: when the process before this one ended)
+        self.step_layouts = {"%s/%s" % (self.ns, CMD_REQUESTED): cdr.TWIST_ARRAY_STEP,
+                             "%s/%s" % (self.ns, CMD_SAFE): cdr.TWIST_ARRAY_STEP,
+                             "%s/%s" % (self.ns, SAFETY_REPORT): cdr.SAFETY_REPORT_STEP}
         self.session = RunRecorder(bags_dir, self.describe, self.announce_start, self.announce_end,
                                    self.get_logger().info, chunk_seconds=chunk_seconds,
                                    on_write_error=self.announce_write_error, run_step_of=self.poses_run_step_of,
-                                   restarted_ns=None if restart is None else int(restart.at * 1e9))
+                                   restarted_ns=None if restart is None else int(restart.at * 1e9),
+                                   step_of=self.step_of, step_topics=tuple(self.step_layouts),
+                                   start_topics=("%s/%s" % (self.ns, CONFIG), "%s/%s" % (self.ns, EXPERIMENT)))
         self.session.namespace = self.ns or "/"
         self.recording_pub = self.create_publisher(String, RECORDING, LATCHED)
         self.recording_error_pub = self.create_publisher(String, RECORDING_ERROR, LATCHED)
@@ -378,7 +414,7 @@ class RecorderNode(Node):
         self._sim_missing_since = None
         self.create_subscription(String, "%s/%s" % (self.ns, restarts.topic(presence.SIMULATOR)),
                                  self.on_simulator_restart, restarts.QOS)
-        self.create_timer(0.2, self.tick)
+        self.create_timer(TICK, self.tick)
         self.create_timer(0.5, self.discover)
         self.discover()
         self.get_logger().info("recorder ready: topics of %s to %s" % (self.ns or "/", self.session.bags_dir))
@@ -454,7 +490,7 @@ class RecorderNode(Node):
         pub = msg.sec * 1_000_000_000 + msg.nanosec or recv
         self.session.on_status(self.status_topic, data, recv, pub,
                                msg.state == TestbedStatus.STATE_RUNNING, msg.run_id, msg.step,
-                               msg.started_sec * 1_000_000_000 + msg.started_nanosec)
+                               msg.started_sec * 1_000_000_000 + msg.started_nanosec, lockstep=msg.mode == "lockstep")
 
     def on_simulator_restart(self, msg):
         restart = restarts.parse(msg.data)
@@ -470,6 +506,13 @@ class RecorderNode(Node):
             return msg.run_id, msg.step
         except cdr.CdrError:
             return None   # not a RobotPoses (a stray publisher)
+
+    def step_of(self, topic, data):
+        """The step a command array or safety report is for (RunRecorder.step_of); None if it is not one."""
+        try:
+            return self.step_layouts[topic].parse(data).step
+        except (KeyError, cdr.CdrError):
+            return None
 
     def on_rosout(self, data):
         recv = time.time_ns()
