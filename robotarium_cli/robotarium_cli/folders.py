@@ -18,7 +18,7 @@ from robotarium_cli.console import say
 from robotarium_cli.verification import COMPILE_ERRORS, compile_script
 from robotarium_client import progress, session
 from robotarium_core import model, outcomes, run_record, script_box
-from robotarium_core.config import DEFAULT, ConfigError, TestbedConfig
+from robotarium_core.config import DEFAULT, SAFE_LOADER, ConfigError, TestbedConfig
 
 # Folders never searched for data files a script saved.
 SKIP_DIRS = {".git", ".venv", ".venv-reference", "build", "install", "log", "bags", "results", "__pycache__",
@@ -102,7 +102,7 @@ def wait_until_recorded(run_dir, timeout=15.0, quiet=False):
     while time.monotonic() < deadline:
         try:
             with open(path) as f:
-                info = yaml.safe_load(f)["rosbag2_bagfile_information"]
+                info = yaml.load(f, Loader=SAFE_LOADER)["rosbag2_bagfile_information"]
             custom = info.get("custom_data") or {}
             if str(custom.get("complete")) == "true":
                 return True

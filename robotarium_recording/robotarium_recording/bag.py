@@ -25,7 +25,7 @@ from mcap.records import Channel, Chunk, Footer, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 
 from robotarium_core import outcomes
-from robotarium_core.config import DEFAULT, TestbedConfig
+from robotarium_core.config import DEFAULT, SAFE_LOADER, TestbedConfig
 from robotarium_recording.bag_writer import (
     MAGIC,
     METADATA_TMP,
@@ -35,8 +35,6 @@ from robotarium_recording.bag_writer import (
     write_metadata_file,
 )
 
-# libyaml's parser when PyYAML has it.
-_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 # A bag of up to this many bytes keeps its messages in memory from the scan that opens it, so the
 # report, the plot and the video read the file once, not once per topic they need.
 KEEP_IN_MEMORY = 64 * 1024 * 1024
@@ -84,7 +82,7 @@ class Bag:
             meta = os.path.join(path, "metadata.yaml")
             if os.path.isfile(meta):
                 with open(meta, encoding="utf-8") as f:
-                    self.metadata = (yaml.load(f, Loader=_LOADER) or {}).get("rosbag2_bagfile_information")
+                    self.metadata = (yaml.load(f, Loader=SAFE_LOADER) or {}).get("rosbag2_bagfile_information")
             names = (self.metadata or {}).get("relative_file_paths") or []
             files = [os.path.join(path, os.path.basename(n)) for n in names]
             files = [f for f in files if os.path.isfile(f)] or sorted(glob.glob(os.path.join(path, "*.mcap")))
@@ -142,7 +140,7 @@ class Bag:
                 self.complete = False
         for topic, count in counts.items():
             self.topics[topic] = TopicInfo(types[topic], count,
-                                           (yaml.load(qos[topic], Loader=_LOADER) if qos[topic] else None) or [])
+                                           (yaml.load(qos[topic], Loader=SAFE_LOADER) if qos[topic] else None) or [])
         self._kept = kept
         status = [t for t, info in self.topics.items() if info.type == "robotarium_msgs/msg/TestbedStatus"]
         self.namespace = status[0].rsplit("/", 1)[0] if status else "/robotarium"
@@ -295,7 +293,7 @@ class Bag:
         if name not in self.topics:
             return {}
         texts = [msg.data for _, msg in self.decoded([name])]
-        return (yaml.load(texts[-1], Loader=_LOADER) or {}) if texts else {}
+        return (yaml.load(texts[-1], Loader=SAFE_LOADER) or {}) if texts else {}
 
     @_once
     def statuses(self):

@@ -21,6 +21,7 @@ from rclpy.node import Node
 from std_msgs.msg import String
 
 from robotarium_core import cdr, model, presence
+from robotarium_core.config import SAFE_LOADER
 from robotarium_core.dds_health import fast_dds_watchdogs
 from robotarium_core.node_main import run_node
 from robotarium_core.parameters import declare_config
@@ -180,7 +181,7 @@ class SafetyNode(Node):
 
     def on_experiment(self, msg):
         try:
-            settings = yaml.safe_load(msg.data) or {}
+            settings = yaml.load(msg.data, Loader=SAFE_LOADER) or {}
         except yaml.YAMLError as error:
             self.get_logger().warning("ignored experiment settings I cannot read: %s" % error)
             return
