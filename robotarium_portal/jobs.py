@@ -62,6 +62,13 @@ def me():
     return int(value) if value else None
 
 
+def slot_lost():
+    """This slot was found lost (cut off from the database for WORKER_LOST_AFTER): it takes no job, and its
+    supervisor starts it afresh as a new slot at its next beat (robotarium_portal.supervisor)."""
+    worker = me()
+    return worker is not None and Worker.objects.filter(pk=worker, state=Worker.LOST).exists()
+
+
 def enqueue_run():
     async_task("robotarium_portal.jobs.run_next", cluster=RUN_CLUSTER, task_name="run the next experiment")
 
@@ -247,10 +254,13 @@ def verify_experiment(pk):
     if experiment is None or not database_retry(lambda: experiment.claim_verification(me()), "claiming a verification"):
         if experiment is not None and database_retry(
                 lambda: Experiment.objects.filter(pk=pk, state=Experiment.SUBMITTED).exists(), "reading experiment %d" % pk):
-            # Its owner's other submission is being verified in another slot: one slot a person at a time, so
-            # the others' submissions go first; this one goes back in the queue.
+            # Its owner's other submission is being verified in another slot (one slot a person at a time, so
+            # the others' submissions go first), or this slot was found lost: it goes back in the queue.
+            lost = database_retry(slot_lost, "reading this slot's state")
             time.sleep(BUSY_OWNER_PAUSE)
             database_retry(lambda: enqueue_verification(experiment), "putting experiment %d back in the queue" % pk)
+            if lost:
+                return "this slot was found lost: experiment %d goes back in the queue for another" % pk
             return "experiment %d waits for its owner's other verification" % pk
         return "experiment %d is not waiting for verification" % pk
     return _working_on("verify #%d" % pk, lambda: _verify(experiment))
@@ -365,6 +375,10 @@ def run_next():
     """Claim the oldest queued experiment (first come, first served) and run it."""
     experiment = database_retry(lambda: Experiment.claim_next_run(me()), "claiming a run")
     if experiment is None:
+        if database_retry(slot_lost, "reading this slot's state"):
+            time.sleep(BUSY_OWNER_PAUSE)
+            database_retry(enqueue_run, "putting the run back in the queue")
+            return "this slot was found lost: the run goes back in the queue for another"
         return "the queue is empty"
     return _working_on("run #%d" % experiment.pk, lambda: run_experiment(experiment))
 

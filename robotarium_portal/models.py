@@ -5,7 +5,7 @@ import secrets
 
 from django.conf import settings
 from django.db import models
-from django.db.models import F, Q
+from django.db.models import Exists, F, Q
 from django.utils import timezone
 
 from robotarium_core import run_record
@@ -164,10 +164,14 @@ class Experiment(models.Model):
     # (state X -> Y only where the row is still in X, and held by `worker` where one is named), so two
     # workers, a job handed out twice or an administrator's cancel never both win. True when it changed.
 
-    def _transition(self, sources, target, worker=ANY, unless=None, **fields):
+    def _transition(self, sources, target, worker=ANY, unless=None, claimer=None, **fields):
+        """claimer: the slot taking the experiment (its worker_id), which must not have been found lost: one
+        found lost while it was cut off from the database takes nothing (its supervisor starts it afresh)."""
         rows = Experiment.objects.filter(pk=self.pk, state__in=sources)
         if worker is not ANY:
             rows = rows.filter(worker=worker)
+        if claimer is not None:
+            rows = rows.exclude(Exists(Worker.objects.filter(pk=claimer, state=Worker.LOST)))
         if unless is not None:
             rows = rows.exclude(unless)
         fields = {k: without_nul(v) for k, v in fields.items()}
@@ -184,7 +188,7 @@ class Experiment(models.Model):
     def claim_verification(self, worker):
         """Submitted -> verifying, held by worker; not while another of its owner's is verified (one
         verification slot a person at a time: one person's submissions never hold every slot)."""
-        return self._transition([self.SUBMITTED], self.VERIFYING, worker_id=worker,
+        return self._transition([self.SUBMITTED], self.VERIFYING, worker_id=worker, claimer=worker,
                                 unless=Q(owner__experiments__state=self.VERIFYING))
 
     @classmethod
@@ -194,9 +198,11 @@ class Experiment(models.Model):
             experiment = cls.objects.filter(state=cls.QUEUED).order_by("queued_at", "pk").first()
             if experiment is None:
                 return None
-            if experiment._transition([cls.QUEUED], cls.RUNNING, worker_id=worker, started_at=timezone.now(),
-                                      attempts=F("attempts") + 1):
+            if experiment._transition([cls.QUEUED], cls.RUNNING, worker_id=worker, claimer=worker,
+                                      started_at=timezone.now(), attempts=F("attempts") + 1):
                 return experiment
+            if worker is not None and Worker.objects.filter(pk=worker, state=Worker.LOST).exists():
+                return None   # this slot was found lost: it takes none
             # another worker took it first: the next
 
     def queue(self, worker, verification, timings):

@@ -144,6 +144,7 @@ class Supervisor:
                 self.slots.append([worker, None])
         self.watcher = Watcher(own=[w.pk for w, _ in self.slots])
         self.stopping = threading.Event()
+        self.starting = threading.Lock()   # a slot started afresh (_start_afresh) is started whole before stop() looks
         self.stopped_jobs = set()
 
     @property
@@ -151,24 +152,31 @@ class Supervisor:
         return [w.pk for w, _ in self.slots]
 
     def start(self):
-        from robotarium_core import lifeline
-        from robotarium_portal import jobs
         for slot in self.slots:
             worker = slot[0]
-            log = open(self.logs / ("worker-%s-%s-%d.txt" % (self.host, worker.kind, worker.pk)), "ab")
-            env = dict(self.env, ROBOTARIUM_WORKER_ID=str(worker.pk), Q_CLUSTER_NAME=worker.kind,
-                       ROBOTARIUM_PORTAL_RUN_DOMAIN=str(worker.domain), ROBOTARIUM_PORTAL_VERIFY_DOMAIN=str(worker.domain))
             if self.fleet_file and worker.kind == "runs":
-                env[jobs.FLEET_VARIABLE] = self.fleet_file
                 self.fleet_testbed = start_fleet_testbed(self.fleet_file, worker.domain, self.data / "fleet-runs",
                                                          self.logs / ("fleet-%s-%d" % (self.host, worker.pk)))
-            env, pass_fds = lifeline.for_child(env)
-            if self.lock is not None:
-                pass_fds = pass_fds + (self.lock.fileno(),)
-            slot[1] = subprocess.Popen([sys.executable, "-m", "robotarium_portal.jobslot", worker.kind], env=env,
-                                       pass_fds=pass_fds, stdout=log, stderr=subprocess.STDOUT,
-                                       stdin=subprocess.DEVNULL, process_group=0, cwd=REPOSITORY)
+            self._start_slot(slot)
         threading.Thread(target=self._beat, daemon=True, name="heartbeat").start()
+
+    def _start_slot(self, slot):
+        """The slot's cluster (python -m robotarium_portal.jobslot KIND) as its Worker slot[0]."""
+        from robotarium_core import lifeline
+        from robotarium_portal import jobs
+        worker = slot[0]
+        log = open(self.logs / ("worker-%s-%s-%d.txt" % (self.host, worker.kind, worker.pk)), "ab")
+        env = dict(self.env, ROBOTARIUM_WORKER_ID=str(worker.pk), Q_CLUSTER_NAME=worker.kind,
+                   ROBOTARIUM_PORTAL_RUN_DOMAIN=str(worker.domain), ROBOTARIUM_PORTAL_VERIFY_DOMAIN=str(worker.domain))
+        if self.fleet_file and worker.kind == "runs":
+            env[jobs.FLEET_VARIABLE] = self.fleet_file
+        env, pass_fds = lifeline.for_child(env)
+        if self.lock is not None:
+            pass_fds = pass_fds + (self.lock.fileno(),)
+        slot[1] = subprocess.Popen([sys.executable, "-m", "robotarium_portal.jobslot", worker.kind], env=env,
+                                   pass_fds=pass_fds, stdout=log, stderr=subprocess.STDOUT,
+                                   stdin=subprocess.DEVNULL, process_group=0, cwd=REPOSITORY)
+        log.close()
 
     def dead(self):
         return ["%s (%s)" % (w, w.kind) for w, p in self.slots if p is not None and p.poll() is not None]
@@ -190,17 +198,50 @@ class Supervisor:
         from django.utils import timezone
 
         from robotarium_portal.models import Experiment, Worker
-        for worker, process in self.slots:
+        for slot in self.slots:
+            worker, process = slot
             if process is None or process.poll() is not None:
-                continue   # a slot that died beats no more: its watchers find it lost
+                continue   # a slot that died (or is being started afresh) beats no more: its watchers find it lost
             if not Worker.objects.filter(pk=worker.pk, state=Worker.ALIVE).update(
                     last_heartbeat=timezone.now(), beats=F("beats") + 1):
                 # Found lost while it could not beat (cut off from the database): its job was handed out or
-                # failed meanwhile, so it must not go on.
-                self._stop_job(worker.pk, "found lost")
+                # failed meanwhile, so it must not go on; the slot works on as a new one.
+                slot[1] = None
+                threading.Thread(target=self._start_afresh, args=(slot, process), daemon=True,
+                                 name="slot %d afresh" % worker.pk).start()
                 continue
             for pk in Experiment.objects.filter(worker=worker, state=Experiment.CANCELLED).values_list("pk", flat=True):
                 self._stop_job(worker.pk, "experiment %d cancelled" % pk)
+
+    def _start_afresh(self, slot, process):
+        """A slot found lost: its job and cluster stopped (the cluster kept taking jobs under the lost slot's name,
+        and each was stopped again: six verifications failed so after a database restart, 2026-11-30), then the
+        slot starts again as a new Worker, so that this machine goes on working for the service."""
+        from robotarium_portal.models import Worker
+        old = slot[0]
+        self._stop_job(old.pk, "found lost")
+        try:
+            os.killpg(process.pid, signal.SIGTERM)   # the cluster lets its worker end, then exits
+            process.wait(timeout=STOP_GRACE)
+        except subprocess.TimeoutExpired:
+            pass
+        except ProcessLookupError:
+            pass
+        try:
+            os.killpg(process.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        process.wait()
+        with self.starting:
+            if self.stopping.is_set():
+                return
+            new = database_retry(lambda: Worker.objects.create(host=self.host, pid=os.getpid(), kind=old.kind,
+                                                               domain=old.domain), "making the slot afresh")
+            self.watcher.own.add(new.pk)
+            slot[0] = new
+            self._start_slot(slot)
+        logger.warning("slot %s was found lost while it could not reach the database; it works on as slot %d",
+                       old, new.pk)
 
     def _stop_job(self, worker_pk, why):
         from robotarium_portal import jobs
@@ -222,6 +263,8 @@ class Supervisor:
         jobs back."""
         from robotarium_portal import jobs
         self.stopping.set()
+        with self.starting:
+            pass   # a slot being started afresh is started (or will not be) before the slots are stopped
         for pk in self.pks:
             jobs.stop_jobs(pk)
         for _, process in self.slots:

@@ -309,7 +309,11 @@ def test_the_fleet_command_serves_a_fleet_and_up_refuses_a_bad_fleet_file(tmp_pa
         assert "robots:" in (tmp_path / "fleet.yaml").read_text()
         # each process's log beside the fleet file, said at the start (none left in /tmp)
         assert "logs in %s" % (tmp_path / "fleet-logs") in lines, lines
-        assert "robot r1 ready" in (tmp_path / "fleet-logs" / "r1.log").read_text()
+        r1_log = tmp_path / "fleet-logs" / "r1.log"   # (its ready line may still be on its way into the file)
+        deadline = time.monotonic() + 30
+        while "robot r1 ready" not in r1_log.read_text() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert "robot r1 ready" in r1_log.read_text(), r1_log.read_text()
         os.killpg(process.pid, signal.SIGINT)
         out, _ = process.communicate(timeout=30)
         assert process.returncode == 0 and "fleet stopped" in out, out

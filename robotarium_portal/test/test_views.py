@@ -483,6 +483,66 @@ def test_the_jobs_a_lost_slot_took_off_the_queue_go_back_at_once_a_live_slots_ke
     assert not TaskHold.objects.exists()
 
 
+def test_a_slot_found_lost_takes_no_job_and_puts_back_what_it_was_handed(monkeypatch):
+    """A slot cut off from the database past WORKER_LOST_AFTER is found lost; its cluster went on taking jobs
+    under its name, and its supervisor stopped each one: six verifications failed "could not run (exit code
+    -15)" after a database restart (2026-11-30). A lost slot's claims now fail, and the job goes back in the
+    queue for another slot; a live slot's claims are as before."""
+    from robotarium_portal import jobs
+    from robotarium_portal.models import Worker
+    monkeypatch.setattr(jobs, "BUSY_OWNER_PAUSE", 0.0)
+    owner = make_user()
+    lost, alive = make_worker(kind="verify"), make_worker(kind="verify", host="lab-pc-3")
+    Worker.objects.filter(pk=lost.pk).update(state=Worker.LOST)
+    submitted = experiment_of(owner, title="Submitted")
+    Experiment.objects.filter(pk=submitted.pk).update(state=Experiment.SUBMITTED)
+    OrmQ.objects.filter(key="verify").delete()
+    monkeypatch.setenv("ROBOTARIUM_WORKER_ID", str(lost.pk))
+    said = jobs.verify_experiment(submitted.pk)
+    submitted.refresh_from_db()
+    assert "this slot was found lost" in said and submitted.state == Experiment.SUBMITTED and submitted.worker is None
+    assert OrmQ.objects.filter(key="verify").count() == 1   # back in the queue for another slot
+    assert not submitted.claim_verification(lost.pk)
+    assert submitted.claim_verification(alive.pk) and submitted.worker_id == alive.pk
+    # a run: the lost slot takes none and puts the job back; a live one takes it
+    queued = experiment_of(make_user(), title="Queued")
+    Experiment.objects.filter(state=Experiment.QUEUED).update(state=Experiment.CANCELLED)   # other tests' queue
+    Experiment.objects.filter(pk=queued.pk).update(state=Experiment.QUEUED, queued_at=timezone_now())
+    runs = OrmQ.objects.filter(key="runs").count()
+    assert "this slot was found lost" in jobs.run_next() and OrmQ.objects.filter(key="runs").count() == runs + 1
+    assert Experiment.claim_next_run(lost.pk) is None
+    assert Experiment.claim_next_run(alive.pk).pk == queued.pk
+
+
+def test_a_slot_found_lost_is_started_afresh_as_a_new_slot(tmp_path):
+    """Its supervisor finds at its next beat that the slot was found lost: it stops the slot's cluster and
+    starts it again as a new Worker, so the machine goes on working for the service."""
+    from robotarium_portal.models import Worker
+    from robotarium_portal.supervisor import Supervisor
+    supervisor = Supervisor(settings_data(), ["runs"], 1, dict(os.environ))
+    supervisor.start()
+    try:
+        (old, first), = supervisor.slots
+        Worker.objects.filter(pk=old.pk).update(state=Worker.LOST)   # a watcher found it lost
+        supervisor.beat()
+        deadline = time.monotonic() + 60
+        while (supervisor.slots[0][1] is None or supervisor.slots[0][0].pk == old.pk) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        new, second = supervisor.slots[0]
+        assert new.pk != old.pk and Worker.objects.get(pk=new.pk).state == Worker.ALIVE and new.kind == "runs"
+        assert first.poll() is not None and second.poll() is None   # the old cluster gone, a new one working
+        supervisor.beat()
+        assert Worker.objects.get(pk=new.pk).beats == 1   # and it beats
+    finally:
+        supervisor.stop()
+    assert all(process.poll() is not None for _, process in supervisor.slots)
+
+
+def settings_data():
+    from django.conf import settings
+    return settings.DATA_DIR
+
+
 def test_a_script_verified_with_the_2x_api_runs_without_the_hardware_like_mode_and_says_so():
     from robotarium_portal import jobs
     experiment = experiment_of(make_user())
