@@ -217,6 +217,7 @@ class Supervisor:
         """A slot found lost: its job and cluster stopped (the cluster kept taking jobs under the lost slot's name,
         and each was stopped again: six verifications failed so after a database restart, 2026-11-30), then the
         slot starts again as a new Worker, so that this machine goes on working for the service."""
+        from robotarium_portal import jobs
         from robotarium_portal.models import Worker
         old = slot[0]
         self._stop_job(old.pk, "found lost")
@@ -232,6 +233,7 @@ class Supervisor:
         except ProcessLookupError:
             pass
         process.wait()
+        shutil.rmtree(jobs.jobs_dir(old.pk), ignore_errors=True)   # (its jobs' process groups: all stopped)
         with self.starting:
             if self.stopping.is_set():
                 return

@@ -532,7 +532,7 @@ def test_a_slot_found_lost_is_started_afresh_as_a_new_slot(tmp_path):
         assert new.pk != old.pk and Worker.objects.get(pk=new.pk).state == Worker.ALIVE and new.kind == "runs"
         assert first.poll() is not None and second.poll() is None   # the old cluster gone, a new one working
         supervisor.beat()
-        assert Worker.objects.get(pk=new.pk).beats == 1   # and it beats
+        assert Worker.objects.get(pk=new.pk).beats >= 1   # and it beats (its heartbeat thread may have beaten too)
     finally:
         supervisor.stop()
     assert all(process.poll() is not None for _, process in supervisor.slots)
