@@ -66,7 +66,7 @@ def slot_lost():
     """This slot was found lost (cut off from the database for WORKER_LOST_AFTER): it takes no job, and its
     supervisor starts it afresh as a new slot at its next beat (robotarium_portal.supervisor)."""
     worker = me()
-    return worker is not None and Worker.objects.filter(pk=worker, state=Worker.LOST).exists()
+    return worker is not None and Worker.found_lost(worker).exists()
 
 
 def enqueue_run():

@@ -171,7 +171,7 @@ class Experiment(models.Model):
         if worker is not ANY:
             rows = rows.filter(worker=worker)
         if claimer is not None:
-            rows = rows.exclude(Exists(Worker.objects.filter(pk=claimer, state=Worker.LOST)))
+            rows = rows.exclude(Exists(Worker.found_lost(claimer)))
         if unless is not None:
             rows = rows.exclude(unless)
         fields = {k: without_nul(v) for k, v in fields.items()}
@@ -201,7 +201,7 @@ class Experiment(models.Model):
             if experiment._transition([cls.QUEUED], cls.RUNNING, worker_id=worker, claimer=worker,
                                       started_at=timezone.now(), attempts=F("attempts") + 1):
                 return experiment
-            if worker is not None and Worker.objects.filter(pk=worker, state=Worker.LOST).exists():
+            if worker is not None and Worker.found_lost(worker).exists():
                 return None   # this slot was found lost: it takes none
             # another worker took it first: the next
 
@@ -323,6 +323,11 @@ class Worker(models.Model):
 
     def __str__(self):
         return "%s pid %d (%s, domain %s)" % (self.host, self.pid, self.kind, self.domain)
+
+    @classmethod
+    def found_lost(cls, pk):
+        """Slot `pk`, where it was found lost (a queryset: empty while it is not)."""
+        return cls.objects.filter(pk=pk, state=cls.LOST)
 
 
 class TaskHold(models.Model):

@@ -223,7 +223,7 @@ class HardwareArenaNode(SimulatorNode):
             return
         now = self.get_clock().now()
         self.run.last_tick = time.monotonic()
-        tb.expire_commands(self.run.last_tick, self.config.command_timeout)
+        self.expire_commands(tb)
         tb.step()   # counts on the poses before, then takes the newest measured ones
         self.run.tally.after_step(tb)
         self.send_commands(tb.robots, tb.commands_out(), now)

@@ -638,18 +638,22 @@ class SimulatorNode(Node):
         # not the simulated world's, so the poses' stamps are as regular as the timer.
         now = self.get_clock().now()
         self.run.last_tick = time.monotonic()
+        self.expire_commands(tb)
+        tb.step()
+        self.run.tally.after_step(tb)
+        self.publish_state(now)
+
+    def expire_commands(self, tb):
+        """The command timeout at this tick (model.Testbed.expire_commands), said once per expiry: which robots
+        stopped and how late their commands were (a starved client and a lost array look alike in the count;
+        the log tells them apart by time)."""
         stale = tb.expire_commands(self.run.last_tick, self.config.command_timeout)
         if np.any(stale):
-            # Once per expiry: which robots stopped and how late the commands were (a starved client
-            # and a lost array look alike in the count; the log tells them apart by time).
             age = self.run.last_tick - tb.command_times[stale].max()
             self.get_logger().warning(
                 "%s: robots %s stopped at step %d: no command for %.2f s (the command timeout is %.2f s)"
                 % (self.run.run_id, ",".join(map(str, np.flatnonzero(stale))), tb.steps, age,
                    self.config.command_timeout))
-        tb.step()
-        self.run.tally.after_step(tb)
-        self.publish_state(now)
 
     def publish_state(self, now=None):
         tb = self.testbed
