@@ -61,8 +61,11 @@ STREAMS = {CMD_REQUESTED: "robotarium_msgs/msg/TwistArray", CMD_SAFE: "robotariu
            SAFETY_REPORT: "robotarium_msgs/msg/SafetyReport", SENSORS: "robotarium_msgs/msg/SensorReadings"}
 LATCHED_STREAMS = {DRAWING: "std_msgs/msg/String"}
 
-# s between ticks (RunRecorder.tick): a whole lockstep run's bag closes at the first tick after its short grace
-TICK = 0.05
+# s between ticks (RunRecorder.tick): chunks flushed, a simulator gone noticed. While a run closes they come every
+# CLOSING_TICK s: a whole lockstep run's bag closes at the first tick after its short grace (20 ticks a second all
+# the time would be CPU the real-time nodes beside the recorder miss).
+TICK = 0.2
+CLOSING_TICK = 0.05
 # Deep queues: at N = 50 and 30 Hz a topic carries 30 messages a second; nothing may be dropped
 # while a chunk is compressed.
 SUBSCRIPTION_DEPTH = 1000
@@ -414,7 +417,7 @@ class RecorderNode(Node):
         self._sim_missing_since = None
         self.create_subscription(String, "%s/%s" % (self.ns, restarts.topic(presence.SIMULATOR)),
                                  self.on_simulator_restart, restarts.QOS)
-        self.create_timer(TICK, self.tick)
+        self.tick_timer = self.create_timer(TICK, self.tick)
         self.create_timer(0.5, self.discover)
         self.discover()
         self.get_logger().info("recorder ready: topics of %s to %s" % (self.ns or "/", self.session.bags_dir))
@@ -491,6 +494,7 @@ class RecorderNode(Node):
         self.session.on_status(self.status_topic, data, recv, pub,
                                msg.state == TestbedStatus.STATE_RUNNING, msg.run_id, msg.step,
                                msg.started_sec * 1_000_000_000 + msg.started_nanosec, lockstep=msg.mode == "lockstep")
+        self.pace_ticks()
 
     def on_simulator_restart(self, msg):
         restart = restarts.parse(msg.data)
@@ -540,6 +544,15 @@ class RecorderNode(Node):
         elif self._sim_missing_since is None:
             self._sim_missing_since = now
         self.session.tick(time.time_ns(), present or now - self._sim_missing_since < 2.0)
+        self.pace_ticks()
+
+    def pace_ticks(self):
+        """Ticks every CLOSING_TICK s while a run closes (the first one CLOSING_TICK s after its end came), else
+        every TICK s."""
+        period_ns = int(1e9 * (CLOSING_TICK if self.session.state == "closing" else TICK))
+        if self.tick_timer.timer_period_ns != period_ns:
+            self.tick_timer.timer_period_ns = period_ns
+            self.tick_timer.reset()   # (a new period counts from the last call otherwise)
 
     def announce_start(self, path):
         self.recording_pub.publish(String(data=path))
