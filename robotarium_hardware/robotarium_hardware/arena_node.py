@@ -260,7 +260,7 @@ class HardwareArenaNode(SimulatorNode):
         if not faults:
             return
         self.send_zeros()   # at once: every robot stops
-        cause = "%s at step %d" % ("; ".join(faults), tb.steps)
+        cause = "%s at step %d%s" % ("; ".join(faults), tb.steps, " of the drive-on" if self.driving else "")
         self.get_logger().warning("%s (%s)" % (cause, "; ".join(
             "%s: pose %.0f ms ago, stamp %.0f ms behind, answer %.0f ms ago" % (
                 self.fleet.robots[i].name, 1e3 * (now - self.roster.pose_at[i]),
