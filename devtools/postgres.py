@@ -45,7 +45,10 @@ class PostgreSQL:
         self._run("initdb", "-D", self.data, "-U", user, "--auth=trust", "-E", "UTF8", "--no-sync")
         with open(os.path.join(self.data, "postgresql.conf"), "a") as f:
             f.write("\nlisten_addresses = '%s'\nport = %d\nunix_socket_directories = '%s'\nfsync = off\n"
-                    "max_connections = 200\n" % (",".join(self.listen), self.port, self.folder))
+                    "max_connections = 200\n"
+                    # what a failure's log needs: who waited for a lock, and for how long, and slow statements
+                    "log_lock_waits = on\nlog_min_duration_statement = 1000\nlog_line_prefix = '%%m [%%p] %%a: '\n"
+                    % (",".join(self.listen), self.port, self.folder))
         with open(os.path.join(self.data, "pg_hba.conf"), "a") as f:
             f.write("host all all 0.0.0.0/0 trust\n")   # the test's own private addresses only listen
         self.start()
@@ -71,6 +74,14 @@ class PostgreSQL:
         """Every connection is cut (fast shutdown), then the server answers again."""
         self.stop()
         self.start()
+
+    def log(self, tail=4000):
+        """The end of the server's log (its lock waits and slow statements, the restart)."""
+        try:
+            with open(os.path.join(self.folder, "log.txt"), errors="replace") as f:
+                return f.read()[-tail:]
+        except OSError as error:
+            return "(no log: %s)" % error
 
     def query(self, sql, *params):
         import psycopg

@@ -279,6 +279,8 @@ class Service:
                                                                          "verification-output.txt")):
                     with open(os.path.join(folder, name), errors="replace") as f:
                         texts.append("--- %s\n%s" % (os.path.join(folder, name), f.read()[-2500:]))
+        if self.postgres is not None:
+            texts.append("--- PostgreSQL's log\n%s" % self.postgres.log())
         return "\n".join(texts)
 
     def submit(self, items):

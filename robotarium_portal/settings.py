@@ -5,6 +5,7 @@ in the repository): the SQLite database, the secret key, the experiments' files 
 outgoing mail (unless an SMTP server is configured). robotarium_portal.data_folder.prepare() makes
 the folder and its secret key; serve, the worker and the tests call it before Django starts."""
 import os
+import sys
 from datetime import timedelta
 from pathlib import Path
 
@@ -95,7 +96,9 @@ if DATABASE_URL:
         "NAME": unquote(_url.path.strip("/")), "USER": unquote(_url.username or ""),
         "PASSWORD": unquote(_url.password or ""), "HOST": _url.hostname or "", "PORT": str(_url.port or ""),
         "CONN_MAX_AGE": 0, "CONN_HEALTH_CHECKS": True,
-        "OPTIONS": {"connect_timeout": 10},
+        # application_name: which process a connection is, in pg_stat_activity and the server's log
+        "OPTIONS": {"connect_timeout": 10, "application_name": "robotarium %s pid %d" % (
+            " ".join([os.path.basename(sys.argv[0])] + sys.argv[1:2])[:40], os.getpid())},
     }}
 DEFAULT_AUTO_FIELD = "django.db.models.BigAutoField"
 

@@ -184,14 +184,22 @@ class Supervisor:
     def _beat(self):
         from django.conf import settings
         from django.db import close_old_connections
+        last = time.monotonic()
         while not self.stopping.wait(settings.WORKER_HEARTBEAT):
             close_old_connections()
+            began = time.monotonic()
             try:
                 self.beat()
                 self.watcher.sweep()
             except Exception as error:   # noqa: BLE001 - the database away (a restart): beat again next time
                 self.watcher.forget()
-                logger.warning("heartbeat: %s: %s", type(error).__name__, error)
+                logger.warning("heartbeat: %s: %s (%.1f s since the last beat)", type(error).__name__, error,
+                               time.monotonic() - last)
+                continue
+            now = time.monotonic()
+            if now - last > 2 * settings.WORKER_HEARTBEAT:   # a gap its watchers may take for a lost slot: why?
+                logger.warning("heartbeat: %.1f s since the last beat (this one took %.1f s)", now - last, now - began)
+            last = now
 
     def beat(self):
         from django.db.models import F
