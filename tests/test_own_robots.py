@@ -23,6 +23,7 @@ import pytest
 from devtools.e2e import check_bag, logs_of_the_testbed, own_domain_testbed, run, run_folder
 from devtools.rosutil import REPO, RosProbe, node_env, unique_domain_id
 from robotarium_hardware.sim_fleet import SimulatedFleet
+from robotarium_hardware.steady import PRIORITY_VARIABLE
 from robotarium_hardware.world import OMEGA, STAMP, THETA, V, X, Y
 
 pytestmark = pytest.mark.e2e
@@ -30,12 +31,17 @@ ROBOTS = 4   # the fleet: as many robots as the scripts use (a robot of the flee
 CIRCLES = os.path.join(REPO, "tests", "data", "fleet_circles.py")
 SEEDED = os.path.join(REPO, "devtools", "run_seeded.py")
 STOPPED = (0.01, 0.1)   # m/s, rad/s: below both, a robot stands
+REAL_TIME_PRIORITY = 10   # SCHED_FIFO of the stopping nodes in a test that measures a stop bound (low: the kernel's are 50)
 
 
 @pytest.fixture
-def fleet_testbed(tmp_path_factory, request):
+def fleet_testbed(tmp_path_factory, request, monkeypatch):
     """A simulated fleet of ROBOTS robots (tracked as the test's `tracking` mark says: mocap by default)
-    and a testbed moving them, on a domain of their own."""
+    and a testbed moving them, on a domain of their own. For a test that measures a stop bound (marker
+    realtime: run alone, after the rest) the nodes that stop robots run at real-time priority, as on a lab's
+    machines of their own; elsewhere it would take the CPU of the tests beside them (docs/own-robots.md)."""
+    if request.node.get_closest_marker("realtime"):
+        monkeypatch.setenv(PRIORITY_VARIABLE, str(REAL_TIME_PRIORITY))
     mark = request.node.get_closest_marker("tracking")
     domain = unique_domain_id()
     folder = tmp_path_factory.mktemp("fleet")

@@ -114,9 +114,9 @@ class HardwareArenaNode(SimulatorNode):
         self.roster_pub = self.create_publisher(String, FLEET, LATCHED)
         self.create_timer(FAULT_CHECK, self.check_faults)
         self.create_timer(ROSTER_PERIOD, self.publish_roster)
-        steady()
-        self.get_logger().info("hardware arena ready: fleet %s, %d robots (%s), tracking %s" % (
-            self.fleet.name, len(self.fleet.robots), ", ".join(self.fleet.names), self.fleet.tracking))
+        scheduling = steady()
+        self.get_logger().info("hardware arena ready: fleet %s, %d robots (%s), tracking %s; %s" % (
+            self.fleet.name, len(self.fleet.robots), ", ".join(self.fleet.names), self.fleet.tracking, scheduling))
 
     # -- a start -----------------------------------------------------------------------------------
 

@@ -58,8 +58,9 @@ class CameraNode(Node):
         self.hidden_pub = self.create_publisher(String, "/camera/hidden", 10)
         self.create_subscription(String, "/camera/hide", self.on_hide, 10)
         self.create_timer(1.0 / rate, self.frame)
-        steady()
-        self.get_logger().info("camera ready: %d robots' tags at %g Hz on %s" % (len(self.names), rate, topic))
+        scheduling = steady()
+        self.get_logger().info("camera ready: %d robots' tags at %g Hz on %s; %s" % (len(self.names), rate, topic,
+                                                                                     scheduling))
 
     def on_hide(self, msg):
         try:

@@ -56,8 +56,8 @@ class MocapNode(Node):
         self.template = Template(msg, ("header.stamp.sec", "header.stamp.nanosec", "pose.position.x", "pose.position.y",
                                        "pose.orientation.z", "pose.orientation.w"))
         self.create_timer(1.0 / rate, self.frame)
-        steady()
-        self.get_logger().info("motion capture ready: %d bodies at %g Hz" % (len(self.names), rate))
+        scheduling = steady()
+        self.get_logger().info("motion capture ready: %d bodies at %g Hz; %s" % (len(self.names), rate, scheduling))
 
     def frame(self):
         now = time.time()

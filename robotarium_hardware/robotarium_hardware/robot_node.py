@@ -85,8 +85,8 @@ class RobotNode(Node):
         self.advance()
         self.create_timer(1.0 / RATE, self.advance)
         self.create_timer(BATTERY_PERIOD, self.publish_battery)
-        steady()
-        self.get_logger().info("robot %s ready at (%.2f, %.2f, %.2f)" % (name, *start))
+        scheduling = steady()
+        self.get_logger().info("robot %s ready at (%.2f, %.2f, %.2f); %s" % (name, *start, scheduling))
 
     def on_command(self, msg):
         twist = msg.twist if isinstance(msg, TwistStamped) else msg

@@ -59,9 +59,10 @@ class TagTrackerNode(Node):
         self.last = {}
         self.latency, self.cpu = [], []
         self.create_timer(REPORT_PERIOD, self.report)
-        steady()
-        self.get_logger().info("tag tracker ready: %d robots' tags (%s) on %s" % (
-            len(fleet.robots), ", ".join("%s %d" % (r.name, r.tag) for r in fleet.robots), fleet.camera.image_topic))
+        scheduling = steady()
+        self.get_logger().info("tag tracker ready: %d robots' tags (%s) on %s; %s" % (
+            len(fleet.robots), ", ".join("%s %d" % (r.name, r.tag) for r in fleet.robots), fleet.camera.image_topic,
+            scheduling))
 
     def on_image(self, data, parse):
         cpu = time.process_time()
