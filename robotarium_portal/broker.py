@@ -9,10 +9,12 @@ serve that finds it dead at its start) unlocks its jobs at once (TaskHold.releas
 again never runs twice at a time: the job claims its experiment by a conditional UPDATE (jobs.py)."""
 from time import sleep
 
-from django.db import transaction
+from django.db import DatabaseError, transaction
 from django.utils import timezone
 from django_q.brokers.orm import ORM
 from django_q.conf import Conf
+
+from robotarium_portal.database import database_retry
 
 
 class HoldingORM(ORM):
@@ -27,10 +29,19 @@ class HoldingORM(ORM):
         worker = jobs.me()
         taken = []
         for task in tasks:
-            with transaction.atomic(using=Conf.ORM):   # the lock and its holder, or neither
-                if not rows.filter(id=task.id, lock=task.lock).update(lock=self.timeout(task)):
-                    continue   # another cluster took it first
+            try:
+                with transaction.atomic(using=Conf.ORM):   # the lock and its holder, or neither
+                    if not rows.filter(id=task.id, lock=task.lock).update(lock=self.timeout(task)):
+                        continue   # another cluster took it first
+                    if worker is not None:
+                        TaskHold.objects.update_or_create(task_id=task.id, defaults={"worker_id": worker})
+            except DatabaseError:
+                # Cut off while taking it (a database restart): whether the take was committed is not known, and if
+                # it was, the job would stay locked for `retry` s by this slot, which never got it. What this slot
+                # holds of it goes back on the queue (nothing, if the take was not committed).
                 if worker is not None:
-                    TaskHold.objects.update_or_create(task_id=task.id, defaults={"worker_id": worker})
+                    database_retry(lambda task=task: TaskHold.release_tasks([worker], tasks=[task.id]),
+                                   "giving back job %s, taken while the database went away" % task.id)
+                raise   # (django-q's pusher starts again)
             taken.append((task.pk, task.payload))
         return taken

@@ -340,10 +340,14 @@ class TaskHold(models.Model):
     worker = models.ForeignKey(Worker, on_delete=models.CASCADE, related_name="+")
 
     @classmethod
-    def release_tasks(cls, worker_pks):
-        """The jobs these slots took off the queue go back on it now (unlocked); returns how many."""
+    def release_tasks(cls, worker_pks, tasks=None):
+        """The jobs these slots took off the queue (of them, `tasks` where given) go back on it now (unlocked);
+        returns how many."""
         from django_q.models import OrmQ
-        held = list(cls.objects.filter(worker__in=worker_pks).values_list("task_id", flat=True))
+        rows = cls.objects.filter(worker__in=worker_pks)
+        if tasks is not None:
+            rows = rows.filter(task__in=tasks)
+        held = list(rows.values_list("task_id", flat=True))
         freed = OrmQ.objects.filter(pk__in=held).update(lock=timezone.now())
         cls.objects.filter(task__in=held, worker__in=worker_pks).delete()
         return freed

@@ -483,6 +483,49 @@ def test_the_jobs_a_lost_slot_took_off_the_queue_go_back_at_once_a_live_slots_ke
     assert not TaskHold.objects.exists()
 
 
+@pytest.mark.parametrize("committed", [True, False])
+def test_a_job_taken_as_the_database_went_away_goes_back_on_the_queue(monkeypatch, committed):
+    """The connection cut while the broker takes a job (a database restart): whether the take was committed
+    is not known to the slot, whose pusher starts again without the job. A committed take would keep the job
+    locked for `retry` (35 minutes for a run) by a live slot that never runs it; it goes back on the queue at
+    once, and a take that was not committed leaves nothing to give back."""
+    from django.db import OperationalError, connection
+    from django_q.brokers import get_broker
+
+    from robotarium_portal import jobs
+    from robotarium_portal.models import TaskHold, Worker
+    OrmQ.objects.filter(key="verify").delete()
+    slot = make_worker(kind="verify")
+    jobs.enqueue_verification(experiment_of(make_user(), title="taken as the database went away"))
+    broker = get_broker("verify")
+    time.sleep(0.01)   # (a job is there once its enqueue time has passed)
+    monkeypatch.setenv("ROBOTARIUM_WORKER_ID", str(slot.pk))
+    cut = OperationalError("server closed the connection unexpectedly")
+    if committed:
+        commit, cuts = connection.commit, [cut]
+
+        def commit_then_cut():   # (once: the database is back for the give-back)
+            commit()
+            if cuts:
+                raise cuts.pop()
+        monkeypatch.setattr(connection, "commit", commit_then_cut)
+    else:
+        def cut_before_commit(*args, **kwargs):
+            raise cut
+        monkeypatch.setattr(TaskHold.objects, "update_or_create", cut_before_commit)
+    began = time.monotonic()
+    with pytest.raises(OperationalError):
+        broker.dequeue()
+    assert time.monotonic() - began < 30   # given back at once, not after database_retry's patience
+    monkeypatch.undo()
+    (job,) = OrmQ.objects.filter(key="verify")
+    assert job.lock <= timezone_now() and not TaskHold.objects.exists()   # on the queue, held by nobody
+    monkeypatch.setenv("ROBOTARIUM_WORKER_ID", str(slot.pk))
+    ((task, _),) = broker.dequeue()   # and taken again
+    assert task == job.pk and TaskHold.objects.get().worker_id == slot.pk
+    assert Worker.objects.get(pk=slot.pk).state == Worker.ALIVE
+
+
 def test_a_slot_found_lost_takes_no_job_and_puts_back_what_it_was_handed(monkeypatch):
     """A slot cut off from the database past WORKER_LOST_AFTER is found lost; its cluster went on taking jobs
     under its name, and its supervisor stopped each one: six verifications failed "could not run (exit code
