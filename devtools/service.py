@@ -281,7 +281,30 @@ class Service:
                         texts.append("--- %s\n%s" % (os.path.join(folder, name), f.read()[-2500:]))
         if self.postgres is not None:
             texts.append("--- PostgreSQL's log\n%s" % self.postgres.log())
+            texts.append("--- the database now\n%s" % self.state_of_the_queue())
         return "\n".join(texts)
+
+    def state_of_the_queue(self):
+        """Every slot, experiment and job of the queue (who holds it, locked until when), for a failure's log."""
+        import psycopg
+        lines = []
+        for title, sql in (
+                ("slots: id host pid kind state beats last_heartbeat current_job jobs_done",
+                 "SELECT id, host, pid, kind, state, beats, last_heartbeat, current_job, jobs_done "
+                 "FROM robotarium_portal_worker ORDER BY id"),
+                ("experiments: id state attempts worker_id queued_at started_at",
+                 "SELECT id, state, attempts, worker_id, queued_at, started_at FROM robotarium_portal_experiment "
+                 "ORDER BY id"),
+                ("jobs: id key lock held_by",
+                 "SELECT q.id, q.key, q.lock, h.worker_id FROM django_q_ormq q LEFT JOIN robotarium_portal_taskhold h "
+                 "ON h.task_id = q.id ORDER BY q.id")):
+            try:
+                rows = self.postgres.query(sql)
+            except psycopg.Error as error:
+                rows = [("(%s)" % error,)]
+            lines.append(title)
+            lines.extend("  " + " ".join(str(v) for v in row) for row in rows)
+        return "\n".join(lines)
 
     def submit(self, items):
         env = dict(self.env(), PASSWORD=PASSWORD, ROBOTARIUM_PORTAL_DATA=self.data,
