@@ -71,8 +71,10 @@ def isolated():
 def isolation():
     """One line on what this service's boxes hold (the worker says it on start)."""
     if isolated():
+        from robotarium_core import script_box
         return ("job boxes: each job in its own network, PID and mount namespace (an exact disk quota), its script "
-                "as an account of its own with resource limits, a scrubbed environment")
+                "as an account of its own with resource limits%s, a scrubbed environment" % (
+                    " and one process's share of the CPU" if os.path.isdir(script_box.CPU_GROUPS) else ""))
     return ("job boxes: the service is not root (uid %d): no accounts, so each job's script runs AS THE SERVICE "
             "(it can read what the service can); resource limits (no process limit) and a scrubbed environment "
             "hold; the namespaces (network, PID, the disk quota) only where the kernel lets a user namespace make "
@@ -96,7 +98,13 @@ def ensure_account(user):
 
 
 def remove_account(user):
+    from robotarium_core import script_box
+    try:
+        uid = pwd.getpwnam(user).pw_uid
+    except KeyError:
+        return
     subprocess.run(["userdel", user], capture_output=True)
+    script_box.remove_cpu_group(uid)
 
 
 def scrubbed(env):

@@ -21,6 +21,7 @@ from pathlib import Path
 import pytest
 
 from devtools.rosutil import REPO, processes_on_domain, unique_domain_id
+from robotarium_core import script_box
 from robotarium_portal import jobbox
 
 pytestmark = [pytest.mark.e2e,
@@ -42,6 +43,7 @@ for _ in range(20):
     r.step()
 np.save("saved.npy", np.arange(3))
 print("uid", os.getuid(), "secrets", sorted(k for k in os.environ if "hunter2" in os.environ[k]))
+print("cpu group", [line.split(":")[2] for line in open("/proc/self/cgroup").read().split() if ":cpu:" in line])
 r.call_at_scripts_end()
 """
 TAG = "t%d" % (os.getpid() % 100000)
@@ -106,6 +108,8 @@ def test_a_normal_script_runs_in_its_box_as_its_own_account_and_saves_its_result
     outcome, run, output, uid = run_script(place, "ok", NORMAL)
     assert run["outcome"] == "completed" and outcome.code == 0 and outcome.notes == [], output
     assert "uid %d secrets []" % uid in output and uid != 0   # demoted, and no service secret in sight
+    if os.path.isdir(script_box.CPU_GROUPS):   # its processes share one process's CPU (a cgroup v1 host)
+        assert "cpu group ['/robotarium-script-%d']" % uid in output, output
     assert list(Path(place[0]).glob("results-ok/*/data/saved.npy"))   # its data file reached the results
 
 

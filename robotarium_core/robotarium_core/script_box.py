@@ -21,6 +21,12 @@ RLIMITS = {"cpu_seconds": resource.RLIMIT_CPU, "memory_bytes": resource.RLIMIT_A
            "file_bytes": resource.RLIMIT_FSIZE, "processes": resource.RLIMIT_NPROC,
            "open_files": resource.RLIMIT_NOFILE}
 CPU_KILL_AFTER = 2   # s of CPU past the soft limit (SIGXCPU) before the hard one (SIGKILL)
+# The script's processes share one CPU group (a cgroup of the cpu controller, one per account): however many it
+# makes, together they get the CPU of one ordinary process. A fork bomb's 200 processes at the process limit held a
+# process outside it up to 2.2 s (a whole suite beside it, 2026-11-30): long enough for a worker's heartbeat to
+# miss five beats and its slot to be found lost. Where the machine has no cgroup v1 cpu controller (cgroup v2
+# hosts), none: the process limit still holds.
+CPU_GROUPS = "/sys/fs/cgroup/cpu"
 # Where the service's ROS keeps its logs: the script's own ROS writes under its HOME instead.
 SERVICE_ONLY = ("ROS_LOG_DIR", "ROS_HOME", VARIABLE)
 
@@ -52,7 +58,15 @@ def popen_options(env, writable=()):
     limits = [(RLIMITS[name], int(value)) for name, value in box["limits"].items()
               if demoted or name != "processes"]
 
+    procs = cpu_group(uid) if demoted else None
+
     def limit():   # in the child, after it became the account, before it runs python
+        if procs is not None:
+            try:
+                with open(procs, "w") as f:   # (the group's member list is the account's to write)
+                    f.write(str(os.getpid()))
+            except OSError:
+                pass   # (the group went meanwhile: the process limit still holds)
         for which, value in limits:
             hard = value + CPU_KILL_AFTER if which == resource.RLIMIT_CPU else value
             ceiling = resource.getrlimit(which)[1]   # an account cannot raise its hard limit
@@ -64,3 +78,28 @@ def popen_options(env, writable=()):
     if not demoted:   # a service that is not root: the script runs as the service, limited
         return {"preexec_fn": limit}, script_env
     return {"user": uid, "group": gid, "extra_groups": [], "preexec_fn": limit}, script_env
+
+
+def cpu_group_folder(uid):
+    return os.path.join(CPU_GROUPS, "robotarium-script-%d" % uid)
+
+
+def cpu_group(uid):
+    """The member list (cgroup.procs) of account uid's CPU group, made where missing and writable by the account
+    (a process may move itself into a group whose list it may write); None where there are no CPU groups."""
+    folder = cpu_group_folder(uid)
+    try:
+        os.makedirs(folder, exist_ok=True)
+        procs = os.path.join(folder, "cgroup.procs")
+        os.chown(procs, uid, -1)
+        return procs
+    except OSError:
+        return None
+
+
+def remove_cpu_group(uid):
+    """Account uid's CPU group goes with the account (once its processes are gone; else it stays)."""
+    try:
+        os.rmdir(cpu_group_folder(uid))
+    except OSError:
+        pass
