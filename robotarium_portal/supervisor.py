@@ -9,6 +9,7 @@ clocks need to agree, and a database restart makes nobody look lost. Stopped pro
 and hands them back; killed outright, its slots notice (robotarium_core.lifeline) and stop.
 docs/portal.md says why django-q2 and why this watch is the service's own."""
 import argparse
+import faulthandler
 import logging
 import os
 import shutil
@@ -91,6 +92,11 @@ def lost(worker):
             mail.try_sending(mail.send_issues_found, experiment)
     TaskHold.release_tasks([worker.pk])
     logger.warning("worker %s was lost; its jobs were handed out again or failed", worker)
+
+
+def _beat_stuck():
+    logger.warning("heartbeat: this beat has taken two heartbeats; where every thread is:")
+    faulthandler.dump_traceback(all_threads=True)
 
 
 class Watcher:
@@ -186,6 +192,11 @@ class Supervisor:
         from django.db import close_old_connections
         last = time.monotonic()
         while not self.stopping.wait(settings.WORKER_HEARTBEAT):
+            # A beat that takes two heartbeats: every thread's stack on stderr (the worker's log), so that a beat
+            # stuck somewhere (a slot found lost without a database error, 2026-11-30) says where.
+            stuck = threading.Timer(2 * settings.WORKER_HEARTBEAT, _beat_stuck)
+            stuck.daemon = True
+            stuck.start()
             close_old_connections()
             began = time.monotonic()
             try:
@@ -196,6 +207,8 @@ class Supervisor:
                 logger.warning("heartbeat: %s: %s (%.1f s since the last beat)", type(error).__name__, error,
                                time.monotonic() - last)
                 continue
+            finally:
+                stuck.cancel()
             now = time.monotonic()
             if now - last > 2 * settings.WORKER_HEARTBEAT:   # a gap its watchers may take for a lost slot: why?
                 logger.warning("heartbeat: %.1f s since the last beat (this one took %.1f s)", now - last, now - began)
