@@ -599,6 +599,36 @@ def test_a_lost_node_is_named_by_the_client_within_a_second(healthy, node, words
     r._end_quietly()
 
 
+def test_a_run_whose_recording_announcement_went_blank_still_names_its_folder(healthy, capsys):
+    """`recording` keeps only the newest announcement, "" once a bag closed: a short run on a recorder the
+    testbed had matched late (just restarted in place) ended "not recorded" though its bag was whole (a whole
+    suite, 2026-11-30). Here `recording` says "" mid-run (another process's word, as the close would): the
+    client still names the run's folder, from the recorder's recent runs, and the folder holds the bag."""
+    from std_msgs.msg import String
+
+    from robotarium_core.topics import LATCHED
+    lab = healthy
+    r = client(LINE3)
+    drive(r, [0.05] * 3, [0.2] * 3)
+    blank = lab.probe.node.create_publisher(String, NS + "/recording", LATCHED)
+    try:
+        blank.publish(String(data=""))
+        deadline = time.monotonic() + 10
+        while r._link._recording and time.monotonic() < deadline:   # (the client hears it as it steps)
+            drive(r, [0.05] * 3, [0.2] * 3)
+        assert r._link._recording == "", "the client never heard the blank announcement"
+        r.call_at_scripts_end()
+    finally:
+        lab.probe.node.destroy_publisher(blank)
+    folder = r.run_info.recording
+    assert folder and os.path.basename(folder).startswith(r.run_info.run_id), r.run_info
+    assert "Run %s recorded in %s" % (r.run_info.run_id, folder) in capsys.readouterr().out
+    deadline = time.monotonic() + 10
+    while not glob.glob(os.path.join(folder, "*.mcap")) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert glob.glob(os.path.join(folder, "*.mcap")), os.listdir(folder)
+
+
 def test_a_lost_recorder_is_reported_and_its_bag_recovered(healthy, capsys):
     """kill -9 of the recorder mid-run: the client says "recording stopped at step k" (it once
     printed "recorded in ..." as if nothing happened) and the run goes on; recovery makes the bag's

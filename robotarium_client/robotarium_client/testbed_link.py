@@ -56,6 +56,8 @@ from robotarium_core.topics import (
     LISTENERS_WAIT,
     OUTPUT_QOS,
     POSES,
+    RECORDED_RUNS,
+    RECORDED_RUNS_QOS,
     RECORDING,
     RECORDING_ERROR,
     START_EXPERIMENT,
@@ -201,6 +203,7 @@ class TestbedLink:
         self.stopped_recording = ""             # the bag of a recording stopped by a write error
         self.on_recording_announced = None      # called when the recorder names this run's folder
         self._recording = ""          # the recorder's folder, from its announcement
+        self._recorded_runs = {}      # run id -> folder, from the recorder's recent runs (kept after the close)
         self.local_testbed = None     # one started here for this client (no ./robotarium around it)
         self.started_at = None        # epoch s this client asked to start its run: restarts from then on are its
         self.restarts_heard = set()   # robotarium_core.restarts.Restart records acted on
@@ -234,6 +237,7 @@ class TestbedLink:
         self._drawing_message = String()
         self.node.create_subscription(String, CONFIG, self._on_config, LATCHED)
         self.node.create_subscription(String, RECORDING, self._on_recording, LATCHED)
+        self.node.create_subscription(String, RECORDED_RUNS, self._on_recorded_run, RECORDED_RUNS_QOS)
         self.node.create_subscription(String, RECORDING_ERROR, self._on_recording_error, LATCHED)
         for who in (presence.SIMULATOR, presence.SAFETY, presence.RECORDER):
             self.node.create_subscription(String, restarts.topic(who), self._on_restart, restarts.QOS)
@@ -442,9 +446,15 @@ class TestbedLink:
                 pass
 
     def announced_recording(self) -> str:
-        """The recorder's folder for this run if it announced one (its name starts with the run id)."""
-        ok = self.run_id and os.path.basename(self._recording).startswith(self.run_id)
-        return self._recording if ok else ""
+        """The recorder's folder for this run if it announced one (its name starts with the run id). `recording`
+        keeps only the newest, "" once the run's bag closed: a short run on a recorder this process matched late
+        (one just restarted in place) ended "not recorded" though it was (a whole suite, 2026-11-30), so the
+        recorder's recent runs count too."""
+        if not self.run_id:
+            return ""
+        if os.path.basename(self._recording).startswith(self.run_id):
+            return self._recording
+        return self._recorded_runs.get(self.run_id, "")
 
     # -- what it hears ---------------------------------------------------------------------------------
 
@@ -463,6 +473,15 @@ class TestbedLink:
     def _on_recording(self, msg: String) -> None:
         self._recording = msg.data   # the recorder announces each run's folder, and "" when it closed it
         if self.on_recording_announced is not None and self.announced_recording():
+            self.on_recording_announced()
+
+    def _on_recorded_run(self, msg: String) -> None:
+        try:
+            run = json.loads(msg.data)
+            self._recorded_runs[str(run["run_id"])] = str(run["path"])
+        except (ValueError, KeyError, TypeError):
+            return   # not the recorder's
+        if self.on_recording_announced is not None and run["run_id"] == self.run_id:
             self.on_recording_announced()
 
     def _on_recording_error(self, msg: String) -> None:
