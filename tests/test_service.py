@@ -98,7 +98,7 @@ def test_twelve_submissions_on_two_hosts_and_a_database_restart_mid_run_each_ver
     assert sum(n for (_, kind), n in done.items() if kind == "runs") == 12, done
     assert sum(n for (_, kind), n in done.items() if kind == "verify") == 12, done
     assert all(sum(n for (h, _), n in done.items() if h == host) > 0 for host in (socket.gethostname(), SECOND_HOST)), done
-    assert lost_workers(service) == 0
+    assert lost_workers(service) == 0, service.logs()   # (the logs: where its beats stopped, and why)
     assert all(w.process.poll() is None for w in service.workers.values())
     assert 'id="state">completed<' in service.page(pks[-1])   # the portal answers after the restart too
 
