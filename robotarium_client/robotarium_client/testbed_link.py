@@ -77,6 +77,7 @@ if TYPE_CHECKING:
 
 STARTUP_WAIT = 60.0   # s for a testbed started here to come up
 STEP_TIMEOUT = 10.0   # s without poses after a step() before we give up with an explanation
+RECORDING_WAIT = 2.0   # s the end waits for a recorder that heard the run to say where it records it
 # s a run waits, once a restart of its safety node was announced, for the testbed to arm the new process (the
 # simulator does as soon as the node is back: ~1-3 s after a kill under ./robotarium up, at once in place)
 REARM_WAIT = 30.0
@@ -430,6 +431,11 @@ class TestbedLink:
                 self.failure_kind, self.failure = EndedByUnsentRequest, self.unsent_end_at
             self.check()   # ended meanwhile (lost, or by an operator): say so rather than "no experiment"
             raise RuntimeError("The testbed could not end the experiment: %s" % response.message)
+        if not response.recording and not self.announced_recording() and self.recorder_lost_at is None \
+                and readers_matched(self.node, self.command_pub, presence.RECORDER):
+            # A recorder heard this run, but where it records it has not reached us yet (a recorder matched
+            # late, one just restarted in place): its recent runs come once matched; a little wait for them.
+            self.spin_until(self.announced_recording, RECORDING_WAIT)
         return response
 
     def end_quietly(self, outcome: int, detail: str) -> None:
