@@ -10,7 +10,11 @@ in hand, for one 3-robot script of 300 lockstep steps with no figure and no barr
   (cold, localhost discovery)  the same with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST (what the
           tests use, and a one-machine user may set): the process table then knows every testbed
           that could answer, so `run` does not wait for one elsewhere on the network;
-  (up)    the same with `./robotarium up` already running on the domain; and --no-video.
+  (up)    the same with `./robotarium up` already running on the domain; and --no-video;
+  (live video off)  with ROBOTARIUM_LIVE_VIDEO=0: the video made from the bag after the run, as before
+          the live video (robotarium_recording.live_video) made it while the run goes;
+  (up, real time)  the same script in real time (300 steps: 10 s of robots), with the live video and
+          without it: what is left after the run's end.
 
 Each command runs through ./robotarium as a user types it (the environment check included),
 on a ROS_DOMAIN_ID of its own, with the machine's default discovery range (but where said); the
@@ -88,7 +92,11 @@ LABELS = {"peer": "Robotarium simulator 0.0.0 (one process, no results)",
           "cold local": "`./robotarium run`, no testbed up, localhost discovery, with video",
           "cold local --no-video": "same, `--no-video`",
           "up": "`./robotarium up` already running, with video",
-          "up --no-video": "same, `--no-video`"}
+          "up --no-video": "same, `--no-video`",
+          "cold live off": "`./robotarium run`, no testbed up, with video, live video off (made from the bag)",
+          "up live off": "`./robotarium up` already running, with video, live video off (made from the bag)",
+          "up real time": "`./robotarium up` already running, real time (10 s of robots), with video",
+          "up real time live off": "same, live video off (made from the bag)"}
 
 
 def main():
@@ -119,11 +127,17 @@ def main():
             local_env = dict(cold_env, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
             up_env = dict(env, ROS_DOMAIN_ID=str(unique_domain_id()))
             ups.append(Up(robotarium, up_env, bags))
-            run = [robotarium, "run", "--lockstep", "--bags-dir", bags, "--results-dir", os.path.join(work, "results")]
-            for name, flags, row_env in (("cold", [], cold_env), ("cold --no-video", ["--no-video"], cold_env),
-                                         ("cold local", [], local_env),
-                                         ("cold local --no-video", ["--no-video"], local_env),
-                                         ("up", [], up_env), ("up --no-video", ["--no-video"], up_env)):
+            run = [robotarium, "run", "--bags-dir", bags, "--results-dir", os.path.join(work, "results")]
+            lockstep, off = ["--lockstep"], {"ROBOTARIUM_LIVE_VIDEO": "0"}
+            for name, flags, row_env in (("cold", lockstep, cold_env),
+                                         ("cold --no-video", lockstep + ["--no-video"], cold_env),
+                                         ("cold live off", lockstep, dict(cold_env, **off)),
+                                         ("cold local", lockstep, local_env),
+                                         ("cold local --no-video", lockstep + ["--no-video"], local_env),
+                                         ("up", lockstep, up_env), ("up --no-video", lockstep + ["--no-video"], up_env),
+                                         ("up live off", lockstep, dict(up_env, **off)),
+                                         ("up real time", ["--real-time"], up_env),
+                                         ("up real time live off", ["--real-time"], dict(up_env, **off))):
                 plans.append((prefix + name, run + flags + [SCRIPT], row_env))
                 rows[prefix + name] = []
         for _ in range(args.repeat):   # interleaved: every row sees the same load
@@ -135,8 +149,8 @@ def main():
         for up in ups:
             up.stop()
         shutil.rmtree(work, ignore_errors=True)
-    print("3 robots, 300 lockstep steps, no figure, no barrier (bench/wall_script.py); median of %d runs, "
-          "interleaved" % args.repeat)
+    print("3 robots, 300 steps (lockstep but where said), no figure, no barrier (bench/wall_script.py); median of "
+          "%d runs, interleaved" % args.repeat)
     print("| | wall to prompt (s) | constructor / loop (s) | CPU (s) | runs (s) |")
     print("|---|---|---|---|---|")
     median = {}

@@ -13,6 +13,7 @@ simulator, so it comes last.
 """
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -46,6 +47,11 @@ SCRIPTS = {
     "no_end.py": HEADER + "for k in range(6):\n" + STEP,
     "typo.py": "import numpy as np\nimport nump\nimport rps.robotarium as robotarium\n",
     "broken.py": "import numpy as np\nfor k in range(3)\n    print(k)\n",
+    # Slow to begin its loop (the real-time testbed steps meanwhile), its goal marker moved halfway.
+    "slow_start.py": HEADER.replace("sim_in_real_time=False", "sim_in_real_time=True")
+                     + "goal = r.axes.scatter([-1.0], [-0.5], s=300, marker='o', facecolors='none', edgecolors='b')\n"
+                       "time.sleep(1.5)\nfor k in range(90):\n" + STEP
+                     + "    if k == 45:\n        goal.set_offsets([[1.0, -0.5]])\nr.call_at_scripts_end()\n",
 }
 
 
@@ -180,6 +186,25 @@ def test_a_script_that_cannot_be_imported_fails_before_a_testbed_is_started(test
     assert os.path.dirname(os.path.join(str(testbed["scripts"]), run_folder(out))) == str(testbed["results"])
 
 
+def test_the_video_is_made_as_a_real_time_run_goes_and_is_the_bags(testbed, tmp_path):
+    """The video is drawn while the run goes (robotarium_recording.live_video), from what ./robotarium run
+    hears over DDS, for a real-time script whose loop begins 1.5 s after its experiment (the testbed ahead
+    by more than the live video's lag) and whose drawing changes halfway: byte for byte the bag's video."""
+    from robotarium_recording.bag import Bag
+    from robotarium_recording.pictures import render_video
+    code, out = finish(start_run(testbed, "slow_start.py", "--real-time"))
+    assert code == 0, out
+    assert re.search(r"rendering run\.mp4: made as the run went \(\d+ frames\)", out), out
+    folder = run_folder(out)
+    bag = Bag(folder)
+    drawings = bag.drawings()
+    assert {m["step"] for m in drawings} >= {0, 46}, drawings   # the marker moved, by the script's count
+    assert bag.poses().steps[0] == 0 and bag.poses().steps[-1] > 90 + 30   # the testbed stepped ahead of it
+    from_bag = render_video(bag.poses(), drawings, bag.config(), str(tmp_path), json.load(
+        open(os.path.join(folder, "run.json")))["run_id"], progress=False)
+    assert open(os.path.join(folder, "run.mp4"), "rb").read() == open(from_bag, "rb").read()
+
+
 def _frame(path, index):
     import imageio_ffmpeg
     reader = imageio_ffmpeg.read_frames(path)
@@ -219,6 +244,12 @@ def test_a_guide_plotting_scripts_video_shows_its_goals_and_labels(testbed, tmp_
     frames, seconds = imageio_ffmpeg.count_frames_and_secs(os.path.join(folder, "run.mp4"))
     steps = run["runs"][-1]["steps"]
     assert frames == steps + 1 and seconds == pytest.approx((steps + 1) * bag.config().time_step, abs=0.05)
+    # Made while the run went (robotarium_recording.live_video), from what ./robotarium run heard over DDS:
+    # byte for byte the video the bag gives.
+    assert "rendering run.mp4: made as the run went (%d frames)" % frames in out, out
+    from_bag = render_video(bag.poses(), drawings, bag.config(), str(tmp_path), run["runs"][-1]["run_id"],
+                            progress=False, name="from_bag")
+    assert open(os.path.join(folder, "run.mp4"), "rb").read() == open(from_bag, "rb").read()
 
     # Frame 1 of the video against the same frame drawn without the script's drawing (a video of the
     # first three steps: the whole run's would take seconds for one frame).

@@ -194,6 +194,8 @@ def run_script(request):
         return run.collect()   # the results are made as soon as the bag is closed, while the nodes exit
     finally:
         interruption.restore()
+        if run.live is not None:
+            run.live.close()   # (a run whose results were not made from its bag: its video is not wanted)
         run.stop_testbed()
 
 
@@ -282,6 +284,7 @@ class Run:
         self.code = None      # the script's process's exit code (None: it never started)
         self.frozen = None    # FrozenScript that killed a script stopped too long, once it did
         self.unlogged = None  # folders.Unlogged: the script's output its log's full disk refused
+        self.live = None      # recording.LiveVideo: the video, made while the run goes
 
     @property
     def record_path(self):
@@ -343,6 +346,8 @@ class Run:
         request = self.request
         if request.results and request.record:   # made while the script runs: the results' imports
             threading.Thread(target=recording.preload_results, args=(request.video,), daemon=True).start()
+            if request.video and recording.live_video_enabled() and self.interruption.signum is None:
+                self.live = recording.LiveVideo(self.ns, os.path.join(self.work, STARTED), self.work).start()
         try:
             if self.interruption.signum is None:
                 command, env, pass_fds, box_options = self._script_process()
@@ -598,7 +603,7 @@ class Run:
                 record.steps = int(recorded_steps[-1]) if len(recorded_steps) else 0
                 run_record.write(record, run_dir)
             recording.write_results(bag_dir, progress=not self.quiet, video=self.pending.video, run=record,
-                                    out_dir=run_dir)
+                                    out_dir=run_dir, live=self.live)
         except Exception as error:   # noqa: BLE001 - say so, keep the folder
             if run_dir == bag_dir and outcomes.disk_full(error):
                 raise

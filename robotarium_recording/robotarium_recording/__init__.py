@@ -23,6 +23,8 @@ _API = {
     "recover_bag": ("bag", "recover_bag"),                      # a bag nothing will close, made readable
     "write_results": ("results", "write_results"),              # report, plot, video and page of a run's bag
     "preload_results": ("results", "preload"),                  # their imports, ahead of time
+    "LiveVideo": ("live_video", "LiveVideo"),                   # the video, made while the run goes
+    "live_video_enabled": ("live_video", "enabled"),
     "write_page": ("page", "write_page"),                       # the results page of a run folder
     "ViewProcess": ("view_node", "ViewProcess"),                # the Foxglove view in a process of its own
     "add_view_arguments": ("view_node", "add_view_arguments"),

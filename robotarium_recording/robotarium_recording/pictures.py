@@ -12,6 +12,7 @@ The trajectory plot shows every robot's path in its own colour (distinct for up 
 where it started (an open circle with its id) and where it ended (the robot drawn with its id),
 over what the script drew, faded.
 """
+import contextlib
 import fractions
 import os
 import shutil
@@ -51,13 +52,37 @@ def frame_rate(time_step):
     return "%d/%d" % (rate.numerator, rate.denominator)
 
 
+def frame_plan(pose_steps, drawing_steps, stride=1, first=None, last=None):
+    """The frames of a run, as what each shows: yield (step, row, drawings) for every `stride`-th step
+    from `first` (default the first pose row's step) to `last` (default the last one's): `row` the newest
+    pose row at or before that step, `drawings` how many of the drawing messages (in the order they are
+    applied: sorted by step, recorded order kept) are applied by then. The video's frames follow it, made
+    from the bag (Frames) or as the run goes (live_video.LiveVideo), so both make the same frames."""
+    if not len(pose_steps):
+        return
+    first = int(pose_steps[0]) if first is None else first
+    last = int(pose_steps[-1]) if last is None else last
+    row = d = 0
+    for step in range(first, last + 1, stride):
+        while row + 1 < len(pose_steps) and pose_steps[row + 1] <= step:
+            row += 1
+        while d < len(drawing_steps) and drawing_steps[d] <= step:
+            d += 1
+        yield step, row, d
+
+
+def drawing_order(drawings):
+    """The drawing messages in the order the frames apply them: by step, recorded order kept."""
+    return sorted(drawings, key=lambda m: m.get("step", 0))
+
+
 class Frames:
     """The frames of a run: for each step from the first to the last recorded one, the robots'
     poses (the newest recorded at or before it) and the script's drawing as it was then."""
 
     def __init__(self, track, drawings, config, title="", stride=1):
         self.track, self.config, self.title, self.stride = track, config, title, stride
-        self.drawings = sorted(drawings, key=lambda m: m.get("step", 0))   # stable: keeps recorded order
+        self.drawings = drawing_order(drawings)
         first, last = (int(track.steps[0]), int(track.steps[-1])) if len(track.steps) else (0, -1)
         self.steps = np.arange(first, last + 1, stride)
 
@@ -69,27 +94,43 @@ class Frames:
         return len({max(int(m.get("step", 0)), int(self.steps[0]) if len(self.steps) else 0)
                     for m in self.drawings})
 
+    def plan(self):
+        """frame_plan of this run: (step, row, drawings applied) per frame."""
+        return frame_plan(self.track.steps, [m.get("step", 0) for m in self.drawings], self.stride)
+
     def render(self, arena_figure, painter=None):
         """Yield (index, step, background_changed, drawing_changed) after putting each frame on
         `arena_figure` (and its drawing on `painter`); background_changed: something of the drawing
         below the robots changed (see Blitter)."""
-        track, state, d = self.track, DrawingState(), 0
-        row = 0
-        for index, step in enumerate(self.steps):
-            while row + 1 < len(track.steps) and track.steps[row + 1] <= step:
-                row += 1
-            arena_figure.update(np.vstack((track.x[row], track.y[row], track.theta[row])))
-            changed = False
-            while d < len(self.drawings) and self.drawings[d].get("step", 0) <= step:
-                state.apply(self.drawings[d])
-                d += 1
-                changed = True
-            below = False
-            if painter is not None and changed:
-                made, removed = painter.paint(state)
-                below = any(z < ROBOTS_ZORDER for z in removed) or any(a.get_zorder() < ROBOTS_ZORDER for a in made)
-            arena_figure.set_label("%s   t = %7.2f s   step %5d" % (self.title, step * self.config.time_step, step))
+        scene = Scene(arena_figure, painter, self.title, self.config.time_step)
+        track = self.track
+        for index, (step, row, d) in enumerate(self.plan()):
+            below, changed = scene.show(step, np.vstack((track.x[row], track.y[row], track.theta[row])),
+                                        self.drawings[scene.applied:d])
             yield index, step, below, changed
+
+
+class Scene:
+    """The arena figure of a video as one frame shows it: the robots at their poses, the script's drawing
+    with the messages applied so far, the time label."""
+
+    def __init__(self, arena_figure, painter, title, time_step):
+        self.arena_figure, self.painter, self.title, self.time_step = arena_figure, painter, title, time_step
+        self.state = DrawingState()
+        self.applied = 0   # drawing messages applied
+
+    def show(self, step, poses, new_drawings):
+        """Put the frame of `step` on the figure: returns (background_changed, drawing_changed)."""
+        self.arena_figure.update(poses)
+        for message in new_drawings:
+            self.state.apply(message)
+        self.applied += len(new_drawings)
+        changed, below = bool(new_drawings), False
+        if self.painter is not None and changed:
+            made, removed = self.painter.paint(self.state)
+            below = any(z < ROBOTS_ZORDER for z in removed) or any(a.get_zorder() < ROBOTS_ZORDER for a in made)
+        self.arena_figure.set_label("%s   t = %7.2f s   step %5d" % (self.title, step * self.time_step, step))
+        return below, changed
 
 
 class Blitter:
@@ -392,53 +433,89 @@ def render_video(track, drawings, config, out_dir, title="", progress=True, fmt=
         return None
     ffmpeg = ffmpeg_path() if fmt != "gif" else None
     fmt = "mp4" if ffmpeg else "gif"
-    path = os.path.join(out_dir, "%s.%s" % (name, fmt))
     frames = Frames(track, drawings, config, title, stride=1 if fmt == "mp4" else 2)
     first = np.vstack((track.x[0], track.y[0], track.theta[0]))
-    arena_figure = ArenaFigure.offscreen(config.arena, config.robot_radius, first, *VIDEO_SIZE, dpi=VIDEO_DPI)
-    arena_figure.draw_obstacles(obstacles)
-    painter = DrawingPainter(arena_figure.axes)
-    compositor = None
-    if frames.changes() <= COMPOSITE_MIN_CHANGES + len(frames) // COMPOSITE_CHANGES:
-        compositor = Compositor(arena_figure, painter)
-    blitter = Blitter(arena_figure, painter)
-    meter = Progress(os.path.basename(path), len(frames), progress)
-    width, height = arena_figure.figure.canvas.get_width_height()
+    video = Video(os.path.join(out_dir, "%s.%s" % (name, fmt)), ffmpeg, config, first, title, obstacles,
+                  composite=composites(frames), total=len(frames), progress=progress)
+    try:
+        for step, row, d in frames.plan():
+            video.frame(step, np.vstack((track.x[row], track.y[row], track.theta[row])),
+                        frames.drawings[video.scene.applied:d])
+    except BaseException:
+        video.abort()
+        raise
+    return video.close()
 
-    def rendered():
-        """(index, pixels): yuv420p planes (Compositor) or RGBA (Blitter) for the encoder, RGB for a GIF."""
-        for index, _, background_changed, drawing_changed in frames.render(arena_figure, painter):
-            if compositor is None:
-                pixels = blitter.frame(background_changed)
-                yield index, ([pixels] if fmt == "mp4" else np.asarray(pixels)[..., :3])
-            else:
-                if drawing_changed:
-                    compositor.refresh()
-                compositor.frame(arena_figure.poses, arena_figure.label.get_text())
-                yield index, (compositor.planes if fmt == "mp4" else compositor.rgb)
-            meter(index + 1)
 
-    if fmt == "mp4":
-        encoder = subprocess.Popen(
-            [ffmpeg, "-y", "-loglevel", "error", "-f", "rawvideo", "-pix_fmt", "rgba" if compositor is None else "yuv420p",
-             "-s", "%dx%d" % (width, height), "-framerate", frame_rate(config.time_step), "-i", "-",
-             "-c:v", "libx264", "-preset", X264_PRESET, "-pix_fmt", "yuv420p", "-movflags", "+faststart", path],
-            stdin=subprocess.PIPE)
-        try:
-            for _, planes in rendered():
-                for plane in planes:
-                    encoder.stdin.write(plane)
-        finally:
-            encoder.stdin.close()
-            if encoder.wait() != 0:
-                raise RuntimeError("ffmpeg could not encode %s (exit code %d)" % (path, encoder.returncode))
-    else:
-        from PIL import Image  # the GIF fallback only
-        images = [Image.fromarray(np.ascontiguousarray(rgb)).quantize(colors=64) for _, rgb in rendered()]
-        images[0].save(path, save_all=True, append_images=images[1:], loop=0,
-                       duration=int(round(1000 * frames.stride * config.time_step)))
-    meter.close()
-    return path
+def composites(frames):
+    """Whether the Compositor draws these frames (the script's drawing changes seldom enough)."""
+    return frames.changes() <= COMPOSITE_MIN_CHANGES + len(frames) // COMPOSITE_CHANGES
+
+
+class Video:
+    """A video being written, frame by frame: frame() puts each on the arena figure, draws it (Compositor
+    or Blitter) and hands it to the encoder (ffmpeg; `ffmpeg` None: a GIF with Pillow, every other step);
+    close() finishes the file and returns its path."""
+
+    def __init__(self, path, ffmpeg, config, first_poses, title="", obstacles=(), composite=True, total=0,
+                 progress=True):
+        self.path, self.fmt = path, "mp4" if ffmpeg else "gif"
+        self.stride, self.time_step = 1 if ffmpeg else 2, config.time_step
+        self.arena_figure = ArenaFigure.offscreen(config.arena, config.robot_radius, first_poses, *VIDEO_SIZE,
+                                                  dpi=VIDEO_DPI)
+        self.arena_figure.draw_obstacles(obstacles)
+        painter = DrawingPainter(self.arena_figure.axes)
+        self.scene = Scene(self.arena_figure, painter, title, config.time_step)
+        self.compositor = Compositor(self.arena_figure, painter) if composite else None
+        self.blitter = Blitter(self.arena_figure, painter)
+        self.meter = Progress(os.path.basename(path), total, progress)
+        self.frames, self.images, self.encoder = 0, [], None
+        if ffmpeg:
+            width, height = self.arena_figure.figure.canvas.get_width_height()
+            self.encoder = subprocess.Popen(
+                [ffmpeg, "-y", "-loglevel", "error", "-f", "rawvideo",
+                 "-pix_fmt", "rgba" if self.compositor is None else "yuv420p", "-s", "%dx%d" % (width, height),
+                 "-framerate", frame_rate(config.time_step), "-i", "-", "-c:v", "libx264", "-preset", X264_PRESET,
+                 "-pix_fmt", "yuv420p", "-movflags", "+faststart", path], stdin=subprocess.PIPE)
+
+    def frame(self, step, poses, new_drawings=()):
+        """The frame of `step`: the robots at `poses` (3 x N), the drawing messages that apply from it on."""
+        background_changed, drawing_changed = self.scene.show(step, poses, new_drawings)
+        if self.compositor is None:
+            pixels = self.blitter.frame(background_changed)
+            planes = [pixels] if self.encoder else np.asarray(pixels)[..., :3]
+        else:
+            if drawing_changed:
+                self.compositor.refresh()
+            self.compositor.frame(self.arena_figure.poses, self.arena_figure.label.get_text())
+            planes = self.compositor.planes if self.encoder else self.compositor.rgb
+        if self.encoder:
+            for plane in planes:
+                self.encoder.stdin.write(plane)
+        else:
+            from PIL import Image  # the GIF fallback only
+            self.images.append(Image.fromarray(np.ascontiguousarray(planes)).quantize(colors=64))
+        self.frames += 1
+        self.meter(self.frames)
+
+    def close(self):
+        if self.encoder:
+            self.encoder.stdin.close()
+            if self.encoder.wait() != 0:
+                raise RuntimeError("ffmpeg could not encode %s (exit code %d)" % (self.path, self.encoder.returncode))
+        else:
+            self.images[0].save(self.path, save_all=True, append_images=self.images[1:], loop=0,
+                                duration=int(round(1000 * self.stride * self.time_step)))
+        self.meter.close()
+        return self.path
+
+    def abort(self):
+        """Stop the encoder; the file is not a video (the caller removes it or writes it again)."""
+        if self.encoder:
+            with contextlib.suppress(OSError):
+                self.encoder.stdin.close()
+            self.encoder.kill()
+            self.encoder.wait()
 
 
 def plot_trajectories(track, drawings, config, path, title="", obstacles=()):

@@ -450,10 +450,11 @@ def preload(video=True):
         pass
 
 
-def write_results(bag_dir, progress=True, *, out_dir=None, video=True, run=None):
+def write_results(bag_dir, progress=True, *, out_dir=None, video=True, run=None, live=None):
     """Write report.txt, trajectories.png, run.mp4 (or run.gif) and index.html for the run in
     `bag_dir` (into `out_dir`, default the bag folder); `run` (its run_record.RunRecord, default the
-    run.json beside the bag) says how the run ended where the bag cannot and goes on the page.
+    run.json beside the bag) says how the run ended where the bag cannot and goes on the page; `live`
+    (a live_video.LiveVideo) the video made while the run went, kept where it is the bag's.
     Returns {"report": path, "trajectories": path, "video": path, "page": path} ("video" only when
     video=True and the bag has poses). Prints nothing but progress (stderr)."""
     bag = Bag(bag_dir)
@@ -483,11 +484,19 @@ def write_results(bag_dir, progress=True, *, out_dir=None, video=True, run=None)
     track, drawings, config = bag.poses(), bag.drawings(), numbers["config"]
     obstacles = bag.experiment().get("obstacles") or ()
     title = numbers["settings"]["run_id"] or bag.name
+    if live is not None:   # (first: its thread draws with matplotlib until it is done)
+        movie = os.path.join(out_dir, "run.mp4")
+        if video and len(track.steps) and live.video_for(track, drawings, config, title, obstacles, movie):
+            paths["video"] = movie
+            if progress:
+                print("rendering run.mp4: made as the run went (%d frames)" % len(live.frames.plan), file=sys.stderr,
+                      flush=True)
+        live.close()
     plot = pictures.plot_trajectories(track, drawings, config, os.path.join(out_dir, "trajectories.png"), title,
                                      obstacles)
     if plot:
         paths["trajectories"] = plot
-    if video:
+    if video and "video" not in paths:
         movie = pictures.render_video(track, drawings, config, out_dir, title, progress=progress,
                                       obstacles=obstacles)
         if movie:
