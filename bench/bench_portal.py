@@ -1,10 +1,11 @@
 """The portal (./robotarium serve) end to end: turnaround of a 300-step experiment on an empty queue, and the
 pages' response times under 20 users browsing while an experiment runs.
 
-    ./robotarium bench portal [--users 20] [--steps 300] [--baseline] [--repeat N]
+    ./robotarium bench portal [--users 20] [--steps 300] [--baseline [--baseline-env VAR=VALUE]] [--repeat N]
 
 --baseline: the turnaround also with no warm verification testbed (ROBOTARIUM_PORTAL_WARM_VERIFICATION=0:
-each verification starts a testbed of its own in its box), a service of each kind in turn, --repeat times
+each verification starts a testbed of its own in its box), or, with --baseline-env VAR=VALUE (e.g.
+ROBOTARIUM_LIVE_VIDEO=0), with those variables instead; a service of each kind in turn, --repeat times
 each, interleaved, medians side by side with their ratio; then the pages under load on the warm one.
 
 A fresh service in a temporary folder, on ROS_DOMAIN_IDs of its own. The user and the experiment are made
@@ -89,8 +90,14 @@ def main():
     parser.add_argument("--steps", type=int, default=300, help="steps of the experiment's script")
     parser.add_argument("--baseline", action="store_true",
                         help="also measure the turnaround with no warm verification testbed, interleaved")
+    parser.add_argument("--baseline-env", metavar="VAR=VALUE", action="append", default=[],
+                        help="with --baseline: the baseline is the service with these variables instead (its warm "
+                             "verification testbed kept), e.g. ROBOTARIUM_LIVE_VIDEO=0 (the video made from the bag)")
     parser.add_argument("--repeat", type=int, default=1, help="turnarounds of each kind (median shown)")
     args = parser.parse_args()
+    baseline_env = dict(item.split("=", 1) for item in args.baseline_env)
+    baseline_name = ("with %s" % " ".join(args.baseline_env) if baseline_env
+                     else "no warm verification testbed, on a testbed of its own")
 
     from devtools.rosutil import unique_domain_id
     data = tempfile.mkdtemp(prefix="robotarium-bench-portal-")
@@ -136,7 +143,9 @@ def main():
     def start_serve(warm):
         port = free_port()
         earlier = set((Path(data) / "logs").glob("worker-*.txt"))   # (an earlier service's slots, in this data)
-        env = dict(os.environ, ROBOTARIUM_PORTAL_WARM_VERIFICATION="1" if warm else "0")
+        env = dict(os.environ, ROBOTARIUM_PORTAL_WARM_VERIFICATION="1" if warm or baseline_env else "0")
+        if not warm:
+            env.update(baseline_env)
         serve = subprocess.Popen([os.path.join(REPO, "robotarium"), "serve", "--data", data, "--port", str(port),
                                   "--run-domain", str(unique_domain_id()), "--verify-domain", str(unique_domain_id())],
                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
@@ -212,8 +221,8 @@ def main():
         for name, what in [("total", "Submit -> completed")] + PARTS:
             w, c = median([r[name] for r, _, _ in warm_runs]), median([r[name] for r, _, _ in cold])
             print("  %-16s %9.1f %12.1f %6s   %s" % (name, w, c, "%.2f" % (w / c) if c > 0.05 else "-", what))
-        print("  runs (total, s): warm %s; baseline (no warm verification testbed, on %s) %s" % (
-            " ".join("%.1f" % r["total"] for r, _, _ in warm_runs),
+        print("  runs (total, s): warm %s; baseline (%s; verified on %s) %s" % (
+            " ".join("%.1f" % r["total"] for r, _, _ in warm_runs), baseline_name,
             ", ".join(sorted({"the slot's warm testbed" if w == "warm" else "a testbed of its own" for _, _, w in cold})),
             " ".join("%.1f" % r["total"] for r, _, _ in cold)))
     else:

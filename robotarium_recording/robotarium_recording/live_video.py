@@ -18,6 +18,8 @@ the command's probe context, a thread that spins it and one that draws)."""
 import json
 import os
 import shutil
+import stat
+import tempfile
 import threading
 import time
 
@@ -186,8 +188,10 @@ class LiveVideo:
     start() hears and draws in threads of this process; video_for() finishes it and keeps it if it is what
     the bag gives; close() drops it."""
 
-    def __init__(self, ns, started, work_dir):
-        self.ns, self.started, self.path = ns.rstrip("/"), started, os.path.join(work_dir, "live-run.mp4")
+    def __init__(self, ns, started):
+        # A folder of this process's own (0700): not the run's scratch folder, which a job box's script may write.
+        self.folder = tempfile.mkdtemp(prefix="robotarium-live-video-")
+        self.ns, self.started, self.path = ns.rstrip("/"), started, os.path.join(self.folder, "run.mp4")
         self.frames = LiveFrames()
         self.lock = threading.Condition()
         self.final = self.stop = False
@@ -325,11 +329,20 @@ class LiveVideo:
                 return
 
     def _run_id(self):
+        """The run id in the runner's started.json, once it is there (a regular file, read without waiting:
+        a job box's script may write that folder)."""
         try:
-            with open(self.started) as f:
-                return str(json.load(f).get("run_id") or "") or None
+            fd = os.open(self.started, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW)
+        except OSError:
+            return None
+        try:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                return None
+            return str(json.loads(os.read(fd, 1 << 16)).get("run_id") or "") or None
         except (OSError, ValueError, AttributeError):
             return None
+        finally:
+            os.close(fd)
 
     # -- the end ------------------------------------------------------------------------------------
 
@@ -364,8 +377,8 @@ class LiveVideo:
         with self.lock:
             self.final = self.stop = True
             self.lock.notify_all()
-        if self.drawn.wait(timeout=5.0) and os.path.exists(self.path):
-            os.remove(self.path)
+        if self.drawn.wait(timeout=5.0):
+            shutil.rmtree(self.folder, ignore_errors=True)
         if self.spinner is not None:
             self.spinner.join(timeout=1.0)
             if not self.spinner.is_alive() and self.node is not None:
