@@ -197,6 +197,7 @@ class LiveVideo:
         self.final = self.stop = False
         self.video = None
         self.composite = None    # the video's renderer: the Compositor (True) or the Blitter (False)
+        self.progress = False    # the frames left at the end show progress (video_for)
         self.why_not = ""        # why there is no live video (it failed, or gave up)
         self.drawn = threading.Event()   # the drawing thread is done (video closed, or none)
         self.ffmpeg = pictures.ffmpeg_path()
@@ -320,6 +321,9 @@ class LiveVideo:
                 self.video = pictures.Video(self.path, self.ffmpeg, config, first, title, obstacles,
                                             composite=composite, progress=False)
                 self.composite = composite
+            if final and not self.video.meter.enabled and self.progress:
+                # The frames left at the end (a lockstep run outpaces the drawing): progress, as the bag's video has.
+                self.video.meter = pictures.Progress("run.mp4", len(self.frames.plan), True)
             for step, poses, drawings in due:
                 if self.stop:
                     break
@@ -346,9 +350,10 @@ class LiveVideo:
 
     # -- the end ------------------------------------------------------------------------------------
 
-    def video_for(self, track, drawings, config, title, obstacles, out_path):
+    def video_for(self, track, drawings, config, title, obstacles, out_path, progress=False):
         """The run's video at `out_path` when the frames drawn are those of the bag's poses, drawing,
-        configuration, title and obstacles (then True); else False (why_not says why) and nothing is left."""
+        configuration, title and obstacles (then True); else False (why_not says why) and nothing is left.
+        `progress`: the frames still to draw show their progress on stderr."""
         try:
             deadline = time.monotonic() + ROWS_WAIT
             while not self.drawn.is_set() and time.monotonic() < deadline:
@@ -357,7 +362,7 @@ class LiveVideo:
                         break
                 time.sleep(0.01)
             with self.lock:
-                self.final = True
+                self.final, self.progress = True, progress
                 self.lock.notify_all()
             self.drawn.wait()
             if self.video is None or self.why_not:

@@ -486,7 +486,7 @@ def write_results(bag_dir, progress=True, *, out_dir=None, video=True, run=None,
     title = numbers["settings"]["run_id"] or bag.name
     if live is not None:   # (first: its thread draws with matplotlib until it is done)
         movie = os.path.join(out_dir, "run.mp4")
-        if video and len(track.steps) and live.video_for(track, drawings, config, title, obstacles, movie):
+        if video and len(track.steps) and live.video_for(track, drawings, config, title, obstacles, movie, progress):
             paths["video"] = movie
             if progress:
                 print("rendering run.mp4: made as the run went (%d frames)" % len(live.frames.plan), file=sys.stderr,
