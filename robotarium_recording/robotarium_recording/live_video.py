@@ -194,7 +194,7 @@ class LiveVideo:
         self.ns, self.started, self.path = ns.rstrip("/"), started, os.path.join(self.folder, "run.mp4")
         self.frames = LiveFrames()
         self.lock = threading.Condition()
-        self.final = self.stop = False
+        self.final = self.stop = self.closed = False
         self.video = None
         self.composite = None    # the video's renderer: the Compositor (True) or the Blitter (False)
         self.progress = False    # the frames left at the end show progress (video_for)
@@ -354,6 +354,9 @@ class LiveVideo:
         """The run's video at `out_path` when the frames drawn are those of the bag's poses, drawing,
         configuration, title and obstacles (then True); else False (why_not says why) and nothing is left.
         `progress`: the frames still to draw show their progress on stderr."""
+        if self.closed:   # (asked again: the results made again elsewhere, after a full disk refused them)
+            self.why_not = self.why_not or "closed"
+            return False
         try:
             deadline = time.monotonic() + ROWS_WAIT
             while not self.drawn.is_set() and time.monotonic() < deadline:
@@ -380,7 +383,7 @@ class LiveVideo:
         """Stop hearing and drawing; the node goes once its spinning thread has stopped (it is left to the
         process's exit should Fast DDS hold it: robotarium_cli.main ends with os._exit)."""
         with self.lock:
-            self.final = self.stop = True
+            self.final = self.stop = self.closed = True
             self.lock.notify_all()
         if self.drawn.wait(timeout=5.0):
             shutil.rmtree(self.folder, ignore_errors=True)
