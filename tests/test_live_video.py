@@ -127,3 +127,15 @@ def test_a_pose_row_the_live_video_missed_or_another_run_is_caught(tmp_path, dra
     assert frames.differs(track, drawings, DEFAULT, RUN, ()).startswith("other poses")
     assert frames.differs(track, drawings, DEFAULT, "another_run", ()).startswith("another run")
     assert frames.differs(track, drawings, DEFAULT, RUN, [[[0, 0], [1, 1]]]) == "other obstacles"
+
+
+def test_asked_again_after_it_was_closed_it_leaves_the_video_to_the_bag(tmp_path):
+    """The results made a second time (a full disk refused the first folder): the live video, closed by then,
+    says no, so the bag's video is made; its own folder is gone."""
+    from robotarium_recording.live_video import LiveVideo
+    live = LiveVideo("/robotarium", str(tmp_path / "started.json"))
+    assert os.path.isdir(live.folder)
+    live.close()
+    track = _track(10)
+    assert not live.video_for(track, [], DEFAULT, RUN, (), str(tmp_path / "run.mp4"))
+    assert live.why_not == "closed" and not os.path.exists(live.folder) and not (tmp_path / "run.mp4").exists()

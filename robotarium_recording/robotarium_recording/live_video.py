@@ -199,15 +199,16 @@ class LiveVideo:
         self.composite = None    # the video's renderer: the Compositor (True) or the Blitter (False)
         self.progress = False    # the frames left at the end show progress (video_for)
         self.why_not = ""        # why there is no live video (it failed, or gave up)
-        self.drawn = threading.Event()   # the drawing thread is done (video closed, or none)
+        self.drawn = threading.Event()   # no drawing thread (not started, or done: its video closed, or none)
+        self.drawn.set()
         self.ffmpeg = pictures.ffmpeg_path()
         self.node = self.executor = self.spinner = None
 
     def start(self):
         if self.ffmpeg is None:
             self.why_not = "no ffmpeg (a GIF is made from the bag)"
-            self.drawn.set()
             return self
+        self.drawn.clear()
         threading.Thread(target=self._run, daemon=True, name="live video").start()
         return self
 
