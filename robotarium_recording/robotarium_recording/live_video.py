@@ -59,6 +59,7 @@ class LiveFrames:
         self.drawings = []          # messages in arrival order
         self.commands = 0           # command arrays heard since the run's first poses: the script's step() calls
         self.config_text = None     # the newest configuration heard
+        self.config = None          # the configuration the frames are drawn with
         self.settings = {}          # run id -> the experiment's settings (obstacles)
         self.next_step = None       # the step of the next frame
         self.row = 0                # the newest row at or before the last frame
@@ -108,10 +109,10 @@ class LiveFrames:
         if settings is None:
             return None
         try:
-            config = TestbedConfig.from_yaml(self.config_text)
+            self.config = TestbedConfig.from_yaml(self.config_text)
         except ConfigError:
             return None
-        return config, self.run_id, settings.get("obstacles") or (), self.pose(0)
+        return self.config, self.run_id, settings.get("obstacles") or (), self.pose(0)
 
     def pose(self, row):
         return np.vstack((self.x[row], self.y[row], self.theta[row]))
@@ -164,7 +165,7 @@ class LiveFrames:
         gives ("" when they are)."""
         if title != self.run_id:
             return "another run (%s, the bag's %s)" % (self.run_id, title)
-        if config != TestbedConfig.from_yaml(self.config_text):
+        if config != self.config:
             return "another configuration"
         if not np.array_equal(np.asarray(obstacles, dtype=float), np.asarray(self.settings[self.run_id].get(
                 "obstacles") or (), dtype=float)):
