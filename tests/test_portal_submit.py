@@ -265,6 +265,9 @@ def test_submit_follows_it_downloads_its_results_and_the_page_shows_it_live(port
         assert os.path.getsize(os.path.join(results, name)) > 0, name
     assert "drove 330 steps on a circle of 0.5" in open(os.path.join(results, "log.txt")).read()
     pk = experiment_id(out)
+    # Its video drawn as the run went, by the job's ./robotarium run in its box (robotarium_recording.live_video)
+    job = open(os.path.join(portal.data, "experiments", str(pk), "run-1", "output.txt"), errors="replace").read()
+    assert "rendering run.mp4: made as the run went" in job, job
     # The second person's token: 404 on the first one's experiment and its files, as the pages answer.
     status, body = portal.api("api/experiments/%d/" % pk, email="bob@example.org")
     assert status == 404 and json.loads(body) == {"error": "no such experiment"}
