@@ -269,8 +269,8 @@ class LiveVideo:
 
     def _run(self):
         try:
-            self.niced = _nice(NICE)   # (its encoder, started from this thread, inherits it)
-            self._listen()
+            self._listen()   # (its spinning thread at the process's niceness: it only keeps what is heard)
+            self.niced = _nice(NICE)   # the drawing thread's own (its encoder, started from it, inherits it)
             self._draw()
         except Exception as error:   # noqa: BLE001 - the video is made from the bag then
             self.why_not = "%s: %s" % (type(error).__name__, error)
