@@ -133,7 +133,7 @@ def test_asked_again_after_it_was_closed_it_leaves_the_video_to_the_bag(tmp_path
     """The results made a second time (a full disk refused the first folder): the live video, closed by then,
     says no, so the bag's video is made; its own folder is gone."""
     from robotarium_recording.live_video import LiveVideo
-    live = LiveVideo("/robotarium", str(tmp_path / "started.json"))
+    live = LiveVideo("/robotarium", str(tmp_path / "started.json"), context=None)
     assert os.path.isdir(live.folder)
     live.close()
     track = _track(10)

@@ -24,6 +24,7 @@ from robotarium_bringup.testbed import (
     LocalTestbed,
     announced_recording,
     nodes_seen,
+    probe_context,
     repository_root,
     testbed_answers,
 )
@@ -347,7 +348,7 @@ class Run:
         if request.results and request.record:   # made while the script runs: the results' imports
             threading.Thread(target=recording.preload_results, args=(request.video,), daemon=True).start()
             if request.video and recording.live_video_enabled() and self.interruption.signum is None:
-                self.live = recording.LiveVideo(self.ns, os.path.join(self.work, STARTED)).start()
+                self.live = recording.LiveVideo(self.ns, os.path.join(self.work, STARTED), probe_context).start()
         try:
             if self.interruption.signum is None:
                 command, env, pass_fds, box_options = self._script_process()

@@ -201,14 +201,15 @@ class LiveFrames:
 
 
 class LiveVideo:
-    """The live video of the run that `started` (the runner's started.json) will name, on testbed `ns`:
-    start() hears and draws in threads of this process; video_for() finishes it and keeps it if it is what
-    the bag gives; close() drops it."""
+    """The live video of the run that `started` (the runner's started.json) will name, on testbed `ns`, heard
+    on the rclpy context that `context()` gives: start() hears and draws in threads of this process;
+    video_for() finishes it and keeps it if it is what the bag gives; close() drops it."""
 
-    def __init__(self, ns, started):
+    def __init__(self, ns, started, context):
         # A folder of this process's own (0700): not the run's scratch folder, which a job box's script may write.
         self.folder = tempfile.mkdtemp(prefix="robotarium-live-video-")
         self.ns, self.started, self.path = ns.rstrip("/"), started, os.path.join(self.folder, "run.mp4")
+        self.context = context   # () -> the rclpy context to listen on (made in the drawing thread, where needed)
         self.frames = LiveFrames()
         self.lock = threading.Condition()
         self.final = self.stop = self.closed = False
@@ -281,16 +282,15 @@ class LiveVideo:
             self.drawn.set()
 
     def _listen(self):
-        """A node on this command's probe context (robotarium_bringup.testbed: one participant for the
-        command's life) with the run's topics, spun in a thread of its own."""
+        """A node on the command's context (./robotarium run's probe context, robotarium_bringup.testbed: one
+        participant for the command's life) with the run's topics, spun in a thread of its own."""
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
         from std_msgs.msg import String
 
-        from robotarium_bringup.testbed import probe_context
         from robotarium_core import topics
         from robotarium_msgs.msg import RobotPoses, TwistArray
-        context = probe_context()
+        context = self.context()
         # Named as a script's client is (robotarium_client_*): SROS2's policy lets it read the poses.
         self.node = Node("robotarium_client_live_video_%d" % os.getpid(), context=context,
                          start_parameter_services=False)
