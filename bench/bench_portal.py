@@ -181,6 +181,8 @@ def main():
         command = experiment.timings.get("run_command", 0.0)
         script = run.get("wall_time", 0.0)
         said = (experiment.folder / "verification-output.txt").read_text(errors="replace")
+        job = experiment.folder / ("run-%d" % experiment.attempts) / "output.txt"
+        live_videos.append("made as the run went" in (job.read_text(errors="replace") if job.exists() else ""))
         return {"total": experiment.finished_at.timestamp() - clicked,
                 "verification": (experiment.queued_at - experiment.submitted_at).total_seconds(),
                 "verify_command": experiment.timings.get("verify_command", 0.0),
@@ -192,6 +194,7 @@ def main():
     def median(values):
         return sorted(values)[len(values) // 2]
 
+    live_videos = []   # per turnaround, in order: its video drawn while the run went (live_video)
     kinds = [True, False] if args.baseline else [True]
     measured = {kind: [] for kind in kinds}
     for _ in range(args.repeat):
@@ -225,6 +228,8 @@ def main():
             " ".join("%.1f" % r["total"] for r, _, _ in warm_runs), baseline_name,
             ", ".join(sorted({"the slot's warm testbed" if w == "warm" else "a testbed of its own" for _, _, w in cold})),
             " ".join("%.1f" % r["total"] for r, _, _ in cold)))
+        print("  videos drawn as the run went: %d of %d; baseline %d of %d" % (
+            sum(live_videos[0::2]), len(live_videos[0::2]), sum(live_videos[1::2]), len(live_videos[1::2])))
     else:
         for name, what in PARTS:
             print("  %-16s %6.1f s   (%s)" % (name, median([r[name] for r, _, _ in warm_runs]), what))

@@ -31,7 +31,8 @@ ENVIRONMENT = ("PATH", "HOME", "LANG", "LC_ALL", "LC_CTYPE", "TZ", "TERM", "PYTH
                "LD_LIBRARY_PATH", "VIRTUAL_ENV", "AMENT_PREFIX_PATH", "CMAKE_PREFIX_PATH", "RMW_IMPLEMENTATION",
                "MPLBACKEND", "ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS",
                "ROBOTARIUM_ROOT", "ROBOTARIUM_PROGRESS", "ROBOTARIUM_RPS", "ROBOTARIUM_PYTHON",
-               "ROBOTARIUM_WARM_VERIFICATION")   # (verify takes it out of its environment: the script never sees it)
+               "ROBOTARIUM_WARM_VERIFICATION",   # (verify takes it out of its environment: the script never sees it)
+               "ROBOTARIUM_LIVE_VIDEO")   # (a service may turn it off for its runs: robotarium_recording.live_video)
 SHARED_TMP = ("/tmp", "/var/tmp", "/dev/shm")
 # The repository's folders of runs and logs (other people's `./robotarium run` on this machine): empty in a box.
 PRIVATE_IN_REPOSITORY = ("bags", "log", "results", "service")
