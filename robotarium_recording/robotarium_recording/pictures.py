@@ -52,28 +52,21 @@ def frame_rate(time_step):
     return "%d/%d" % (rate.numerator, rate.denominator)
 
 
-def frame_plan(pose_steps, drawing_steps, stride=1, first=None, last=None):
+def frame_plan(pose_steps, drawing_steps, stride=1):
     """The frames of a run, as what each shows: yield (step, row, drawings) for every `stride`-th step
-    from `first` (default the first pose row's step) to `last` (default the last one's): `row` the newest
-    pose row at or before that step, `drawings` how many of the drawing messages (in the order they are
-    applied: sorted by step, recorded order kept) are applied by then. The video's frames follow it, made
-    from the bag (Frames) or as the run goes (live_video.LiveVideo), so both make the same frames."""
+    from the first pose row's step to the last one's: `row` the newest pose row at or before that step,
+    `drawings` how many of the drawing messages (in the order they are applied: sorted by step, recorded
+    order kept) are applied by then. The video made as the run goes follows the same rule as steps arrive
+    (live_video.LiveFrames.due), and is kept only where its plan is this one."""
     if not len(pose_steps):
         return
-    first = int(pose_steps[0]) if first is None else first
-    last = int(pose_steps[-1]) if last is None else last
     row = d = 0
-    for step in range(first, last + 1, stride):
+    for step in range(int(pose_steps[0]), int(pose_steps[-1]) + 1, stride):
         while row + 1 < len(pose_steps) and pose_steps[row + 1] <= step:
             row += 1
         while d < len(drawing_steps) and drawing_steps[d] <= step:
             d += 1
         yield step, row, d
-
-
-def drawing_order(drawings):
-    """The drawing messages in the order the frames apply them: by step, recorded order kept."""
-    return sorted(drawings, key=lambda m: m.get("step", 0))
 
 
 class Frames:
@@ -82,7 +75,7 @@ class Frames:
 
     def __init__(self, track, drawings, config, title="", stride=1):
         self.track, self.config, self.title, self.stride = track, config, title, stride
-        self.drawings = drawing_order(drawings)
+        self.drawings = sorted(drawings, key=lambda m: m.get("step", 0))   # stable: keeps recorded order
         first, last = (int(track.steps[0]), int(track.steps[-1])) if len(track.steps) else (0, -1)
         self.steps = np.arange(first, last + 1, stride)
 
@@ -97,17 +90,6 @@ class Frames:
     def plan(self):
         """frame_plan of this run: (step, row, drawings applied) per frame."""
         return frame_plan(self.track.steps, [m.get("step", 0) for m in self.drawings], self.stride)
-
-    def render(self, arena_figure, painter=None):
-        """Yield (index, step, background_changed, drawing_changed) after putting each frame on
-        `arena_figure` (and its drawing on `painter`); background_changed: something of the drawing
-        below the robots changed (see Blitter)."""
-        scene = Scene(arena_figure, painter, self.title, self.config.time_step)
-        track = self.track
-        for index, (step, row, d) in enumerate(self.plan()):
-            below, changed = scene.show(step, np.vstack((track.x[row], track.y[row], track.theta[row])),
-                                        self.drawings[scene.applied:d])
-            yield index, step, below, changed
 
 
 class Scene:
