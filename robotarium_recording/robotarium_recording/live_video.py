@@ -1,9 +1,10 @@
 """The run's video, made while the run goes (issue 40: results as the run goes).
 
-./robotarium run hears the testbed's poses, the run's configuration and settings and the script's drawing,
-and draws and encodes each frame a second of experiment time behind the newest step (pictures.Video, the
-same code and frame plan as the video made from the bag), so that when the run ends only that last second
-is left to draw, instead of the whole video after the bag is closed.
+./robotarium run hears the testbed's poses, the run's configuration and settings, the script's drawing and
+its command arrays, and draws and encodes each frame once the script's step() calls have passed it, and a
+second of experiment time more (pictures.Video, the same code and frame plan as the video made from the bag),
+at nice +10, so that when a real-time run ends only that last second is left to draw, instead of the whole
+video after the bag is closed (a lockstep run outpaces the drawing: what is left is drawn after it).
 
 The bag stays the record. Once it is closed, what these frames were made from (the poses, the drawing
 messages and the order they were applied in, the configuration, the settings, the title) is compared with
