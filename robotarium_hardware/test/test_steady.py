@@ -19,16 +19,19 @@ if sys.argv[1:] == ["nobody"]:   # (after the imports: that user may not read th
     os.setuid(65534)
 
 def policy(tid):
-    return os.sched_getscheduler(tid) & ~os.SCHED_RESET_ON_FORK
+    try:
+        return os.sched_getscheduler(tid) & ~os.SCHED_RESET_ON_FORK
+    except ProcessLookupError:   # a thread listed a moment ago that has ended since (`after`, joined, leaving)
+        return None
 
 release = threading.Event()
-before = threading.Thread(target=release.wait)
+before = threading.Thread(target=release.wait, daemon=True)   # (daemon: a failure below never waits for it)
 before.start()
 said = steady()
 seen = {}
 after = threading.Thread(target=lambda: seen.update(after=policy(threading.get_native_id())))
 after.start(); after.join()
-threads = {tid: policy(int(tid)) for tid in os.listdir("/proc/self/task")}
+threads = {tid: p for tid, p in ((tid, policy(int(tid))) for tid in os.listdir("/proc/self/task")) if p is not None}
 release.set(); before.join()
 print(json.dumps(dict(said=said, threads=threads, after=seen["after"],
                       priority=os.sched_getparam(0).sched_priority)))
