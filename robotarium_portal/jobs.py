@@ -129,54 +129,81 @@ def run_command(command, cwd, env, output_path, timeout, job, own_network=True, 
         box.clean()
 
 
-# The network namespace of this verification slot's warm testbed (start_warm_verification; its jobs read it).
+# The network namespace of this slot's warm testbed (start_warm_testbed; its jobs read it).
 WARM_NETWORK_VARIABLE = "ROBOTARIUM_PORTAL_WARM_NETWORK"
 WARM_START = 60   # s the slot waits for its warm testbed before it takes work without it
+WARM_JOB = "job.json"   # in warm_bags(): the experiment and attempt whose run the warm testbed records now
 
 
-def start_warm_verification():
-    """The verification slot's warm verification testbed, for the slot's life: ./robotarium up --verification
-    --no-record on the slot's ROS_DOMAIN_ID, with the transports and discovery of a job's box, in a network
-    namespace of its own (jobbox.start_in_network), which each verification's box joins. The script still runs
-    in its box: its own PID and mount namespaces, folder, account and limits; what it shares with the next job
-    is the testbed's nodes (the service's processes). Returns the testbed's Popen (None: none, as the settings,
-    or a service that is not root, say). Called by the slot's process (jobslot) before its workers start."""
-    if not (settings.WARM_VERIFICATION and jobbox.isolated()):
-        return None
-    # A job's named variables only (as JobBox.environment gives a verification, with its transports and discovery):
-    # nothing of the slot's own, such as its lifeline, whose descriptor the testbed would not have (it then ends).
-    env = dict(jobbox.scrubbed(job_env("ROBOTARIUM_PORTAL_VERIFY_DOMAIN")), FASTDDS_BUILTIN_TRANSPORTS="UDPv4",
+def warm_bags():
+    """Where a run slot's warm testbed records: in the data folder, which no job's script may read; one folder per
+    slot of this machine (by its run domain, which a slot started afresh keeps). Each run's folder moves into its
+    experiment's results when its job ends (bring_results), so the next job finds none of it."""
+    return settings.DATA_DIR / "warm-runs" / job_env("ROBOTARIUM_PORTAL_RUN_DOMAIN")["ROS_DOMAIN_ID"]
+
+
+def _warm_env(kind):
+    """A warm testbed's environment: a job's named variables only (as JobBox.environment gives a job, with its
+    transports and discovery), nothing of the slot's own, such as its lifeline, whose descriptor the testbed
+    would not have (it then ends)."""
+    domain = "ROBOTARIUM_PORTAL_VERIFY_DOMAIN" if kind == VERIFY_CLUSTER else "ROBOTARIUM_PORTAL_RUN_DOMAIN"
+    env = dict(jobbox.scrubbed(job_env(domain)), FASTDDS_BUILTIN_TRANSPORTS="UDPv4",
                ROS_AUTOMATIC_DISCOVERY_RANGE="SUBNET")
     env.pop("ROBOTARIUM_PROGRESS", None)
+    return env
+
+
+def start_warm_testbed(kind):
+    """The slot's warm testbed, for the slot's life, on the slot's ROS_DOMAIN_ID in a network namespace of its own
+    (jobbox.start_in_network), which each of the slot's boxes joins: a verification slot's ./robotarium up
+    --verification --no-record; a run slot's ./robotarium up recording into warm_bags() (not a worker of robots:
+    its fleet's testbed is its supervisor's). The script still runs in its box: its own PID and mount namespaces,
+    folder, account and limits; what it shares with the next job is the testbed's nodes (the service's
+    processes), never a recording (docs/portal.md says how that is tested). Returns the testbed's Popen (None:
+    none, as the settings, or a service that is not root, say). Called by the slot's process (jobslot) before
+    its workers start."""
+    verify = kind == VERIFY_CLUSTER
+    wanted = settings.WARM_VERIFICATION if verify else settings.WARM_RUNS and not os.environ.get(FLEET_VARIABLE)
+    if not (wanted and jobbox.isolated()):
+        return None
+    env = _warm_env(kind)
+    if verify:
+        arguments = ["--verification", "--no-record"]
+    else:
+        rescue_warm_recordings()   # what a slot before this one left (killed outright mid-run)
+        warm_bags().mkdir(parents=True, exist_ok=True)
+        arguments = ["--bags-dir", str(warm_bags())]
     logs = settings.DATA_DIR / "logs"
     logs.mkdir(parents=True, exist_ok=True)
-    with open(logs / ("warm-verification-%s.txt" % (me() or "local")), "ab") as log:
+    with open(logs / ("warm-%s-%s.txt" % ("verification" if verify else "runs", me() or "local")), "ab") as log:
         process, network = jobbox.start_in_network(
-            [str(settings.REPOSITORY / "robotarium"), "up", "--verification", "--no-record"], env, log)
+            [str(settings.REPOSITORY / "robotarium"), "up", *arguments], env, log)
     if network is None:
         stop_group(process.pid, grace=5)
         return None
     os.environ[WARM_NETWORK_VARIABLE] = network
-    # Ready before the slot takes its first verification (which would otherwise start a testbed of its own).
+    # Ready before the slot takes its first job (which would otherwise start a testbed of its own).
     deadline = time.monotonic() + WARM_START
-    while warm_verification(env)[0] is None and process.poll() is None and time.monotonic() < deadline:
+    while warm_testbed(kind, env)[0] is None and process.poll() is None and time.monotonic() < deadline:
         time.sleep(0.2)
     return process
 
 
-def warm_verification(env):
-    """(the registry entry of this slot's warm verification testbed where it runs, free of settings a
-    verification with `env` would not take, in the slot's network namespace; that namespace's path), or
-    (None, None): the verification then starts a testbed of its own in its box."""
+def warm_testbed(kind, env):
+    """(the registry entry of this slot's warm testbed where it runs, free of settings a job with `env` would not
+    take, in the slot's network namespace; that namespace's path), or (None, None): the job then starts a testbed
+    of its own in its box."""
     network = os.environ.get(WARM_NETWORK_VARIABLE)
     if not network:
         return None, None
     from robotarium_bringup import local_testbeds
-    from robotarium_cli.running import warm_verification_testbed
+    from robotarium_cli.running import VERIFY_NAMESPACE, warm_verification_testbed
+    from robotarium_core.topics import DEFAULT_NAMESPACE
     try:
         netns = os.readlink(network)
     except OSError:
         return None, None
+    verify = kind == VERIFY_CLUSTER
     root = env.get("ROBOTARIUM_ROOT") or str(settings.REPOSITORY)
     for _, entry in local_testbeds.registered():
         try:
@@ -184,11 +211,36 @@ def warm_verification(env):
                 continue
         except (OSError, KeyError, TypeError):
             continue
-        found = warm_verification_testbed([entry], env["ROS_DOMAIN_ID"], "SUBNET", root, "", False, "",
-                                          local_testbeds.running)
+        found = warm_verification_testbed(
+            [entry], env["ROS_DOMAIN_ID"], "SUBNET", root, "", not verify, "" if verify else str(warm_bags()),
+            local_testbeds.running, namespace=VERIFY_NAMESPACE if verify else "/" + DEFAULT_NAMESPACE)
         if found is not None:
             return found, network
     return None, None
+
+
+def rescue_warm_recordings(experiment=None):
+    """Before a run on the slot's warm testbed: what an earlier job of the slot left in warm_bags() (a job killed
+    outright, with its worker, before it moved its run's folder out) goes to that job's results, where a job of
+    the box's own testbed would have left it; then the folder names `experiment`'s run as the one it now records.
+    Nothing of one job stays for the next."""
+    folder = warm_bags()
+    try:
+        earlier = json.loads((folder / WARM_JOB).read_text())
+        results = run_folder(Experiment.objects.get(pk=earlier["experiment"]), earlier["attempt"]) / "results"
+    except (OSError, ValueError, KeyError, TypeError, Experiment.DoesNotExist):
+        results = None
+    for path in (folder.iterdir() if folder.is_dir() else ()):
+        if path.name == WARM_JOB:
+            continue
+        if results is not None and results.is_dir() and path.is_dir() and not (results / path.name).exists():
+            shutil.move(str(path), str(results / path.name))
+            logger.warning("moved %s, left by a job cut short, to its experiment's results %s", path, results)
+        else:
+            shutil.rmtree(path, ignore_errors=True) if path.is_dir() else path.unlink(missing_ok=True)
+    if experiment is not None:
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / WARM_JOB).write_text(json.dumps({"experiment": experiment.pk, "attempt": experiment.attempts}))
 
 
 def box_notes(output_path):
@@ -303,7 +355,7 @@ def _verify(experiment):
     began = time.monotonic()
     limit, rule = verification_limit(experiment)
     env = job_env("ROBOTARIUM_PORTAL_VERIFY_DOMAIN")
-    warm, network = warm_verification(env)
+    warm, network = warm_testbed(VERIFY_CLUSTER, env)
     if warm is not None:   # verify finds it there (robotarium_cli.running.WARM_VARIABLE), or says why not
         from robotarium_cli.running import WARM_VARIABLE
         env[WARM_VARIABLE] = json.dumps(warm)
@@ -409,8 +461,8 @@ FLEET_VARIABLE = "ROBOTARIUM_PORTAL_FLEET"
 
 
 def bring_results(output_path, results):
-    """A run on the robots is recorded by the worker's own testbed, in its bags folder; the run folder that
-    ./robotarium run named ("results in FOLDER") moves into the experiment's results/."""
+    """A run on the robots, or on the slot's warm testbed, is recorded by that testbed in its bags folder; the run
+    folder that ./robotarium run named ("results in FOLDER") moves into the experiment's results/."""
     try:
         lines = Path(output_path).read_text(errors="replace").splitlines()
     except OSError:
@@ -455,20 +507,25 @@ def run_experiment(experiment):
     limit = time_limit()
     fleet = os.environ.get(FLEET_VARIABLE)
     mode = run_mode(experiment, fleet)
-    if fleet:   # a worker of robots (./robotarium worker --fleet): its hardware arena's testbed, on its run domain
-        run = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", "--no-local-testbed", "--no-verdict",
-               "--time-limit", "%g" % limit, "--results-dir", str(results), experiment.main_file]
-    else:
+    env = job_env("ROBOTARIUM_PORTAL_RUN_DOMAIN")
+    warm, network = (None, None) if fleet else warm_testbed(RUN_CLUSTER, env)
+    if fleet or warm:   # the worker's testbed (its robots' hardware arena, or the slot's warm one) records the run
+        run = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", *(["--hardware"] * mode.hardware_like),
+               "--no-local-testbed", "--no-verdict", "--time-limit", "%g" % limit, "--results-dir", str(results),
+               experiment.main_file]
+    else:   # a testbed of its own in its box, recording into the results
         run = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", *(["--hardware"] * mode.hardware_like),
                "--no-verdict", "--time-limit", "%g" % limit, "--bags-dir", str(results), "--results-dir", str(results),
                experiment.main_file]
+    if warm:
+        rescue_warm_recordings(experiment)
     # The live view's feed beside the run, on its testbed (live_feed.py); the job's end ends it.
     command = ["sh", "-c", '"$0" -m robotarium_portal.live_feed "$1" & shift; exec "$@"', sys.executable,
                str(live_file(experiment)), *run]
     began = time.monotonic()
-    code = run_command(command, work, job_env("ROBOTARIUM_PORTAL_RUN_DOMAIN"), root / "output.txt",
-                       limit + RESULTS_GRACE, RUN_CLUSTER, own_network=not fleet)
-    if fleet:
+    code = run_command(command, work, env, root / "output.txt", limit + RESULTS_GRACE, RUN_CLUSTER,
+                       own_network=not fleet, network=network)
+    if fleet or warm:
         bring_results(root / "output.txt", results)
     experiment.timings = dict(experiment.timings or {}, run_command=round(time.monotonic() - began, 3))
     if stopping():

@@ -30,10 +30,9 @@ def main():
         os.kill(os.getpid(), signal.SIGTERM)   # the cluster's own stop: its worker ends, then the cluster
 
     lifeline.watch(supervisor_is_gone, name="supervisor")
-    # A verification slot's warm testbed (a root service): started before the cluster's workers, which inherit
-    # where it is; stopped with the slot (and, should the slot die outright, by its parent-death signal).
-    if name == jobs.VERIFY_CLUSTER:
-        warm += [p for p in [jobs.start_warm_verification()] if p is not None]
+    # The slot's warm testbed (a root service): started before the cluster's workers, which inherit where it is;
+    # stopped with the slot (and, should the slot die outright, by its parent-death signal).
+    warm += [p for p in [jobs.start_warm_testbed(name)] if p is not None]
     try:
         call_command("qcluster")   # returns once the cluster runs (its sentinel, a child, does the work)
         for child in multiprocessing.active_children():

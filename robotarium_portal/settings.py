@@ -177,9 +177,12 @@ Q_CLUSTER = {
 # rejected at it, its rule named ("time"), and the next submission is verified.
 VERIFY_STARTUP = float(os.environ.get("ROBOTARIUM_PORTAL_VERIFY_STARTUP", "60"))
 # Each verification slot keeps a warm verification testbed (./robotarium up --verification --no-record) in a network
-# namespace of its own, which each verification's box joins (jobs.start_warm_verification); "0": none, each
+# namespace of its own, which each verification's box joins (jobs.start_warm_testbed); "0": none, each
 # verification starts a testbed of its own in its box. A root service only (the boxes' namespaces).
 WARM_VERIFICATION = os.environ.get("ROBOTARIUM_PORTAL_WARM_VERIFICATION", "1") != "0"
+# The same for each run slot (not a worker of robots): ./robotarium up, recording into the data folder, each run's
+# folder moved into its experiment's results at its end; "0": each run starts a testbed of its own in its box.
+WARM_RUNS = os.environ.get("ROBOTARIUM_PORTAL_WARM_RUNS", "1") != "0"
 # Each worker beats every WORKER_HEARTBEAT s; one that missed WORKER_LOST_AFTER s of beats, while the one
 # who watches saw the database all that time, is lost: its verification is handed out again, its run failed.
 WORKER_HEARTBEAT = float(os.environ.get("ROBOTARIUM_WORKER_HEARTBEAT", "2"))

@@ -309,7 +309,7 @@ def test_the_whole_flow_in_a_real_browser_with_a_restart_mid_run(tmp_path):
             assert re.search(r"collisions: \d+ times, limit 100 \(first at step \d+\)", rejection), rejection
             assert "collisions:" in inbox.wait_for("ada@example.org", "issues found")
             # As root, each verification ran in its box on the slot's warm verification testbed (the box joined the
-            # slot's network namespace: jobs.start_warm_verification), the head-on rejection's counts included.
+            # slot's network namespace: jobs.start_warm_testbed), the head-on rejection's counts included.
             if os.geteuid() == 0:
                 for number in (pk, head_on):
                     with open(os.path.join(data, "experiments", str(number), "verification-output.txt")) as f:

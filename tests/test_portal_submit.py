@@ -114,6 +114,20 @@ for folder in ("bags", "log", "results"):
                            for n in names)[:2000]
 print("REPOSITORY FOLDERS", found, flush=True)
 """ % REPO + ENDING
+# The recordings it can reach: every .mcap in the places a script may read, and the run slot's warm testbed's folder
+# in the service's data folder (jobs.warm_bags: refused to the script's account), where the runs before it were.
+RECORDINGS = """import os
+seen = []
+for top in ("/tmp", "/var/tmp", "/dev/shm", os.path.expanduser("~"), os.getcwd(), os.path.join(%r, "bags")):
+    for d, _, names in os.walk(top):
+        seen += [os.path.join(d, n) for n in names if n.endswith(".mcap")]
+try:
+    listed = sorted(os.listdir(os.path.join(%r, "warm-runs")))
+except OSError as error:
+    listed = "refused (%%s)" %% type(error).__name__
+print("RECORDINGS SEEN", seen, flush=True)
+print("WARM RUNS", listed, flush=True)
+"""
 SPINNING = "while True:\n    pass\n"
 
 
@@ -232,7 +246,9 @@ def portal(tmp_path_factory):
                                               ("clean", {"main.py": "import time\n" + ENDING}, 2, 10),
                                               ("Circle", MOVING, 3, 15),
                                               ("processes", {"main.py": PROCESSES}, 2, 10),
-                                              ("files", {"main.py": FILES}, 2, 10)):
+                                              ("files", {"main.py": FILES}, 2, 10),
+                                              ("recordings", {"main.py": RECORDINGS % (REPO, os.path.join(
+                                                  str(folder), "service")) + ENDING}, 2, 10)):
             service.submitted[name] = (service.submit(str(folder / name), files, robots, duration, name),
                                        str(folder / name))
             time.sleep(0.5)   # each submitted just after the one before
@@ -359,6 +375,30 @@ def test_a_hostile_script_per_leak_sees_nothing_of_the_machine(portal):
         top = os.path.join(REPO, folder)
         there = {os.path.relpath(os.path.join(d, n), top) for d, _, names in os.walk(top) for n in names}
         assert there and not there & set(seen[folder]), (folder, sorted(there & set(seen[folder]))[:10])
+
+
+def test_each_run_goes_on_the_slots_warm_testbed_and_leaves_nothing_of_it_for_the_next(portal):
+    """As root, the run slot keeps a warm testbed (jobs.start_warm_testbed) in a network namespace its boxes join:
+    every run goes there (no testbed started in its box), its recording comes back whole with its results, and
+    nothing of one run is left for the next: the last script, run after four others on that testbed, finds no
+    recording it can read and is refused the slot's folder; that folder holds no run once the jobs are done."""
+    runs = ("clean", "Circle", "processes", "files", "recordings")
+    for name in runs:
+        code, out = portal.finished(portal.submitted[name][0])
+        assert code == 0, out + portal.logs()
+        pk = experiment_id(out)
+        job = open(os.path.join(portal.data, "experiments", str(pk), "run-1", "output.txt"), errors="replace").read()
+        assert "using the testbed that answers in /robotarium" in job and "started one" not in job, job
+        results = out.strip().splitlines()[-1]
+        assert [n for n in os.listdir(results) if n.endswith(".mcap")] and os.path.isfile(
+            os.path.join(results, "report.txt")), os.listdir(results)
+    log = open(os.path.join(portal.finished(portal.submitted["recordings"][0])[1].strip().splitlines()[-1],
+                            "log.txt")).read()
+    assert "RECORDINGS SEEN []" in log, log
+    assert "WARM RUNS refused (PermissionError)" in log, log
+    slots = os.path.join(portal.data, "warm-runs")
+    left = {slot: sorted(os.listdir(os.path.join(slots, slot))) for slot in os.listdir(slots)}
+    assert left and all(names == ["job.json"] for names in left.values()), left
 
 
 def test_a_spinning_script_is_rejected_at_its_limit_and_the_next_one_is_verified_within_its_own(portal):

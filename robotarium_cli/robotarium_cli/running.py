@@ -742,17 +742,18 @@ def _judge(request, run):
 VERIFY_NAMESPACE = "/robotarium_verify"
 
 
-def warm_verification_testbed(entries, domain, discovery_range, root, config_file, record, bags_dir, alive):
+def warm_verification_testbed(entries, domain, discovery_range, root, config_file, record, bags_dir, alive,
+                              namespace=VERIFY_NAMESPACE):
     """The entry, of this machine's registry `entries` (robotarium_bringup.local_testbeds.registered), of a
-    warm verification testbed that judges as a testbed of verify's own would: in VERIFY_NAMESPACE on
-    `domain` and `discovery_range`, run from the checkout `root` with the configuration file `config_file`
-    ("": the packaged one), neither hardware-like nor a fleet, its owner, simulator and safety node alive
-    (alive(process)), and a recorder into `bags_dir` where the verification records, none where it does
-    not. None when none is."""
+    warm testbed that judges as a testbed of verify's own would: in `namespace` (VERIFY_NAMESPACE; the portal's
+    run slot asks for its run testbed's) on `domain` and `discovery_range`, run from the checkout `root` with
+    the configuration file `config_file` ("": the packaged one), neither hardware-like nor a fleet, its owner,
+    simulator and safety node alive (alive(process)), and a recorder into `bags_dir` where the run records,
+    none where it does not. None when none is."""
     wanted = {"simulator", "safety"} | ({"recorder"} if record else set())
     for entry in entries:
         nodes = entry.get("nodes", {})
-        if (entry.get("namespace") == VERIFY_NAMESPACE and entry.get("domain") == domain
+        if (entry.get("namespace") == namespace and entry.get("domain") == domain
                 and entry.get("discovery_range", "") == discovery_range and entry.get("root") == root
                 and entry.get("config_file") == config_file and entry.get("hardware") is False
                 and not entry.get("fleet_file") and set(nodes) == wanted
