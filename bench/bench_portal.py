@@ -2,11 +2,14 @@
 pages' response times under 20 users browsing while an experiment runs.
 
     ./robotarium bench portal [--users 20] [--steps 300] [--baseline [--baseline-env VAR=VALUE]] [--repeat N]
+                              [--back-to-back N]
 
---baseline: the turnaround also with no warm verification testbed (ROBOTARIUM_PORTAL_WARM_VERIFICATION=0:
-each verification starts a testbed of its own in its box), or, with --baseline-env VAR=VALUE (e.g.
-ROBOTARIUM_LIVE_VIDEO=0), with those variables instead; a service of each kind in turn, --repeat times
-each, interleaved, medians side by side with their ratio; then the pages under load on the warm one.
+--baseline: the turnaround also with no warm testbeds (ROBOTARIUM_PORTAL_WARM_VERIFICATION=0 and
+ROBOTARIUM_PORTAL_WARM_RUNS=0: each verification and each run starts a testbed of its own in its box), or,
+with --baseline-env VAR=VALUE (e.g. ROBOTARIUM_PORTAL_WARM_RUNS=0, ROBOTARIUM_LIVE_VIDEO=0), with those
+variables instead; a service of each kind in turn, --repeat times each, interleaved, medians side by side
+with their ratio. Then --back-to-back N experiments submitted at once, on a service of each kind: how long
+each takes beyond its run. Then the pages under load on the warm one.
 
 A fresh service in a temporary folder, on ROS_DOMAIN_IDs of its own. The user and the experiment are made
 in its database (not measured); the submission, the pages and the log-ins go through HTTP as a browser's
@@ -89,15 +92,18 @@ def main():
     parser.add_argument("--users", type=int, default=20, help="users browsing while an experiment runs")
     parser.add_argument("--steps", type=int, default=300, help="steps of the experiment's script")
     parser.add_argument("--baseline", action="store_true",
-                        help="also measure the turnaround with no warm verification testbed, interleaved")
+                        help="also measure the turnaround with no warm testbeds, interleaved")
     parser.add_argument("--baseline-env", metavar="VAR=VALUE", action="append", default=[],
                         help="with --baseline: the baseline is the service with these variables instead (its warm "
                              "verification testbed kept), e.g. ROBOTARIUM_LIVE_VIDEO=0 (the video made from the bag)")
     parser.add_argument("--repeat", type=int, default=1, help="turnarounds of each kind (median shown)")
+    parser.add_argument("--back-to-back", type=int, default=3, metavar="N",
+                        help="then N experiments submitted at once, on a service of each kind: how long each takes "
+                             "beyond its run, from the one before it completed to its own completion (0: none)")
     args = parser.parse_args()
     baseline_env = dict(item.split("=", 1) for item in args.baseline_env)
     baseline_name = ("with %s" % " ".join(args.baseline_env) if baseline_env
-                     else "no warm verification testbed, on a testbed of its own")
+                     else "no warm testbeds: each job on a testbed of its own")
 
     from devtools.rosutil import unique_domain_id
     data = tempfile.mkdtemp(prefix="robotarium-bench-portal-")
@@ -118,8 +124,8 @@ def main():
                                reason="bench", email_confirmed=True, approved=True)
         users.append(user)
 
-    def new_experiment(title):
-        experiment = Experiment.objects.create(owner=users[0], title=title, estimated_duration=60,
+    def new_experiment(title, owner=0):
+        experiment = Experiment.objects.create(owner=users[owner], title=title, estimated_duration=60,
                                                number_of_robots=5, main_file="main.py")
         experiment.files_dir.mkdir(parents=True)
         (experiment.files_dir / "main.py").write_text(SCRIPT % args.steps)
@@ -143,9 +149,9 @@ def main():
     def start_serve(warm):
         port = free_port()
         earlier = set((Path(data) / "logs").glob("worker-*.txt"))   # (an earlier service's slots, in this data)
-        env = dict(os.environ, ROBOTARIUM_PORTAL_WARM_VERIFICATION="1" if warm or baseline_env else "0")
+        env = dict(os.environ, ROBOTARIUM_PORTAL_WARM_VERIFICATION="1", ROBOTARIUM_PORTAL_WARM_RUNS="1")
         if not warm:
-            env.update(baseline_env)
+            env.update(baseline_env or {"ROBOTARIUM_PORTAL_WARM_VERIFICATION": "0", "ROBOTARIUM_PORTAL_WARM_RUNS": "0"})
         serve = subprocess.Popen([os.path.join(REPO, "robotarium"), "serve", "--data", data, "--port", str(port),
                                   "--run-domain", str(unique_domain_id()), "--verify-domain", str(unique_domain_id())],
                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
@@ -236,6 +242,36 @@ def main():
     print("goal: submit -> completed <= 14 s: %.1f s -> %s" % (
         median([r["total"] for r, _, _ in warm_runs]),
         "met" if median([r["total"] for r, _, _ in warm_runs]) <= 14 else "not met"))
+
+    def back_to_back(base, count):
+        """count experiments of count people submitted at once on an empty queue: each one's time beyond its run,
+        from the completion of the one before it to its own, less the run's testbed time."""
+        made = [new_experiment("back to back %d" % k, owner=k % len(users)) for k in range(count)]
+        for k, experiment in enumerate(made):
+            session = Session(base)
+            session.log_in(users[k % len(users)].email)
+            submit(session, experiment)
+        done = [wait_until(experiment, ("completed", "failed", "rejected")) for experiment in made]
+        finished = sorted(e.finished_at.timestamp() for e in done)
+        testbed_time = args.steps * 0.033
+        return [b - a - testbed_time for a, b in zip(finished, finished[1:])], [e.state for e in done]
+
+    if args.back_to_back > 1:
+        beyond = {}
+        for kind in kinds:
+            serve, base = start_serve(kind)
+            try:
+                beyond[kind] = back_to_back(base, args.back_to_back)
+            finally:
+                stop_serve(serve)
+        print("%d experiments submitted at once, each after the one before it (from its completion to the next "
+              "one's, less the run's %.1f s of testbed time):" % (args.back_to_back, args.steps * 0.033))
+        for kind in kinds:
+            gaps, states = beyond[kind]
+            print("  %-9s each %s s beyond its run (median %.1f s); states %s" % (
+                "warm" if kind else "baseline", " ".join("%.1f" % g for g in gaps), median(gaps), " ".join(states)))
+        print("goal: back to back, each <= 3 s beyond its run: %.1f s (median, warm) -> %s" % (
+            median(beyond[True][0]), "met" if max(beyond[True][0]) <= 3 else "not met"))
 
     # 2. Pages under load while an experiment runs (on a service with the warm verification testbed).
     serve, base = start_serve(True)
