@@ -201,6 +201,7 @@ def main():
         return sorted(values)[len(values) // 2]
 
     live_videos = []   # per turnaround, in order: its video drawn while the run went (live_video)
+    keep = []          # the folders of turnarounds far slower than the others, for a look
     kinds = [True, False] if args.baseline else [True]
     measured = {kind: [] for kind in kinds}
     for _ in range(args.repeat):
@@ -239,6 +240,15 @@ def main():
     else:
         for name, what in PARTS:
             print("  %-16s %6.1f s   (%s)" % (name, median([r[name] for r, _, _ in warm_runs]), what))
+        print("  runs (total, s): %s" % " ".join("%.1f" % r["total"] for r, _, _ in warm_runs))
+    for kind in kinds:   # a turnaround far from its kind's median: its parts, and its experiment kept
+        usual = median([r["total"] for r, _, _ in measured[kind]])
+        for parts, slow, _ in measured[kind]:
+            if parts["total"] > 1.3 * usual:
+                keep.append(slow.folder)
+                print("  a slow one (%s, experiment %d, kept in %s): %s" % (
+                    "warm" if kind else "baseline", slow.pk, slow.folder,
+                    ", ".join("%s %.1f" % (name, parts[name]) for name, _ in [("total", "")] + PARTS)))
     print("goal: submit -> completed <= 14 s: %.1f s -> %s" % (
         median([r["total"] for r, _, _ in warm_runs]),
         "met" if median([r["total"] for r, _, _ in warm_runs]) <= 14 else "not met"))
@@ -328,7 +338,10 @@ def main():
               % (args.users, every_p99, "met" if every_p99 <= 150 else "not met"))
     finally:
         stop_serve(serve)
-        shutil.rmtree(data, ignore_errors=True)
+        if keep:
+            print("the service's folder is kept for the slow turnarounds' experiments: %s" % data)
+        else:
+            shutil.rmtree(data, ignore_errors=True)
 
 
 if __name__ == "__main__":
