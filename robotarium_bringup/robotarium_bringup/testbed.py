@@ -277,11 +277,12 @@ def _kill_group(process):
     process.wait()
 
 
-def testbed_answers(ns=None, timeout=3.0):
-    """True when a simulator on this DDS domain offers <ns>/start_experiment within `timeout`."""
+def testbed_answers(ns=None, timeout=3.0, stop=None):
+    """True when a simulator on this DDS domain offers <ns>/start_experiment within `timeout` (False at once
+    once stop() is true)."""
     with probe_node("robotarium_probe") as (node, _):
         client = node.create_client(StartExperiment, "%s/start_experiment" % (ns or namespace_from_environment()))
-        return wait_for_service(client, timeout)
+        return wait_for_service(client, timeout, stop)
 
 
 def nodes_seen(domain=None, discovery_range=None):

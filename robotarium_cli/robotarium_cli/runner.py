@@ -1,6 +1,12 @@
 """Runs an experiment script for `./robotarium run`, in the script's own process.
 
     python -m robotarium_cli.runner OPTIONS_JSON RUN_INFO_JSON SCRIPT [ARGS...]
+    python -m robotarium_cli.runner --gated   (the same arguments, as JSON, through its start gate)
+
+Gated, it is a warm interpreter: started while `run` still looks for the testbed (or starts one), it
+imports what every script needs (rclpy, numpy, the client; not `rps`, whose API waits for the run's
+options) and then waits at its start gate (robotarium_core.lifeline.StartGate) for the run's
+arguments; a gate closed without them (no testbed, or `run` gone) ends it without running anything.
 
 It sets robotarium_client.session.options (the run's choices, explicitly: no environment
 variables) and runs SCRIPT as `python SCRIPT ARGS` would. However the script ends (its end, an
@@ -11,6 +17,7 @@ from its start, for a script killed outright. Exit code: outcomes.EXIT_CODES (12
 What each end leaves, and its bound: docs/faults.md#a-run-and-its-processes.
 """
 import _thread
+import json
 import os
 import runpy
 import signal
@@ -169,7 +176,25 @@ def finish(outcome, detail, code):
     return outcome, detail, code, runs
 
 
+def warm_up():
+    """Import what every script's run needs: what `import rps.robotarium` brings but `rps` itself (its API is
+    decided from the run's options, on its import); not pyplot, which only a script that plots needs (0.3 CPU-s
+    more for every other one: bench wall_to_prompt, 2026-12-01), nor the 2.x API's modules."""
+    import robotarium_client.robotarium  # noqa: F401 (numpy, rclpy, the client's session and link with it)
+
+
+def gated_arguments():
+    """The run's arguments, once `run` opens the gate; None when it closed it without them."""
+    warm_up()
+    data = lifeline.read_start_gate()
+    return None if data is None else json.loads(data)
+
+
 def main(argv):
+    if argv == ["--gated"]:
+        argv = gated_arguments()
+        if argv is None:
+            return 0   # not wanted after all: nothing was run
     options_json, run_info_path, script, *script_args = argv
     folder = os.path.dirname(os.path.abspath(run_info_path))
     # Beside RUN_INFO_JSON: the log ./robotarium run keeps, and what is known of the experiment as soon

@@ -188,8 +188,10 @@ def run_script(request):
     interruption = Interruption()
     run = Run(request, interruption)
     try:
-        if not run.start():
-            return outcomes.EXIT_CODES[outcomes.TESTBED_LOST], None, None
+        run.warm_up()
+        if not run.start():   # no testbed, or a signal while it looked for one (128 + it, as a shell says)
+            code = interruption.exit_code if interruption.signum else outcomes.EXIT_CODES[outcomes.TESTBED_LOST]
+            return code, None, None
         run.wait()
         interruption.restore()   # from here on (results, video) a signal acts as usual
         return run.collect()   # the results are made as soon as the bag is closed, while the nodes exit
@@ -286,6 +288,7 @@ class Run:
         self.frozen = None    # FrozenScript that killed a script stopped too long, once it did
         self.unlogged = None  # folders.Unlogged: the script's output its log's full disk refused
         self.live = None      # recording.LiveVideo: the video, made while the run goes
+        self.warm = None      # WarmRunner: the script's process, started before the testbed was found
 
     @property
     def record_path(self):
@@ -313,7 +316,9 @@ class Run:
         elif request.warm_testbed:
             pass   # the script's client finds it (and says so if it does not answer)
         elif not request.local_testbed:   # a testbed is known to be up (or coming up): wait for it, never start one
-            if not testbed_answers(self.ns, timeout=60.0):
+            if not testbed_answers(self.ns, timeout=60.0, stop=lambda: self.interruption.signum is not None):
+                if self.interruption.signum is not None:   # Ctrl-C while it waited: nothing ran, nothing to say
+                    return False
                 say("no testbed answers in %s on ROS_DOMAIN_ID %s (--no-local-testbed forbids starting one); "
                     "start it with ./robotarium up" % (self.ns, os.environ.get("ROS_DOMAIN_ID", "0")))
                 seen = nodes_seen()
@@ -351,13 +356,13 @@ class Run:
                 self.live = recording.LiveVideo(self.ns, os.path.join(self.work, STARTED), probe_context).start()
         try:
             if self.interruption.signum is None:
-                command, env, pass_fds, box_options = self._script_process()
+                arguments = self._script_arguments()
                 with open(self.log_path, "wb", buffering=0) as log:
-                    # A process group of its own: a terminal's Ctrl-C reaches only this command, which forwards
-                    # it once (a second SIGINT would cut short the script's exit handler ending its experiment).
-                    process = subprocess.Popen(command, cwd=self.pending.cwd, env=env, pass_fds=pass_fds,
-                                               process_group=0, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                               **box_options)
+                    process = self.warm.go(arguments, self.work) if self.warm is not None else None
+                    if process is None:   # (none warm, or it is gone: started now, as it would have been)
+                        env, pass_fds, box_options = self._script_environment([self.work])
+                        process = subprocess.Popen([*RUNNER, *arguments], cwd=self.pending.cwd, env=env,
+                                                   pass_fds=pass_fds, **SCRIPT_PROCESS, **box_options)
                     self.interruption.watch(process)
                     self.frozen = FrozenScript(process)
                     self.pending.runner = local_testbeds.process(process.pid)
@@ -369,28 +374,41 @@ class Run:
             if self.testbed is not None:
                 self.testbed.begin_stop()  # the simulator ends an experiment still running; the recorder closes the bag
 
-    def _script_process(self):
-        """The runner's command line, environment, inherited descriptors and job-box options."""
+    def warm_up(self):
+        """Start the script's process now, behind a gate (WarmRunner): its Python and imports overlap the look
+        for the testbed and its start; wait() hands it the run's arguments. Where the run never gets there, the
+        gate closes and it ends having run nothing."""
+        if self.interruption.signum is None:
+            self.warm = WarmRunner(*self._script_environment([]), os.getcwd())
+
+    def _script_arguments(self):
+        """The runner's arguments: the run's options, its record's path, the script and its arguments."""
         request, config_file = self.request, self.request.options.config_file
         # The testbed is up (found or started): the script waits for it, never starts another.
         options = dataclasses.replace(request.options, local_testbed=False, namespace=self.ns,
                                       experiment_name=self.pending.name,
                                       progress_interval=session.progress_from_environment(10.0),
                                       config_file=os.path.abspath(config_file) if config_file else None)
+        return [options.to_json(), self.record_path, request.script, *request.script_args]
+
+    def _script_environment(self, writable):
+        """The script's process's environment, inherited descriptors and job-box options; `writable`: folders
+        handed to the script's account (the run's scratch folder)."""
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
             env.setdefault("MPLBACKEND", "Agg")
         # The script's lifeline: should this command be killed outright, the script stops too.
         env, pass_fds = lifeline.for_child(env)
         # In the portal's job box only the script is demoted (its account, its limits); the testbed stays the service's.
-        box_options, env = script_box.popen_options(env, writable=[self.work])
-        command = [sys.executable, "-m", "robotarium_cli.runner", options.to_json(), self.record_path,
-                   request.script, *request.script_args]
-        return command, env, pass_fds, box_options
+        box_options, env = script_box.popen_options(env, writable=writable)
+        return env, pass_fds, box_options
 
     def stop_testbed(self):
         if self.testbed is not None:
             self.testbed.stop()
+        if self.warm is not None:
+            self.warm.cancel()   # (never let go: it ends having run nothing)
+
 
     # -- collect ----------------------------------------------------------------------------------------
 
@@ -611,6 +629,48 @@ class Run:
             why = _why_no_results(bag_dir, error)
             write_unrecorded_results(run_dir, record, record.last.report if record.last else "", why)
             say("%s; see %s" % (why, run_dir))   # (after: a full disk there moves the folder first)
+
+
+RUNNER = [sys.executable, "-m", "robotarium_cli.runner"]
+# A process group of its own: a terminal's Ctrl-C reaches only `run`, which forwards it once (a second SIGINT
+# would cut short the script's exit handler ending its experiment). Its output goes to the log (tee).
+SCRIPT_PROCESS = {"process_group": 0, "stdout": subprocess.PIPE, "stderr": subprocess.STDOUT}
+
+
+class WarmRunner:
+    """The script's process started ahead of its run (runner --gated): a warm interpreter that imports what
+    every script needs while `run` looks for the testbed or starts one, then waits at its start gate for the
+    run's arguments (go), or ends having run nothing when the gate closes without them (cancel, or `run`'s
+    death). Same account, limits, environment and folder as a process started at the run."""
+
+    def __init__(self, env, pass_fds, box_options, cwd):
+        self.gate = lifeline.StartGate()
+        env, pass_fds = self.gate.for_child(env, pass_fds)
+        self.process = subprocess.Popen([*RUNNER, "--gated"], cwd=cwd, env=env, pass_fds=pass_fds,
+                                        **SCRIPT_PROCESS, **box_options)
+        self.gate.close_read_end()
+
+    def go(self, arguments, work):
+        """Hand it the run's arguments and `work` (the run's scratch folder, for its account); the Popen, or
+        None where it already ended (then the run starts its script's process afresh)."""
+        if self.process.poll() is not None:
+            self.cancel()
+            return None
+        script_box.hand_over(os.environ, [work])
+        self.gate.open(1, json.dumps(arguments).encode())
+        process, self.process = self.process, None
+        return process
+
+    def cancel(self):
+        self.gate.close()
+        if self.process is not None:
+            try:
+                self.process.wait(timeout=5)   # it reads the gate closed and exits at once
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+            self.process.stdout.close()
+            self.process = None
 
 
 def _recorded_steps(bag_dir):

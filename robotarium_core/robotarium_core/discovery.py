@@ -7,14 +7,15 @@ import time
 SERVICE_POLL = 0.01   # s between looks at the DDS graph while waiting for a service
 
 
-def wait_for_service(client, timeout):
+def wait_for_service(client, timeout, stop=None):
     """Client.wait_for_service without its 0.25 s steps (rclpy sleeps that long between looks at
-    the graph): True as soon as the service is there, False after `timeout` seconds."""
+    the graph): True as soon as the service is there, False after `timeout` seconds, or as soon as
+    stop() is true (a Ctrl-C while a command waits)."""
     deadline = time.monotonic() + timeout
     while client.context.ok():
         if client.service_is_ready():
             return True
-        if time.monotonic() >= deadline:
+        if time.monotonic() >= deadline or (stop is not None and stop()):
             return False
         time.sleep(SERVICE_POLL)
     return False

@@ -87,10 +87,11 @@ class StartGate:
         """(env, pass_fds) for subprocess.Popen, with this gate added."""
         return dict(env, **{GATE_ENV: str(self._read)}), tuple(pass_fds) + (self._read,)
 
-    def open(self, children):
-        """Let `children` processes through (each takes one byte)."""
+    def open(self, children, message=b""):
+        """Let `children` processes through (each takes one byte); one child alone may be handed `message`
+        too (read_start_gate)."""
         try:
-            os.write(self._write, b"1" * children)
+            os.write(self._write, b"1" * children + message)
         except BrokenPipeError:   # they are all gone already: LocalTestbed.failed() says so
             pass
         self.close()
@@ -134,3 +135,21 @@ def pass_start_gate():
             os.close(fd)
         except (OSError, UnboundLocalError):
             pass
+
+
+def read_start_gate():
+    """In the one process started behind a StartGate, wait until it opens: what its starter handed it then
+    (bytes, b"" for nothing), or None when it was closed without opening (exit without doing anything) or
+    there is no gate."""
+    value = os.environ.pop(GATE_ENV, None)
+    if value is None:
+        return None
+    try:
+        fd = int(value)
+        if not stat.S_ISFIFO(os.fstat(fd).st_mode):
+            return None
+        with os.fdopen(fd, "rb") as gate:
+            data = gate.read()
+    except (ValueError, OSError, KeyboardInterrupt):
+        return None
+    return data[1:] if data[:1] == b"1" else None

@@ -39,6 +39,16 @@ def describe(user, uid, gid, home, limits):
     return json.dumps({"user": user, "uid": uid, "gid": gid, "home": str(home), "limits": limits})
 
 
+def hand_over(env, paths):
+    """Give `paths` (folders the script's process writes) to the box's account that `env` names; nothing when
+    not boxed."""
+    text = env.get(VARIABLE)
+    if text:
+        box = json.loads(text)
+        for path in paths:
+            os.chown(path, int(box["uid"]), int(box["gid"]))
+
+
 def popen_options(env, writable=()):
     """(subprocess.Popen keyword arguments, the script's environment) for the script's process: as
     the box's account, limited, HOME in its box, `writable` folders (the run's own scratch folder,
@@ -48,8 +58,7 @@ def popen_options(env, writable=()):
         return {}, env
     box = json.loads(text)
     uid, gid = int(box["uid"]), int(box["gid"])
-    for path in writable:
-        os.chown(path, uid, gid)
+    hand_over(env, writable)
     script_env = {k: v for k, v in env.items() if k not in SERVICE_ONLY}
     script_env.update(HOME=box["home"], USER=box["user"], LOGNAME=box["user"])
     demoted = uid != os.geteuid()
