@@ -1,5 +1,6 @@
 """Results of a recorded run from its bag alone: the debug report (equal to the live one), the
 trajectory plot and the video."""
+import dataclasses
 import json
 import math
 import os
@@ -15,7 +16,7 @@ from devtools.rosutil import REPO
 from robotarium_core import model
 from robotarium_core.run_record import RunRecord
 from robotarium_recording import pictures, results
-from robotarium_recording.bag import Bag
+from robotarium_recording.bag import FAST_TYPES, Bag
 
 SAMPLE = os.path.join(REPO, "bags", "sample_consensus")
 
@@ -43,6 +44,12 @@ def test_report_from_the_bag_equals_the_live_report_and_results_are_written(stac
             numbers["actuator_limit_iterations"]) == (ended.steps, ended.collisions, ended.boundary_violations,
                                                       ended.actuator_limit_iterations)
 
+    # Our own types were read with robotarium_core.cdr (the bag's schemas are today's), exactly as rosbags reads them
+    bag = Bag(ended.recording)
+    assert {t for t in bag.schemas if bag.fast_layout(t)} == set(FAST_TYPES) - {"std_msgs/msg/String"} | (
+        {"std_msgs/msg/String"} if "std_msgs/msg/String" in bag.schemas else set())
+    assert decoded_as_rosbags_does(bag) > 4 * steps
+
     paths = results.write_results(ended.recording, progress=False, out_dir=str(tmp_path / "out"))
     with open(paths["report"]) as f:
         text = f.read()
@@ -52,6 +59,33 @@ def test_report_from_the_bag_equals_the_live_report_and_results_are_written(stac
     frames, seconds = imageio_ffmpeg.count_frames_and_secs(paths["video"])
     assert paths["video"].endswith(".mp4") and frames == steps + 1
     assert seconds == pytest.approx((steps + 1) * model.TIME_STEP, abs=0.05)   # experiment time
+
+
+def same_as(ours, theirs, where):
+    """ours (robotarium_recording.bag's cdr-read message) holds every field of theirs (rosbags'), equal."""
+    if dataclasses.is_dataclass(theirs):
+        for field in dataclasses.fields(theirs):   # (the message's constants, upper case, are not read from bags)
+            if field.name != "__msgtype__" and not field.name.isupper():
+                same_as(getattr(ours, field.name), getattr(theirs, field.name), "%s.%s" % (where, field.name))
+    elif isinstance(theirs, np.ndarray):
+        assert np.array_equal(np.asarray(ours), theirs) and np.asarray(ours).dtype.kind == theirs.dtype.kind, where
+    elif isinstance(theirs, list):
+        assert len(ours) == len(theirs), where
+        for k, (a, b) in enumerate(zip(ours, theirs)):
+            same_as(a, b, "%s[%d]" % (where, k))
+    else:
+        assert ours == theirs and type(ours) is type(theirs), (where, ours, theirs)
+
+
+def decoded_as_rosbags_does(bag):
+    """Every message of the bag's cdr-read types decodes as rosbags decodes it; returns how many there were."""
+    count = 0
+    for message in bag.messages():
+        if bag.fast_layout(message.type):
+            same_as(bag.decode(message), bag.typestore.deserialize_cdr(message.data, message.type),
+                    "%s %s" % (message.topic, message.log_time))
+            count += 1
+    return count
 
 
 def test_report_command_on_the_sample_run(tmp_path, capsys):

@@ -379,7 +379,10 @@ class Run:
         for the testbed and its start; wait() hands it the run's arguments. Where the run never gets there, the
         gate closes and it ends having run nothing."""
         if self.interruption.signum is None:
-            self.warm = WarmRunner(*self._script_environment([]), os.getcwd())
+            try:
+                self.warm = WarmRunner(*self._script_environment([]), os.getcwd())
+            except OSError:   # (it cannot start now: wait() starts it as it always did, and says why if it fails)
+                self.warm = None
 
     def _script_arguments(self):
         """The runner's arguments: the run's options, its record's path, the script and its arguments."""
@@ -646,8 +649,12 @@ class WarmRunner:
     def __init__(self, env, pass_fds, box_options, cwd):
         self.gate = lifeline.StartGate()
         env, pass_fds = self.gate.for_child(env, pass_fds)
-        self.process = subprocess.Popen([*RUNNER, "--gated"], cwd=cwd, env=env, pass_fds=pass_fds,
-                                        **SCRIPT_PROCESS, **box_options)
+        try:
+            self.process = subprocess.Popen([*RUNNER, "--gated"], cwd=cwd, env=env, pass_fds=pass_fds,
+                                            **SCRIPT_PROCESS, **box_options)
+        except OSError:
+            self.gate.close()
+            raise
         self.gate.close_read_end()
 
     def go(self, arguments, work):

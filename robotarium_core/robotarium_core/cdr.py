@@ -80,6 +80,29 @@ class _String:
         writer.put(encoded)
 
 
+class _StringSequence:
+    """A sequence of strings (string[]), as a tuple of str; each string as _String reads it."""
+
+    default = ()
+
+    def read(self, reader: _Reader) -> tuple[str, ...]:
+        pos = reader.align(4)
+        reader.need(pos, 4)
+        count = _COUNT.unpack_from(reader.data, pos)[0]
+        reader.pos = pos + 4
+        if reader.max_elements is not None and count > reader.max_elements:
+            raise CdrError("a sequence of %d strings at offset %d (at most %d accepted)"
+                           % (count, pos, reader.max_elements), OVERSIZED)
+        reader.need(reader.pos, 4 * count)   # each string takes at least its length field: no huge count
+        return tuple(STRING.read(reader) for _ in range(count))
+
+    def write(self, writer: _Writer, value: Sequence[str]) -> None:
+        writer.align(4)
+        writer.put(_COUNT.pack(len(value)))
+        for text in value:
+            STRING.write(writer, text)
+
+
 class _Sequence:
     """A sequence of one primitive type, or of structs of `width` float64 members (Twist: 6,
     Pose: 7), as a numpy array (shape (count,) or (count, width))."""
@@ -343,6 +366,24 @@ TESTBED_STATUS_HEAD = Layout("robotarium_msgs/msg/TestbedStatus", HEADER + (
     ("safety_rearms", UINT32), ("mode", STRING), ("number_of_robots", UINT32),
     ("step", UINT64),
 ))
+
+# A whole TestbedStatus (a bag's statuses, read without rosbags: robotarium_recording.bag), its nested DropCounts
+# flattened to dropped_cmd_safe_<reason> and dropped_cmd_requested_<reason>.
+DROP_COUNTS = ("foreign", "oversized", "malformed", "nonfinite", "length_mismatch", "unknown_id", "stale")
+TESTBED_STATUS = Layout("robotarium_msgs/msg/TestbedStatus", TESTBED_STATUS_HEAD.fields + (
+    ("sim_time", FLOAT64), ("collisions", UINT64), ("boundary_violations", UINT64),
+    ("actuator_limit_iterations", UINT64), ("first_collision_step", UINT64), ("first_boundary_step", UINT64),
+    ("command_timeouts", UINT64), ("commands_accepted", UINT64),
+    *(("dropped_cmd_safe_" + reason, UINT64) for reason in DROP_COUNTS),
+    *(("dropped_cmd_requested_" + reason, UINT64) for reason in DROP_COUNTS),
+    ("safety_interventions", UINT64), ("ideal_interventions", UINT64),
+    ("poses_key_sha256", STRING), ("safety_key_sha256", STRING), ("end_reason", STRING),
+    ("outcome", UINT8), ("outcome_detail", STRING), ("stale_pose_stops", UINT64), ("hardware", BOOL),
+    ("hardware_seed", UINT32), ("holder", STRING), ("waiting", _StringSequence()), ("audit", BOOL),
+    ("intervention_max_change", FLOAT64), ("intervention_change_sum", FLOAT64),
+))
+
+STRING_MESSAGE = Layout("std_msgs/msg/String", (("data", STRING),))
 
 # The fields of a TwistArray up to its token: read first, so a foreign array costs no more.
 _TWIST_ARRAY_HEAD = Layout("robotarium_msgs/msg/TwistArray", HEADER + (("token", STRING),))

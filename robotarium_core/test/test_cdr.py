@@ -153,6 +153,50 @@ def test_testbed_status_head_reads_rclpys_message(run_id, experiment):
                       "lockstep", 5, 2 ** 40 + 3)
 
 
+@pytest.mark.parametrize("waiting", [[], ["alice@lab pid 7 a.py"], ["", "é" * 3, "x" * 5000]])
+def test_a_whole_testbed_status_reads_and_writes_as_rclpys(waiting):
+    """TESTBED_STATUS (a bag's statuses, robotarium_recording.bag): every field, each set to a value of its own,
+    read from rclpy's bytes as rclpy reads it; its bytes are rclpy's message."""
+    names = list(TestbedStatus.get_fields_and_field_types())
+    flat = ["sec", "nanosec", "frame_id"]
+    for name in names[1:]:
+        if name == "started":
+            flat += ["started_sec", "started_nanosec"]
+        elif name.startswith("dropped_"):
+            flat += ["%s_%s" % (name, reason) for reason in cdr.DROP_COUNTS]
+        else:
+            flat.append(name)
+    assert list(cdr.TESTBED_STATUS.Message._fields) == flat
+    assert list(DropCounts.get_fields_and_field_types()) == list(cdr.DROP_COUNTS)
+    msg = TestbedStatus(state=1, experiment="swap", run_id="swap_1", safety_rearms=2, mode="real-time",
+                        number_of_robots=7, step=2 ** 40 + 3, sim_time=12.5, collisions=4, boundary_violations=5,
+                        actuator_limit_iterations=6, first_collision_step=7, first_boundary_step=8, command_timeouts=9,
+                        commands_accepted=10, dropped_cmd_safe=DropCounts(**{r: 11 + k for k, r in enumerate(cdr.DROP_COUNTS)}),
+                        dropped_cmd_requested=DropCounts(**{r: 21 + k for k, r in enumerate(cdr.DROP_COUNTS)}),
+                        safety_interventions=31, ideal_interventions=32, poses_key_sha256="p" * 64,
+                        safety_key_sha256="s" * 64, end_reason="completed", outcome=TestbedStatus.OUTCOME_TIME_LIMIT,
+                        outcome_detail="Stopped at the time limit", stale_pose_stops=33, hardware=True,
+                        hardware_seed=2 ** 32 - 1, holder="ada@lab pid 9 swap.py", waiting=waiting, audit=True,
+                        intervention_max_change=0.25, intervention_change_sum=1.5)
+    msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id = 12, 34, "arena"
+    msg.started.sec, msg.started.nanosec = 1_800_000_000, 999_999_999
+    data = serialize_message(msg)
+    parsed = cdr.TESTBED_STATUS.parse(data, max_string=len(data))._asdict()
+    for name in names:
+        value = getattr(msg, name)
+        if name == "header":
+            assert (parsed["sec"], parsed["nanosec"], parsed["frame_id"]) == (12, 34, "arena")
+        elif name == "started":
+            assert (parsed["started_sec"], parsed["started_nanosec"]) == (1_800_000_000, 999_999_999)
+        elif name.startswith("dropped_"):
+            assert [parsed["%s_%s" % (name, r)] for r in cdr.DROP_COUNTS] == [getattr(value, r) for r in cdr.DROP_COUNTS]
+        else:
+            assert parsed[name] == (tuple(value) if name == "waiting" else value), name
+    assert deserialize_message(cdr.TESTBED_STATUS.build(**parsed), TestbedStatus) == msg
+    with pytest.raises(cdr.CdrError):   # a count of strings the bytes cannot hold: refused before any is read
+        cdr.TESTBED_STATUS.parse(data[:len(data) - 30])
+
+
 def test_bad_bytes_are_a_cdr_error_never_a_crash():
     good = serialize_message(twist_array_message(5, 9, np.ones(5), np.ones(5), False))
     for cut in range(len(good) - 1):   # every truncation (the last byte is the bool)

@@ -6,8 +6,10 @@ version 9, Jazzy) and <run_id>/<run_id>_0.mcap (profile "ros2": one `ros2msg` sc
 definitions, type hashes and QoS profiles. Reading (Bag) scans the records in file order and stops
 cleanly at a torn tail, so a file cut mid-write gives back every complete chunk; `recover_bag()`
 rewrites such a file's tail and metadata.yaml so that other readers open it too (like `ros2 bag
-reindex`). Messages decode with a rosbags typestore: Jazzy's standard types plus the schemas stored
-in the bag itself (so an old bag still decodes after our .msg files change).
+reindex`). Our own hot types (poses, command arrays, safety reports, statuses, strings) decode with
+robotarium_core.cdr where the bag's schema of the type is today's definition word for word; every other
+message, and every message of an older bag, with a rosbags typestore: Jazzy's standard types plus the
+schemas stored in the bag itself (so an old bag still decodes after our .msg files change).
 """
 import functools
 import glob
@@ -17,6 +19,7 @@ import json
 import os
 import struct
 from collections import namedtuple
+from types import SimpleNamespace
 
 import numpy as np
 import yaml
@@ -24,8 +27,9 @@ from mcap.data_stream import ReadDataStream
 from mcap.records import Channel, Chunk, Footer, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 
-from robotarium_core import outcomes
+from robotarium_core import cdr, outcomes
 from robotarium_core.config import DEFAULT, SAFE_LOADER, TestbedConfig
+from robotarium_recording import schema
 from robotarium_recording.bag_writer import (
     MAGIC,
     METADATA_TMP,
@@ -45,6 +49,41 @@ KEEP_IN_MEMORY = 64 * 1024 * 1024
 @functools.lru_cache(maxsize=64)
 def _sha256(text):
     return hashlib.sha256(text.encode()).hexdigest()
+
+
+# Read with robotarium_core.cdr (numpy over the bytes) rather than a rosbags typestore, which is built from the
+# bag's schemas and compiles a reader per type: 0.2 s of every run's results for a 300-step bag (2026-12-01).
+FAST_TYPES = {layout.type_name: layout for layout in (cdr.ROBOT_POSES, cdr.TWIST_ARRAY, cdr.SAFETY_REPORT,
+                                                      cdr.TESTBED_STATUS, cdr.STRING_MESSAGE)}
+
+
+@functools.lru_cache(maxsize=None)
+def _definition_today(type_name):
+    try:
+        return schema.message_definition(type_name)
+    except (OSError, ValueError):   # no .msg here (no ROS environment): rosbags reads the bag's own schema
+        return None
+
+
+def _vector(row):
+    return SimpleNamespace(x=float(row[0]), y=float(row[1]), z=float(row[2]))
+
+
+def _as_message(fields):
+    """A cdr Layout's flat fields (its namedtuple as a dict) in the shape of the decoded message: header.stamp,
+    started, nested DropCounts, Twist objects; the rest as they are."""
+    if "sec" in fields:
+        fields["header"] = SimpleNamespace(stamp=SimpleNamespace(sec=fields.pop("sec"), nanosec=fields.pop("nanosec")),
+                                           frame_id=fields.pop("frame_id"))
+    if "started_sec" in fields:
+        fields["started"] = SimpleNamespace(sec=fields.pop("started_sec"), nanosec=fields.pop("started_nanosec"))
+    for nested, prefix in (("dropped_cmd_safe", "dropped_cmd_safe_"), ("dropped_cmd_requested", "dropped_cmd_requested_"),
+                           ("dropped", "")):
+        if prefix + "stale" in fields:   # (a SafetyReport's DropCounts "dropped" is flattened without a prefix)
+            fields[nested] = SimpleNamespace(**{reason: fields.pop(prefix + reason) for reason in cdr.DROP_COUNTS})
+    if "twists" in fields:
+        fields["twists"] = [SimpleNamespace(linear=_vector(row[:3]), angular=_vector(row[3:])) for row in fields["twists"]]
+    return SimpleNamespace(**fields)
 
 
 BagMessage = namedtuple("BagMessage", "topic type log_time publish_time data")
@@ -191,7 +230,16 @@ class Bag:
             self._typestore = store
         return self._typestore
 
+    def fast_layout(self, type_name):
+        """The robotarium_core.cdr Layout that reads this bag's `type_name` messages (FAST_TYPES), or None: rosbags
+        reads them (another type, or one whose schema in the bag is not today's)."""
+        layout = FAST_TYPES.get(type_name)
+        return layout if layout is not None and self.schemas.get(type_name) == _definition_today(type_name) else None
+
     def decode(self, message):
+        layout = self.fast_layout(message.type)
+        if layout is not None:
+            return _as_message(layout.parse(message.data, max_string=len(message.data))._asdict())
         return self.typestore.deserialize_cdr(message.data, message.type)
 
     def decoded(self, topics=None):

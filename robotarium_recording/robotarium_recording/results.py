@@ -434,14 +434,14 @@ def report_text(bag, numbers):
 
 
 def preload(video=True):
-    """Import what write_results needs (matplotlib, the bag reader's message types, Pillow, ffmpeg's
-    path) ahead of time: ./robotarium run does it in a thread while the script runs, where the
-    lockstep chain leaves a core mostly idle, rather than after it (about 0.7 s on a quiet machine).
-    Only a head start: a failure here is met again, and reported, where the results are made."""
+    """Import what write_results needs (matplotlib, Pillow, ffmpeg's path) ahead of time: ./robotarium run
+    does it in a thread while the script runs, where the lockstep chain leaves a core mostly idle, rather
+    than after it (about 0.7 s on a quiet machine). Not rosbags: a bag of today's messages is read without
+    it (robotarium_recording.bag.FAST_TYPES). Only a head start: a failure here is met again, and reported,
+    where the results are made."""
     try:
         import matplotlib.figure  # noqa: F401
         from matplotlib.backends import backend_agg  # noqa: F401
-        from rosbags.typesys.stores import ros2_jazzy  # noqa: F401
 
         if video:
             import PIL.ImageDraw  # noqa: F401
