@@ -412,7 +412,6 @@ class Run:
         if self.warm is not None:
             self.warm.cancel()   # (never let go: it ends having run nothing)
 
-
     # -- collect ----------------------------------------------------------------------------------------
 
     @classmethod
