@@ -170,12 +170,12 @@ class LiveFrames:
         forth; at the end (`final`) the rule as the bag's video applies it."""
         if not self.steps:
             return True
-        changes = len({max(int(m.get("step", 0)), self.steps[0]) for m in self.drawings})
-        limit = pictures.COMPOSITE_MIN_CHANGES + (self.steps[-1] - self.steps[0] + 1) // pictures.COMPOSITE_CHANGES
+        changes = pictures.drawing_changes(self.drawings, self.steps[0])
+        frames = self.steps[-1] - self.steps[0] + 1
         if final or now is None:
-            return changes <= limit
+            return pictures.composites(changes, frames)
         margin = pictures.COMPOSITE_MIN_CHANGES
-        return changes <= limit + margin if now else changes <= limit - margin
+        return pictures.composites(changes, frames, margin if now else -margin)
 
     def differs(self, track, drawings, config, title, obstacles, composite=True):
         """Why the frames drawn (by the Compositor where `composite`, else the Blitter) are not those the bag
@@ -193,7 +193,7 @@ class LiveFrames:
             if not np.array_equal(np.asarray(heard), recorded):
                 return "other poses"
         frames = pictures.Frames(track, drawings, config, title)
-        if composite != pictures.composites(frames):
+        if composite != pictures.composites(frames.changes(), len(frames)):
             return "the other renderer (the Compositor or the Blitter)"
         if self.plan != list(frames.plan()) or [_text(m) for m in self.drawings[:self.applied]] != [
                 _text(m) for m in frames.drawings[:self.applied]]:

@@ -84,8 +84,7 @@ class Frames:
 
     def changes(self):
         """How many frames show a drawing other than the frame before."""
-        return len({max(int(m.get("step", 0)), int(self.steps[0]) if len(self.steps) else 0)
-                    for m in self.drawings})
+        return drawing_changes(self.drawings, int(self.steps[0]) if len(self.steps) else 0)
 
     def plan(self):
         """frame_plan of this run: (step, row, drawings applied) per frame."""
@@ -418,7 +417,7 @@ def render_video(track, drawings, config, out_dir, title="", progress=True, fmt=
     frames = Frames(track, drawings, config, title, stride=1 if fmt == "mp4" else 2)
     first = np.vstack((track.x[0], track.y[0], track.theta[0]))
     video = Video(os.path.join(out_dir, "%s.%s" % (name, fmt)), ffmpeg, config, first, title, obstacles,
-                  composite=composites(frames), total=len(frames), progress=progress)
+                  composite=composites(frames.changes(), len(frames)), total=len(frames), progress=progress)
     try:
         for step, row, d in frames.plan():
             video.frame(step, np.vstack((track.x[row], track.y[row], track.theta[row])),
@@ -429,9 +428,17 @@ def render_video(track, drawings, config, out_dir, title="", progress=True, fmt=
     return video.close()
 
 
-def composites(frames):
-    """Whether the Compositor draws these frames (the script's drawing changes seldom enough)."""
-    return frames.changes() <= COMPOSITE_MIN_CHANGES + len(frames) // COMPOSITE_CHANGES
+def drawing_changes(drawings, first_step):
+    """How many frames show a drawing other than the frame before: the distinct steps of the drawing messages
+    (a message before the first frame counts as the first frame's)."""
+    return len({max(int(m.get("step", 0)), first_step) for m in drawings})
+
+
+def composites(changes, frames, margin=0):
+    """Whether the Compositor draws `frames` frames whose drawing changes in `changes` of them: seldom enough
+    (COMPOSITE_MIN_CHANGES + one in COMPOSITE_CHANGES frames); `margin` moves that limit (the live video's
+    hysteresis, live_video.LiveFrames.composites)."""
+    return changes <= COMPOSITE_MIN_CHANGES + frames // COMPOSITE_CHANGES + margin
 
 
 class Video:
