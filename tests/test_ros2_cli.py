@@ -6,6 +6,7 @@ ros2 robotarium run --no-local-testbed then uses, and the ros2 robotarium comman
 
 The CLI is slow to start (1-3 s a call on 2 cores), so the checks share one testbed per test.
 Skipped, saying why, where ../shared/ros2-tools is absent (a user's clone)."""
+import json
 import os
 import re
 import signal
@@ -234,6 +235,10 @@ def test_ros2_launch_starts_the_testbed_that_robotarium_run_uses(ros2, tmp_path)
         named = re.findall(r"not starting a second testbed: a (?:simulator|safety node|recorder) already runs in "
                            r"/launched on ROS_DOMAIN_ID %d: host \S+, pid (\d+)" % domain, refused)
         assert named and set(named) <= first_pids, (first_pids, refused)
+        # Its parameters on the nodes' command lines: no file of them left in /tmp (launch_ros never removes one)
+        lines = {pid: open("/proc/%s/cmdline" % pid, "rb").read().replace(b"\0", b" ").decode() for pid in first_pids}
+        assert len(lines) == 3 and not [line for line in lines.values() if "launch_params_" in line], lines
+        assert any("bags_dir:=%s" % json.dumps(str(bags)) in line for line in lines.values()), lines
         assert launch.poll() is None, "the first testbed stopped"
         assert cli.stop(launch) == 0
         log = (tmp_path / "launch.log").read_text()

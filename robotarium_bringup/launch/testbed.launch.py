@@ -9,6 +9,7 @@ running experiment, the recorder closes its bag). Where a testbed runs already i
 domain, each node refuses with exit code 4 (robotarium_core/claim.py) and the launch ends with an
 error. The arguments and their defaults: docs/ros-interface.md#launch.
 """
+import json
 import os
 
 from ament_index_python.packages import get_package_share_directory
@@ -48,26 +49,33 @@ def _nodes(context):
     record = LaunchConfiguration("record").perform(context)
     fleet_file = LaunchConfiguration("fleet").perform(context)
     # with a recorder, a run's first steps wait for its readers (the streams are volatile)
-    world = {"wait_for_recorder": record == "true"}
+    world = _overrides(wait_for_recorder=record == "true")
     if fleet_file:
         from robotarium_hardware import fleet as fleets  # (only a launch of robots needs it)
         fleet_file = os.path.abspath(fleet_file)
-        fleet = {"fleet_file": fleet_file}
+        fleet = _overrides(fleet_file=fleet_file)
         nodes = [Node(package="robotarium_hardware", executable="arena", namespace=namespace,
-                      parameters=parameters + [dict(world, **fleet)], output="screen", emulate_tty=True)]
+                      parameters=parameters, ros_arguments=world + fleet, output="screen", emulate_tty=True)]
         if fleets.load(fleet_file).tracking == "camera":
             nodes.append(Node(package="robotarium_hardware", executable="tag_tracker", namespace=namespace,
-                              parameters=[fleet], output="screen", emulate_tty=True))
+                              ros_arguments=fleet, output="screen", emulate_tty=True))
     else:
         nodes = [Node(package="robotarium_sim", executable="simulator", namespace=namespace,
-                      parameters=parameters + [world], output="screen", emulate_tty=True)]
+                      parameters=parameters, ros_arguments=world, output="screen", emulate_tty=True)]
     return nodes + [
         Node(package="robotarium_safety", executable="safety", namespace=namespace, parameters=parameters,
              output="screen", emulate_tty=True),
         Node(package="robotarium_recording", executable="recorder", namespace=namespace,
-             parameters=[{"bags_dir": LaunchConfiguration("bags_dir")}], output="screen", emulate_tty=True,
-             condition=IfCondition(LaunchConfiguration("record"))),
+             ros_arguments=_overrides(bags_dir=LaunchConfiguration("bags_dir").perform(context)), output="screen",
+             emulate_tty=True, condition=IfCondition(LaunchConfiguration("record"))),
     ]
+
+
+def _overrides(**values):
+    """Parameters as `--ros-args -p NAME:=VALUE` (VALUE as JSON, which the YAML that rcl reads it as takes
+    whole: a path stays a string). launch_ros writes a dict of parameters to a file in /tmp of its own and
+    never removes it: one per node at every launch."""
+    return [arg for name, value in values.items() for arg in ("-p", "%s:=%s" % (name, json.dumps(value)))]
 
 
 REFUSED = 4   # robotarium_core.claim.REFUSED: an older node of this kind runs in the namespace and domain
