@@ -80,19 +80,25 @@ class _String:
         writer.put(encoded)
 
 
+def _sequence_count(reader: _Reader, what: str) -> int:
+    """A sequence's count field, read; more than reader.max_elements is OVERSIZED, before any element is read."""
+    pos = reader.align(4)
+    reader.need(pos, 4)
+    count = _COUNT.unpack_from(reader.data, pos)[0]
+    reader.pos = pos + 4
+    if reader.max_elements is not None and count > reader.max_elements:
+        raise CdrError("a sequence of %d %s at offset %d (at most %d accepted)" % (count, what, pos, reader.max_elements),
+                       OVERSIZED)
+    return count
+
+
 class _StringSequence:
     """A sequence of strings (string[]), as a tuple of str; each string as _String reads it."""
 
     default = ()
 
     def read(self, reader: _Reader) -> tuple[str, ...]:
-        pos = reader.align(4)
-        reader.need(pos, 4)
-        count = _COUNT.unpack_from(reader.data, pos)[0]
-        reader.pos = pos + 4
-        if reader.max_elements is not None and count > reader.max_elements:
-            raise CdrError("a sequence of %d strings at offset %d (at most %d accepted)"
-                           % (count, pos, reader.max_elements), OVERSIZED)
+        count = _sequence_count(reader, "strings")
         reader.need(reader.pos, 4 * count)   # each string takes at least its length field: no huge count
         return tuple(STRING.read(reader) for _ in range(count))
 
@@ -115,13 +121,7 @@ class _Sequence:
         self.default = np.zeros((0, width) if width else 0, dtype=self.dtype)
 
     def read(self, reader: _Reader) -> np.ndarray:
-        pos = reader.align(4)
-        reader.need(pos, 4)
-        count = _COUNT.unpack_from(reader.data, pos)[0]
-        reader.pos = pos + 4
-        if reader.max_elements is not None and count > reader.max_elements:
-            raise CdrError("a sequence of %d elements at offset %d (at most %d accepted)"
-                           % (count, pos, reader.max_elements), OVERSIZED)
+        count = _sequence_count(reader, "elements")
         if count == 0:
             return self.default
         start = reader.align(self.align)
