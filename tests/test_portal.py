@@ -14,6 +14,7 @@ import sqlite3
 import subprocess
 import threading
 import time
+import urllib.request
 
 import pytest
 
@@ -209,6 +210,40 @@ def wait_for_state(data, pk, states, attempts=None):
 
 
 @pytest.mark.e2e
+def test_ctrl_c_stops_serve_while_it_answers_requests(tmp_path):
+    """Ctrl-C stops `serve` whatever its main thread is doing: while it handles connections too, where waitress took
+    the stop for a connection's error and went on serving (a whole suite's browser test above, 2026-12-01). Pages
+    asked for without a pause by eight clients, then SIGINT, five times (no worker: --jobs 0)."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("ROBOTARIUM_PORTAL", "DJANGO_"))}
+    for attempt in range(5):
+        serve = Serve(["--data", str(tmp_path / "service"), "--port", str(free_port()), "--jobs", "0"], env)
+        try:
+            base = serve.wait_for_address()
+            asking = threading.Event()
+
+            def ask():
+                while not asking.is_set():
+                    try:
+                        urllib.request.urlopen(base + "login/", timeout=5).read()
+                    except OSError:
+                        pass
+
+            clients = [threading.Thread(target=ask, daemon=True) for _ in range(8)]
+            for client in clients:
+                client.start()
+            time.sleep(1.0 + 0.3 * attempt)
+            serve.process.send_signal(signal.SIGINT)
+            try:
+                code = serve.process.wait(timeout=30)
+            finally:
+                asking.set()
+            assert code == 0 and "[robotarium] stopped" in serve.lines, (attempt, "\n".join(serve.lines))
+        finally:
+            if serve.process.poll() is None:
+                os.killpg(serve.process.pid, signal.SIGKILL)
+                serve.process.wait()
+
+
 def test_the_whole_flow_in_a_real_browser_with_a_restart_mid_run(tmp_path):
     from devtools.browser import chromium, find_chromium, open_page
     if find_chromium() is None:
