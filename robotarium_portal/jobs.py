@@ -509,14 +509,11 @@ def run_experiment(experiment):
     mode = run_mode(experiment, fleet)
     env = job_env("ROBOTARIUM_PORTAL_RUN_DOMAIN")
     warm, network = (None, None) if fleet else warm_testbed(RUN_CLUSTER, env)
-    if fleet or warm:   # the worker's testbed (its robots' hardware arena, or the slot's warm one) records the run
-        run = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", *(["--hardware"] * mode.hardware_like),
-               "--no-local-testbed", "--no-verdict", "--time-limit", "%g" % limit, "--results-dir", str(results),
-               experiment.main_file]
-    else:   # a testbed of its own in its box, recording into the results
-        run = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", *(["--hardware"] * mode.hardware_like),
-               "--no-verdict", "--time-limit", "%g" % limit, "--bags-dir", str(results), "--results-dir", str(results),
-               experiment.main_file]
+    # The worker's testbed (its robots' hardware arena, or the slot's warm one) records the run; else a testbed of
+    # its own in its box, recording into the results.
+    testbed = ["--no-local-testbed"] if fleet or warm else ["--bags-dir", str(results)]
+    run = [str(settings.REPOSITORY / "robotarium"), "run", "--real-time", *(["--hardware"] * mode.hardware_like),
+           *testbed, "--no-verdict", "--time-limit", "%g" % limit, "--results-dir", str(results), experiment.main_file]
     if warm:
         rescue_warm_recordings(experiment)
     # The live view's feed beside the run, on its testbed (live_feed.py); the job's end ends it.

@@ -150,6 +150,7 @@ class Bag:
         self.truncated = False
         self.complete = True
         self.schemas = {}
+        self._fast = {}   # fast_layout's answer per type, for these schemas
         self.topics = {}
         self.start_ns, self.end_ns = None, None
         counts, types, qos = {}, {}, {}
@@ -233,8 +234,12 @@ class Bag:
     def fast_layout(self, type_name):
         """The robotarium_core.cdr Layout that reads this bag's `type_name` messages (FAST_TYPES), or None: rosbags
         reads them (another type, or one whose schema in the bag is not today's)."""
-        layout = FAST_TYPES.get(type_name)
-        return layout if layout is not None and self.schemas.get(type_name) == _definition_today(type_name) else None
+        fast = self._fast   # once per type: decode() asks for every message
+        if type_name not in fast:
+            layout = FAST_TYPES.get(type_name)
+            fast[type_name] = layout if layout is not None and self.schemas.get(type_name) == _definition_today(
+                type_name) else None
+        return fast[type_name]
 
     def decode(self, message):
         layout = self.fast_layout(message.type)
