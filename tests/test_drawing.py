@@ -9,7 +9,7 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from robotarium_client.drawing import DrawingWatcher
+from robotarium_client.drawing import GROWS_BETWEEN_WHOLE, DrawingWatcher
 from robotarium_core.config import DEFAULT
 from robotarium_recording.arena_figure import ArenaFigure, points_per_metre, pyplot, robot_colours
 from robotarium_recording.bag import PoseTrack
@@ -38,7 +38,7 @@ def test_the_script_drawing_is_sent_as_changes_and_drawn_again(live):
     ax.arrow(-1, -0.5, 0.3, 0.1, width=0.02, color="m")
     ax.imshow(np.linspace(0, 1, 12).reshape(3, 4), extent=(-1.4, -1.0, 0.4, 0.8))
     first = decode(encode(watcher.changes(0)))   # through JSON, as on the topic
-    assert first["format"] == 1
+    assert first["format"] == 2
     assert sorted(spec["kind"] for spec in first["set"].values()) == ["image", "line", "patch", "scatter", "text"]
     assert watcher.changes(1) is None                      # nothing changed
     marker.set_sizes([400])
@@ -64,6 +64,49 @@ def test_the_script_drawing_is_sent_as_changes_and_drawn_again(live):
     assert again.get_sizes()[0] == pytest.approx(400 * k * k)
     # ... and the video has more pixels per metre than the live figure (it is sharper).
     assert video.axes.transData.get_matrix()[0, 0] > 1.5 * ax.transData.get_matrix()[0, 0]
+
+
+def test_a_trail_drawn_with_its_whole_history_every_step_is_sent_as_what_it_grew(live):
+    """ekf_experiment.py set_data()s its trails with their whole history every step: sending the
+    whole line each time made the run quadratic in its length (a quarter of the script's process
+    at 2000 steps, 160 MB of text). A grown line goes as its tail; a reader gets the same line; a
+    line changed otherwise, or grown GROWS_BETWEEN_WHOLE times, goes whole."""
+    watcher = DrawingWatcher(live.axes, live.own_artists)
+    (trail,) = live.axes.plot([0.0], [0.0], "r-")
+    messages = [decode(encode(watcher.changes(0)))]
+    xs, ys = [0.0], [0.0]
+    for step in range(1, GROWS_BETWEEN_WHOLE + 20):
+        xs.append(0.001 * step)
+        ys.append(np.sin(step / 30))
+        trail.set_data(np.array(xs), np.array(ys))
+        messages.append(decode(encode(watcher.changes(step))))
+    grows = [m for m in messages if m.get("grow")]
+    whole = [m for m in messages if m["set"]]
+    assert len(grows) == GROWS_BETWEEN_WHOLE + 18 and len(whole) == 2   # the first, and once after the limit
+    assert [len(g["x"]) for m in grows for g in m["grow"].values()] == [1] * len(grows)
+    assert whole[1]["step"] == GROWS_BETWEEN_WHOLE + 1 and not whole[1].get("grow")
+    state = DrawingState()
+    for message in messages:
+        state.apply(message)
+    (spec,) = state.specs.values()
+    assert spec["x"] == xs and spec["y"] == ys
+    late = DrawingState()   # a reader that only has the history since the line was last sent whole
+    for message in messages[GROWS_BETWEEN_WHOLE + 1:]:
+        late.apply(message)
+    assert late.specs == state.specs
+
+    trail.set_data(np.array(xs), np.array(ys))
+    assert watcher.changes(900) is None                     # touched, not grown: nothing to send
+    xs[0] = 5.0                                             # its history changed: sent whole
+    trail.set_data(np.array(xs + [1.0]), np.array(ys + [1.0]))
+    changed = watcher.changes(901)
+    assert list(changed["set"].values())[0]["x"] == xs + [1.0] and not changed.get("grow")
+    trail.set_data(np.array(xs + [1.0, 2.0]), np.array(ys + [1.0, 2.0]))
+    trail.set_color("b")                                    # grown and restyled: sent whole
+    changed = watcher.changes(902)
+    assert list(changed["set"].values())[0]["color"] == [0.0, 0.0, 1.0, 1.0] and not changed.get("grow")
+    trail.set_data([9.0], [9.0])                            # shorter: sent whole
+    assert list(watcher.changes(903)["set"].values())[0]["x"] == [9.0]
 
 
 def _circles(n, steps):

@@ -69,14 +69,8 @@ def serialize(artist, axes):
     elif isinstance(artist, Line2D):
         if artist.get_transform() != axes.transData:
             return None
-        marker = artist.get_marker()
-        spec = {"kind": "line", "x": np.asarray(artist.get_xdata(), dtype=float).tolist(),
-                "y": np.asarray(artist.get_ydata(), dtype=float).tolist(), "color": _rgba(artist.get_color())[0],
-                "lw": float(artist.get_linewidth()), "ls": artist.get_linestyle(),
-                "marker": marker if isinstance(marker, (str, int)) else "o", "ms": float(artist.get_markersize()),
-                "mfc": _rgba(artist.get_markerfacecolor())[0] if artist.get_markerfacecolor() != "none" else "none",
-                "mec": _rgba(artist.get_markeredgecolor())[0], "mew": float(artist.get_markeredgewidth()),
-                "drawstyle": artist.get_drawstyle()}
+        x, y = line_data(artist)
+        return dict(line_style(artist), x=x.tolist(), y=y.tolist())
     elif isinstance(artist, Text):
         transform = artist.get_transform()
         coords = "data" if transform == axes.transData else "axes" if transform == axes.transAxes else None
@@ -116,6 +110,24 @@ def serialize(artist, axes):
     return spec
 
 
+def line_data(artist):
+    """A Line2D's x and y as float arrays."""
+    return np.asarray(artist.get_xdata(), dtype=float), np.asarray(artist.get_ydata(), dtype=float)
+
+
+def line_style(artist):
+    """A Line2D's spec but its data (x, y): what must stay the same for the line to be sent as grown."""
+    marker = artist.get_marker()
+    spec = {"kind": "line", "color": _rgba(artist.get_color())[0],
+            "lw": float(artist.get_linewidth()), "ls": artist.get_linestyle(),
+            "marker": marker if isinstance(marker, (str, int)) else "o", "ms": float(artist.get_markersize()),
+            "mfc": _rgba(artist.get_markerfacecolor())[0] if artist.get_markerfacecolor() != "none" else "none",
+            "mec": _rgba(artist.get_markeredgecolor())[0], "mew": float(artist.get_markeredgewidth()),
+            "drawstyle": artist.get_drawstyle()}
+    spec.update(_common(artist))
+    return spec
+
+
 def fingerprint(artist):
     """A cheap summary of a scatter's state (the kind scripts touch every step), to skip serializing
     one that did not really change; None for other kinds (always serialized and compared)."""
@@ -128,6 +140,11 @@ def fingerprint(artist):
             artist.get_zorder(), artist.get_alpha(), artist.get_visible())
 
 
+# A grown line is sent whole again after this many grows: well within the topic's kept history
+# (robotarium_core.topics.OUTPUT_HISTORY, 1000 messages), so a viewer that matches late draws it whole.
+GROWS_BETWEEN_WHOLE = 250
+
+
 class DrawingWatcher:
     """Watches the artists of `axes` that are not in `own` (the arena's) and says what changed."""
 
@@ -138,6 +155,7 @@ class DrawingWatcher:
         self.sent = {}          # key -> the spec last sent (None: not drawable)
         self.dirty = set()
         self.prints = {}        # key -> fingerprint() when last serialized
+        self.lines = {}         # key -> (x, y, grown): a line's data as last sent, and grows since it was sent whole
         self.failed = set()
         self.next_key = 0
         self.ppm = None
@@ -172,9 +190,16 @@ class DrawingWatcher:
         for key in removed:
             self.sent.pop(key, None)
             self.prints.pop(key, None)
-        updated, moved = {}, {}
+            self.lines.pop(key, None)
+        updated, moved, grown = {}, {}, {}
         for artist in sorted(self.dirty & present_set, key=lambda a: int(self.keys[a])):
             key = self.keys[artist]
+            if key in self.lines:
+                tail = self._growth(artist, key)
+                if tail is not None:
+                    if tail["x"]:
+                        grown[key] = tail
+                    continue
             print_, before = fingerprint(artist), self.prints.get(key)
             if print_ is not None and print_ == before:
                 continue   # touched (set_sizes with the same size every step) but unchanged
@@ -196,17 +221,53 @@ class DrawingWatcher:
             if spec != self.sent.get(key) and (spec is not None or key in self.sent):
                 updated[key] = spec
             self.sent[key] = spec
+            if spec is not None and spec["kind"] == "line":
+                x, y = line_data(artist)
+                self.lines[key] = (x.copy(), y.copy(), 0)
+            else:
+                self.lines.pop(key, None)
         self.dirty.clear()
         removed = [k for k in removed] + [k for k, spec in updated.items() if spec is None]
         updated = {k: v for k, v in updated.items() if v is not None}
         ppm = round(recording.points_per_metre(self.axes), 6)
-        if not updated and not moved and not removed and ppm == self.ppm:
+        if not updated and not moved and not grown and not removed and ppm == self.ppm:
             return None
         self.ppm = ppm
         message = {"step": int(step), "ppm": ppm, "set": updated, "removed": removed}
         if moved:
             message["move"] = moved
+        if grown:
+            message["grow"] = grown
         return message
+
+    def _growth(self, artist, key):
+        """What was appended to a line's data since it was sent ({"x": [], "y": []} when nothing), or
+        None when it must be sent whole: its style changed, its old data is not where it was, or it
+        grew GROWS_BETWEEN_WHOLE times since it was last sent whole (a late reader of the topic's
+        history then still finds it whole). A trail set_data() with its whole history every step
+        (ekf_experiment.py) costs the tail, not the history, each step."""
+        old_x, old_y, grows = self.lines[key]
+        if artist.get_transform() != self.axes.transData:
+            return None
+        try:
+            x, y = line_data(artist)
+        except (TypeError, ValueError):
+            return None
+        n = len(old_x)
+        if (len(x) < n or len(y) != len(x)
+                or not np.array_equal(x[:n], old_x, equal_nan=True) or not np.array_equal(y[:n], old_y, equal_nan=True)):
+            return None
+        sent, style = self.sent[key], line_style(artist)
+        if any(sent[k] != v for k, v in style.items()):
+            return None
+        if len(x) == n:
+            return {"x": [], "y": []}
+        if grows >= GROWS_BETWEEN_WHOLE:
+            return None
+        tail = {"x": x[n:].tolist(), "y": y[n:].tolist()}
+        self.sent[key] = dict(sent, x=sent["x"] + tail["x"], y=sent["y"] + tail["y"])
+        self.lines[key] = (x.copy(), y.copy(), grows + 1)
+        return tail
 
     def close(self):
         """Stop watching (restores nothing: the script's figure is going away)."""

@@ -16,7 +16,7 @@ import numpy as np
 
 from robotarium_recording.arena_figure import points_per_metre
 
-FORMAT = 1   # the version encode() stamps on every message
+FORMAT = 2   # the version encode() stamps on every message (2: lines may "grow"; 1 is read the same)
 
 
 def encode(message):
@@ -43,6 +43,10 @@ class DrawingState:
         for key, fields in message.get("move", {}).items():
             if key in self.specs:
                 self.specs[key] = dict(self.specs[key], **fields)
+        for key, tail in message.get("grow", {}).items():
+            spec = self.specs.get(key)
+            if spec is not None:
+                self.specs[key] = dict(spec, x=spec["x"] + tail["x"], y=spec["y"] + tail["y"])
         self.ppm = message.get("ppm", self.ppm)
         self.version += 1
 
