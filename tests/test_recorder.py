@@ -449,6 +449,57 @@ def test_a_whole_lockstep_runs_bag_closes_at_once_and_any_other_after_its_grace(
     assert [m.data[4:] for m in first.messages()][-2:] == [b"idle", b"ended"]
 
 
+def test_a_2x_runs_bag_waits_for_the_sensor_readings_of_its_last_step(tmp_path):
+    """A 2.x run's sensor readings come one a step with its poses. Held back behind a lost packet while the
+    recorder was starved, they came 47 steps after the poses, and the lockstep run's bag closed at once
+    without them (a whole-suite run at load 35). A run with readings waits for its last step's, as for its
+    poses (catch_up_ns more at most, then closed saying which never came); a run without any closes as before."""
+    ns = "/ns"
+    steps = ("cmd_requested", "cmd_safe", "safety_report", "sensors")
+    topics = {ns + "/" + t: "robotarium_msgs/msg/TwistArray" for t in steps}
+    topics.update({ns + "/poses": "robotarium_msgs/msg/RobotPoses", ns + "/status": "robotarium_msgs/msg/TestbedStatus",
+                   ns + "/config": "std_msgs/msg/String", ns + "/experiment": "std_msgs/msg/String"})
+    logs = []
+    rec = RunRecorder(tmp_path, lambda t: (topics[t], []), grace_ns=500, lockstep_grace_ns=50, live_after_ns=0,
+                      catch_up_ns=1000, log=logs.append,
+                      run_step_of=lambda topic, data: (None, int(data[5:])) if topic == ns + "/poses" else None,
+                      step_of=lambda topic, data: int(data[5:]), step_topics=[ns + "/" + t for t in steps],
+                      start_topics=[ns + "/config", ns + "/experiment"], followed_topics=[ns + "/sensors"])
+
+    def run(t, sensors_until=None, late=()):
+        """A 3-step lockstep run from t, its end at t + 100, its readings up to step sensors_until (None: a run
+        without any) and those of steps `late` 300 ns after the end; returns when its bag closed (ns after the end)."""
+        rec.on_status(ns + "/status", b"\x00\x01\x00\x00run", t, t, True, "exp_%d" % t, step=0, lockstep=True)
+        for name in ("config", "experiment"):
+            rec.on_message(ns + "/" + name, b"\x00\x01\x00\x00" + name.encode(), t + 1, t + 1)
+        for k in range(4):
+            for name in steps[:3] if k else ():
+                rec.on_message(ns + "/" + name, b"\x00\x01\x00\x00s%d" % k, t + 10 * k, t + 10 * k)
+            rec.on_message(ns + "/poses", b"\x00\x01\x00\x00p%d" % k, t + 10 * k + 1, t + 10 * k + 1)
+            if sensors_until is not None and k <= sensors_until and k not in late:
+                rec.on_message(ns + "/sensors", b"\x00\x01\x00\x00r%d" % k, t + 10 * k + 1, t + 10 * k + 1)
+            rec.on_status(ns + "/status", b"\x00\x01\x00\x00step", t + 10 * k + 2, t + 10 * k + 2, True, "exp_%d" % t,
+                          step=k, lockstep=True)
+        rec.on_status(ns + "/status", b"\x00\x01\x00\x00idle", t + 100, t + 100, False, "exp_%d" % t, step=3,
+                      lockstep=True)
+        for tick in range(t + 110, t + 2000, 10):
+            if tick == t + 400:
+                for k in late:
+                    rec.on_message(ns + "/sensors", b"\x00\x01\x00\x00r%d" % k, tick, t + 10 * k + 1)
+            rec.tick(tick)
+            if rec.writer is None:
+                return tick - (t + 100)
+        return None
+
+    assert run(10**9) == 50                           # no readings: whole at once, as before
+    assert run(2 * 10**9, sensors_until=3) == 50      # all of them: whole at once
+    assert run(3 * 10**9, sensors_until=3, late=(2, 3)) == 300           # held back: the bag waits for them
+    assert [m.data[4:] for m in bagmod.Bag(os.path.join(tmp_path, "exp_%d" % (3 * 10**9))).messages()
+            if m.topic == ns + "/sensors"] == [b"r0", b"r1", b"r2", b"r3"]
+    assert run(4 * 10**9, sensors_until=1) == 1500    # never come: closed catch_up_ns after the grace, saying so
+    assert "its sensors from step 2 on never came (the last is 3)" in logs[-1]
+
+
 def test_the_first_poses_of_a_restarted_simulators_run_go_into_that_runs_bag(tmp_path):
     """A simulator killed mid-run never ends its run; `up` restarts it and the next run starts. Its step 0 can
     reach the recorder before anything that says the old run is over (the restart's news, a lapse of the

@@ -392,6 +392,7 @@ _TWIST_ARRAY_HEAD = Layout("robotarium_msgs/msg/TwistArray", HEADER + (("token",
 # (a lockstep run's bag is whole once it holds those of the run's last step).
 TWIST_ARRAY_STEP = Layout("robotarium_msgs/msg/TwistArray", HEADER + (("token", STRING), ("step", UINT64)))
 SAFETY_REPORT_STEP = Layout("robotarium_msgs/msg/SafetyReport", HEADER + (("step", UINT64),))
+SENSOR_READINGS_STEP = Layout("robotarium_msgs/msg/SensorReadings", HEADER + (("run_id", STRING), ("step", UINT64)))
 
 # A parsed command array: ids, v (linear.x) and omega (angular.z) as numpy arrays.
 Commands = namedtuple("Commands", "token step ids v omega requested_exceeds_limits sec nanosec refreshed",

@@ -91,16 +91,21 @@ class RunRecorder:
     starved of CPU: the bag then closed without them. Poses of another run never go into a run's bag.
 
     A lockstep run's bag is whole once it holds its last step's poses, the step's message on each of
-    `step_topics` (step_of(topic, data) -> the step a command array or safety report is for) and a
-    message of each of `start_topics`: every one of them was sent before the simulator ended the run. It
+    `step_topics` (step_of(topic, data) -> the step a command array, safety report or sensor readings are for)
+    and a message of each of `start_topics`: every one of them was sent before the simulator ended the run. It
     closes lockstep_grace_ns after the end (for the log lines of the end) instead of grace_ns: a
     recorded lockstep run's results no longer wait half a second for messages that cannot come.
+
+    `followed_topics` (of step_topics) are streams a run may not have, one message a step with the poses
+    where it has them (a 2.x run's sensor readings): once a run's bag holds one, its last step's is waited
+    for as its poses' are (catch_up_ns more at most). A stream held back behind a lost packet of a starved
+    recorder closed a 2.x run's bag 47 steps short of its sensor readings (a whole-suite run at load 35).
     """
 
     def __init__(self, bags_dir, describe, on_started=None, on_finished=None, log=None,
                  preroll_ns=3_000_000_000, grace_ns=500_000_000, chunk_seconds=1.0, live_after_ns=None,
                  on_write_error=None, run_step_of=None, catch_up_ns=4_000_000_000, restarted_ns=None,
-                 step_of=None, step_topics=(), start_topics=(), lockstep_grace_ns=50_000_000):
+                 step_of=None, step_topics=(), start_topics=(), lockstep_grace_ns=50_000_000, followed_topics=()):
         self.bags_dir = os.path.abspath(bags_dir)
         self.describe = describe
         self.on_started = on_started or (lambda path: None)
@@ -114,6 +119,7 @@ class RunRecorder:
         self.poses_step = -1          # the newest poses step in its bag
         self.step_of = step_of or (lambda topic, data: None)
         self.step_topics, self.start_topics = tuple(step_topics), tuple(start_topics)
+        self.followed_topics = tuple(followed_topics)
         self.lockstep_grace_ns = lockstep_grace_ns
         self.lockstep = False         # the current run steps in lockstep (its statuses say so)
         self.steps_written = {}       # step topic -> the newest step of it in the current run's bag
@@ -219,20 +225,35 @@ class RunRecorder:
                 self._write_failed(error)
         if self.state == "closing" and (now_ns >= self.grace_until or (
                 now_ns >= self.closing_ns + self.lockstep_grace_ns and self.whole())):
-            if self.end_step is None or self.poses_step >= self.end_step:
+            behind = self.behind()
+            if not behind:
                 self.finish("the experiment ended")
             elif now_ns >= self.grace_until + self.catch_up_ns:
-                self.finish("the experiment ended; its poses from step %d on never came (the last is %d)"
-                            % (self.poses_step + 1, self.end_step))
+                self.finish("the experiment ended; " + "; ".join(
+                    "its %s from step %d on never came (the last is %d)" % (what, step + 1, self.end_step)
+                    for what, step in behind))
         elif self.state == "recording" and not simulator_present:
             self.finish("the simulator went away without ending the experiment")
         self._prune(now_ns)
+
+    def behind(self):
+        """[(what, its newest step)] of the streams a closing run's bag still waits for: its poses, and the
+        followed topics it has, up to the run's last step (see the class)."""
+        if self.end_step is None:
+            return []
+        behind = [("poses", self.poses_step)] if self.poses_step < self.end_step else []
+        if self.writer is not None:
+            behind += [(topic.rsplit("/", 1)[-1].replace("_", " "), self.steps_written.get(topic, -1))
+                       for topic in self.followed_topics
+                       if topic in self.writer.topics and self.steps_written.get(topic, -1) < self.end_step]
+        return behind
 
     def whole(self):
         """A closing lockstep run's bag holds everything its last step sent (see the class)."""
         return (self.lockstep and self.writer is not None and self.end_step is not None
                 and self.poses_step >= self.end_step
-                and all(self.steps_written.get(topic, -1) >= self.end_step for topic in self.step_topics)
+                and all(self.steps_written.get(topic, -1) >= self.end_step for topic in self.step_topics
+                        if topic not in self.followed_topics or topic in self.writer.topics)
                 and all(topic in self.writer.topics for topic in self.start_topics))
 
     def simulator_restarted(self, restart):
@@ -389,12 +410,14 @@ class RecorderNode(Node):
         restart = restarts.of_this_process()   # (its `at`: when the process before this one ended)
         self.step_layouts = {"%s/%s" % (self.ns, CMD_REQUESTED): cdr.TWIST_ARRAY_STEP,
                              "%s/%s" % (self.ns, CMD_SAFE): cdr.TWIST_ARRAY_STEP,
-                             "%s/%s" % (self.ns, SAFETY_REPORT): cdr.SAFETY_REPORT_STEP}
+                             "%s/%s" % (self.ns, SAFETY_REPORT): cdr.SAFETY_REPORT_STEP,
+                             "%s/%s" % (self.ns, SENSORS): cdr.SENSOR_READINGS_STEP}
         self.session = RunRecorder(bags_dir, self.describe, self.announce_start, self.announce_end,
                                    self.get_logger().info, chunk_seconds=chunk_seconds,
                                    on_write_error=self.announce_write_error, run_step_of=self.poses_run_step_of,
                                    restarted_ns=None if restart is None else int(restart.at * 1e9),
                                    step_of=self.step_of, step_topics=tuple(self.step_layouts),
+                                   followed_topics=("%s/%s" % (self.ns, SENSORS),),
                                    start_topics=("%s/%s" % (self.ns, CONFIG), "%s/%s" % (self.ns, EXPERIMENT)))
         self.session.namespace = self.ns or "/"
         self.recording_pub = self.create_publisher(String, RECORDING, LATCHED)
@@ -512,7 +535,8 @@ class RecorderNode(Node):
             return None   # not a RobotPoses (a stray publisher)
 
     def step_of(self, topic, data):
-        """The step a command array or safety report is for (RunRecorder.step_of); None if it is not one."""
+        """The step a command array, safety report or sensor readings are for (RunRecorder.step_of); None if it
+        is not one."""
         try:
             return self.step_layouts[topic].parse(data).step
         except (KeyError, cdr.CdrError):
