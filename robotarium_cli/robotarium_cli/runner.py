@@ -29,6 +29,7 @@ from robotarium_client import session, testbed_link
 from robotarium_client.errors import EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete
 from robotarium_client.figure import skip_headless_idle_draws
 from robotarium_core import lifeline, outcomes, run_record
+from robotarium_core.topics import namespace_from_environment
 
 ORPHAN_EXIT = 1.5
 RESERVE, RESERVE_BYTES = ".reserve", 256 * 1024   # room kept for run.json (main)
@@ -181,6 +182,9 @@ def warm_up():
     decided from the run's options, on its import); not pyplot, which only a script that plots needs (0.3 CPU-s
     more for every other one: bench wall_to_prompt, 2026-12-01), nor the 2.x API's modules."""
     import robotarium_client.robotarium  # noqa: F401 (numpy, rclpy, the client's session and link with it)
+    # and DDS joined: the testbed's participants are found while `run` looks for the testbed, not in the
+    # script's constructor (bench wall_to_prompt)
+    testbed_link.join_dds_early(namespace_from_environment())
 
 
 def gated_arguments():
@@ -194,6 +198,7 @@ def main(argv):
     if argv == ["--gated"]:
         argv = gated_arguments()
         if argv is None:
+            testbed_link.leave_dds_early()
             return 0   # not wanted after all: nothing was run
     options_json, run_info_path, script, *script_args = argv
     folder = os.path.dirname(os.path.abspath(run_info_path))
@@ -221,6 +226,7 @@ def main(argv):
     for signum in SIGNAL_EXIT:
         signal.signal(signum, signal.SIG_IGN)
     outcome, detail, code, runs = finish(outcome, detail, code)
+    testbed_link.leave_dds_early()   # (a script that made no Robotarium)
     try:
         os.remove(reserve)   # its room is run.json's now
     except OSError:

@@ -177,6 +177,55 @@ class OwnDdsWatch:
             time.sleep(0.05)
 
 
+_early = None   # (context, node): this process's participant, made before its run's options came (join_dds_early)
+
+
+def join_dds_early(ns: str) -> None:
+    """Join DDS now, as the first TestbedLink would: a warm runner waiting for its run's arguments finds the
+    testbed's participants meanwhile (each announces itself every 0.2 s), and the first TestbedLink takes this
+    participant and node, its constructor's discovery done. A participant is made with a process's first node
+    (rmw_fastrtps), so the node is made too, with the link's own name, in `ns` (the namespace expected)."""
+    global _early
+    if _early is None:
+        context = Context()
+        init_context(context=context, node=False, args=_client_args())
+        _early = (context, Node(_client_node_name(), namespace=ns, context=context))
+
+
+def leave_dds_early() -> None:
+    """Leave what join_dds_early made if no TestbedLink took it (a script that never made a Robotarium)."""
+    global _early
+    if _early is not None:
+        (context, node), _early = _early, None
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def _client_args() -> list[str]:
+    # With DDS Security (sros2/README.md) a script runs in the client enclave of the policy.
+    return ["--ros-args", "--enclave", "/robotarium/client"] if security_enabled() else []
+
+
+def _client_node_name() -> str:
+    return "robotarium_client_%d" % os.getpid()
+
+
+def _context_and_node(ns: str) -> tuple[Context, Node]:
+    """The participant and node of a new TestbedLink: those join_dds_early made, if any (the node made anew
+    where the run's namespace is not the one expected), else new ones."""
+    global _early
+    if _early is None:
+        context = Context()
+        init_context(context=context, node=False, args=_client_args())
+        return context, Node(_client_node_name(), namespace=ns, context=context)
+    (context, node), _early = _early, None
+    if node.get_namespace() != ns:
+        # the new node first: the participant goes with a context's last node
+        expected, node = node, Node(_client_node_name(), namespace=ns, context=context)
+        expected.destroy_node()
+    return context, node
+
+
 class TestbedLink:
     """One client's DDS link to the testbed in namespace `ns`, for one experiment at a time."""
 
@@ -221,11 +270,7 @@ class TestbedLink:
         self.pids_at_start = {}       # {node: its process when this run began}: a restart of another is not this run's
         # The testbed's Fast DDS settings for the script's participant too (dds_settings.init_context): UDP
         # only; its writers' heartbeat every 0.1 s, so a lost packet of cmd_requested is sent again at once.
-        self._context = Context()
-        # With DDS Security (sros2/README.md) a script runs in the client enclave of the policy.
-        init_context(context=self._context, node=False,
-                     args=["--ros-args", "--enclave", "/robotarium/client"] if security_enabled() else [])
-        self.node = Node("robotarium_client_%d" % os.getpid(), namespace=ns, context=self._context)
+        self._context, self.node = _context_and_node(ns)
         self._executor = LeanExecutor(context=self._context)
         self._executor.add_node(self.node)
         self.command_pub = self.node.create_publisher(TwistArray, CMD_REQUESTED, OUTPUT_QOS)
