@@ -1,7 +1,7 @@
 """Runs an experiment script for `./robotarium run`, in the script's own process.
 
     python -m robotarium_cli.runner OPTIONS_JSON RUN_INFO_JSON SCRIPT [ARGS...]
-    python -m robotarium_cli.runner --gated   (the same arguments, as JSON, through its start gate)
+    python -m robotarium_cli.runner --gated NAMESPACE   (the same arguments, as JSON, through its start gate)
 
 Gated, it is a warm interpreter: started while `run` still looks for the testbed (or starts one), it
 imports what every script needs (rclpy, numpy, the client; not `rps`, whose API waits for the run's
@@ -29,7 +29,6 @@ from robotarium_client import session, testbed_link
 from robotarium_client.errors import EndedByTestbed, EndedByUnsentRequest, TestbedBusy, TestbedIncomplete
 from robotarium_client.figure import skip_headless_idle_draws
 from robotarium_core import lifeline, outcomes, run_record
-from robotarium_core.topics import namespace_from_environment
 
 ORPHAN_EXIT = 1.5
 RESERVE, RESERVE_BYTES = ".reserve", 256 * 1024   # room kept for run.json (main)
@@ -177,26 +176,27 @@ def finish(outcome, detail, code):
     return outcome, detail, code, runs
 
 
-def warm_up():
+def warm_up(namespace):
     """Import what every script's run needs: what `import rps.robotarium` brings but `rps` itself (its API is
     decided from the run's options, on its import); not pyplot, which only a script that plots needs (0.3 CPU-s
     more for every other one: bench wall_to_prompt, 2026-12-01), nor the 2.x API's modules."""
     import robotarium_client.robotarium  # noqa: F401 (numpy, rclpy, the client's session and link with it)
     # and DDS joined: the testbed's participants are found while `run` looks for the testbed, not in the
     # script's constructor (bench wall_to_prompt)
-    testbed_link.join_dds_early(namespace_from_environment())
+    testbed_link.join_dds_early(namespace)
 
 
-def gated_arguments():
-    """The run's arguments, once `run` opens the gate; None when it closed it without them."""
-    warm_up()
+def gated_arguments(namespace):
+    """The run's arguments, once `run` opens the gate; None when it closed it without them. `namespace`: the
+    testbed's, where its client joins DDS meanwhile."""
+    warm_up(namespace)
     data = lifeline.read_start_gate()
     return None if data is None else json.loads(data)
 
 
 def main(argv):
-    if argv == ["--gated"]:
-        argv = gated_arguments()
+    if argv[:1] == ["--gated"] and len(argv) == 2:
+        argv = gated_arguments(argv[1])
         if argv is None:
             testbed_link.leave_dds_early()
             return 0   # not wanted after all: nothing was run

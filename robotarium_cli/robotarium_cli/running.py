@@ -380,7 +380,7 @@ class Run:
         gate closes and it ends having run nothing."""
         if self.interruption.signum is None:
             try:
-                self.warm = WarmRunner(*self._script_environment([]), os.getcwd())
+                self.warm = WarmRunner(*self._script_environment([]), os.getcwd(), self.ns)
             except OSError:   # (it cannot start now: wait() starts it as it always did, and says why if it fails)
                 self.warm = None
 
@@ -645,11 +645,11 @@ class WarmRunner:
     run's arguments (go), or ends having run nothing when the gate closes without them (cancel, or `run`'s
     death). Same account, limits, environment and folder as a process started at the run."""
 
-    def __init__(self, env, pass_fds, box_options, cwd):
+    def __init__(self, env, pass_fds, box_options, cwd, namespace):
         self.gate = lifeline.StartGate()
         env, pass_fds = self.gate.for_child(env, pass_fds)
         try:
-            self.process = subprocess.Popen([*RUNNER, "--gated"], cwd=cwd, env=env, pass_fds=pass_fds,
+            self.process = subprocess.Popen([*RUNNER, "--gated", namespace], cwd=cwd, env=env, pass_fds=pass_fds,
                                             **SCRIPT_PROCESS, **box_options)
         except OSError:
             self.gate.close()
