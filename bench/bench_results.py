@@ -10,7 +10,10 @@
    (robotarium_client.drawing.DrawingWatcher.changes) for the same drawing on the live figure, in
    microseconds per step, and as a share of a lockstep step through the stack (docs/benchmarks.md, the stack benchmark:
    170 steps/s at N = 20, so 5.9 ms a step).
-Run: ./robotarium bench results [--steps 5000] [--robots 6 20 50]
+3. Trails: a script that set_data()s two trails with their whole history every step (ekf_experiment.py's
+   pattern), --trail-steps steps: the watcher's and the topic's encoding per step over the first and the last
+   tenth of the run (flat: a grown line goes as its tail), and the drawing topic's bytes in all.
+Run: ./robotarium bench results [--steps 5000] [--robots 6 20 50] [--trail-steps 2000]
 """
 import argparse
 import os
@@ -78,10 +81,37 @@ def bench(n, steps, work):
     return render, capture / (steps + 1), os.path.getsize(path)
 
 
+def trails(steps):
+    """(µs per step over the first tenth, over the last tenth, bytes in all) of capturing and encoding two trails
+    set_data() with their whole history every step."""
+    import robotarium_recording as recording
+    from robotarium_client.drawing import DrawingWatcher
+    from robotarium_recording.arena_figure import ArenaFigure, pyplot
+    track = synthetic_run(2, steps)
+    plt = pyplot()
+    figure = ArenaFigure.live(DEFAULT.arena, DEFAULT.robot_radius,
+                              np.vstack((track.x[0], track.y[0], track.theta[0])), plt=plt)
+    lines = [figure.axes.plot([], [], "-", lw=2)[0] for _ in range(2)]
+    watcher = DrawingWatcher(figure.axes, figure.own_artists)
+    per_step, size = [], 0
+    for k in range(steps + 1):
+        for i, line in enumerate(lines):
+            line.set_data(track.x[:k + 1, i], track.y[:k + 1, i])
+        started = time.process_time()
+        message = watcher.changes(k)
+        text = recording.encode_drawing(message) if message is not None else ""
+        per_step.append(time.process_time() - started)
+        size += len(text)
+    plt.close(figure.figure)
+    tenth = max(1, len(per_step) // 10)
+    return 1e6 * np.mean(per_step[:tenth]), 1e6 * np.mean(per_step[-tenth:]), size
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--steps", type=int, default=5000)
     parser.add_argument("--robots", type=int, nargs="+", default=[6, 20, 50])
+    parser.add_argument("--trail-steps", type=int, default=2000)
     args = parser.parse_args()
     run_time = args.steps * DEFAULT.time_step
     print("%s, %s, Python %s, load average %.1f" % (time.strftime("%Y-%m-%d"), platform.machine(),
@@ -95,6 +125,10 @@ def main():
             print("| %d | %.1f | %.0f | %.2f | %.1f | %.0f | %.1f %% |" % (
                 n, render, (args.steps + 1) / render, render / run_time, size / 1e6, capture * 1e6,
                 100 * capture / LOCKSTEP_STEP), flush=True)
+    first, last, size = trails(args.trail_steps)
+    print("trails: two lines set_data() with their whole history every step, %d steps: capture and encoding %.0f us a "
+          "step over the first tenth, %.0f us over the last; the drawing topic's text %.2f MB in all"
+          % (args.trail_steps, first, last, size / 1e6))
 
 
 if __name__ == "__main__":
