@@ -1,7 +1,7 @@
 """The script's process starts warm (issue 40): `./robotarium run` starts it (robotarium_cli.runner --gated) while it
 still looks for the testbed, so its Python and imports overlap that look; it waits at its start gate and runs the
-script only once the testbed answered; it joins DDS meanwhile, so the script's constructor finds the testbed
-known already. A run that never gets there (Ctrl-C while it waits for a testbed) stops
+script only once the testbed answered; it joins DDS meanwhile, and the script's Robotarium takes that participant
+and node. A run that never gets there (Ctrl-C while it waits for a testbed) stops
 waiting at once, runs nothing and leaves no process behind.
 Real processes: `./robotarium run` and `./robotarium up` on a domain of the test's own."""
 import os
@@ -22,11 +22,12 @@ ticks = int(open("/proc/self/stat").read().rsplit(")", 1)[1].split()[19])
 print("AGE AT FIRST LINE %.2f" % (float(open("/proc/uptime").read().split()[0]) - ticks / os.sysconf("SC_CLK_TCK")),
       flush=True)
 """
-# What its participant, made while it waited (testbed_link.join_dds_early), knew of the testbed at that line.
+# Whether its participant and node were made while it waited (testbed_link.join_dds_early). (What that participant
+# already knows of the testbed by then depends on the machine's load: the benefit is measured by bench
+# wall_to_prompt's constructor column, not asserted here.)
 KNEW = """from robotarium_client import testbed_link
 early = testbed_link._early[1] if testbed_link._early else None
-print("TESTBED NODES KNOWN AT FIRST LINE", sorted(set(early.get_node_names()) & {"simulator", "safety", "recorder"})
-      if early else None, flush=True)
+print("JOINED DDS BEFORE THE FIRST LINE", early is not None, flush=True)
 """
 RUN = AGE + KNEW + """import numpy as np
 import rps.robotarium as robotarium
@@ -83,9 +84,8 @@ def test_the_scripts_process_waits_warm_for_the_testbed_and_runs_the_script_only
         age = float(re.search(r"AGE AT FIRST LINE ([\d.]+)", out).group(1))
         assert age >= LATE - 1.0, out
         assert out.index("using the testbed that answers") < out.index("AGE AT FIRST LINE"), out
-        # and it had joined DDS meanwhile: the testbed's nodes were known at the script's first line, and the
-        # script's Robotarium took that participant and node (its constructor's discovery done already)
-        assert "TESTBED NODES KNOWN AT FIRST LINE ['safety', 'simulator']" in out, out
+        # and it had joined DDS meanwhile, and the script's Robotarium took that participant and node
+        assert "JOINED DDS BEFORE THE FIRST LINE True" in out, out
         assert "THE CLIENT'S NODE IS THE ONE MADE EARLY True" in out, out
     finally:
         for p in (process, up):
