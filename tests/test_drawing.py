@@ -9,7 +9,7 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from robotarium_client.drawing import GROWS_BETWEEN_WHOLE, DrawingWatcher
+from robotarium_client.drawing import WHOLE_AFTER_MESSAGES, DrawingWatcher
 from robotarium_core.config import DEFAULT
 from robotarium_recording.arena_figure import ArenaFigure, points_per_metre, pyplot, robot_colours
 from robotarium_recording.bag import PoseTrack
@@ -70,28 +70,29 @@ def test_a_trail_drawn_with_its_whole_history_every_step_is_sent_as_what_it_grew
     """ekf_experiment.py set_data()s its trails with their whole history every step: sending the
     whole line each time made the run quadratic in its length (a quarter of the script's process
     at 2000 steps, 160 MB of text). A grown line goes as its tail; a reader gets the same line; a
-    line changed otherwise, or grown GROWS_BETWEEN_WHOLE times, goes whole."""
+    line changed otherwise goes whole, and so does one not sent whole for WHOLE_AFTER_MESSAGES messages (a
+    viewer that matches late finds it in the topic's kept history)."""
     watcher = DrawingWatcher(live.axes, live.own_artists)
     (trail,) = live.axes.plot([0.0], [0.0], "r-")
     messages = [decode(encode(watcher.changes(0)))]
     xs, ys = [0.0], [0.0]
-    for step in range(1, GROWS_BETWEEN_WHOLE + 20):
+    for step in range(1, WHOLE_AFTER_MESSAGES + 20):
         xs.append(0.001 * step)
         ys.append(np.sin(step / 30))
         trail.set_data(np.array(xs), np.array(ys))
         messages.append(decode(encode(watcher.changes(step))))
     grows = [m for m in messages if m.get("grow")]
     whole = [m for m in messages if m["set"]]
-    assert len(grows) == GROWS_BETWEEN_WHOLE + 18 and len(whole) == 2   # the first, and once after the limit
+    assert len(grows) == WHOLE_AFTER_MESSAGES + 18 and len(whole) == 2   # the first, and once after the limit
     assert [len(g["x"]) for m in grows for g in m["grow"].values()] == [1] * len(grows)
-    assert whole[1]["step"] == GROWS_BETWEEN_WHOLE + 1 and not whole[1].get("grow")
+    assert whole[1]["step"] == WHOLE_AFTER_MESSAGES and not whole[1].get("grow")
     state = DrawingState()
     for message in messages:
         state.apply(message)
     (spec,) = state.specs.values()
     assert spec["x"] == xs and spec["y"] == ys
     late = DrawingState()   # a reader that only has the history since the line was last sent whole
-    for message in messages[GROWS_BETWEEN_WHOLE + 1:]:
+    for message in messages[WHOLE_AFTER_MESSAGES:]:
         late.apply(message)
     assert late.specs == state.specs
 
@@ -107,6 +108,23 @@ def test_a_trail_drawn_with_its_whole_history_every_step_is_sent_as_what_it_grew
     assert list(changed["set"].values())[0]["color"] == [0.0, 0.0, 1.0, 1.0] and not changed.get("grow")
     trail.set_data([9.0], [9.0])                            # shorter: sent whole
     assert list(watcher.changes(903)["set"].values())[0]["x"] == [9.0]
+
+
+def test_a_trail_that_grows_now_and_then_among_other_changes_is_sent_whole_within_the_kept_history(live):
+    """The whole sends are counted in messages, not grows: a trail grown every 10th step while a marker moves every
+    step is sent whole again at its first growth once WHOLE_AFTER_MESSAGES messages went."""
+    watcher = DrawingWatcher(live.axes, live.own_artists)
+    marker = live.axes.scatter([0.0], [0.0], s=100)
+    (trail,) = live.axes.plot([0.0], [0.0], "b-")
+    messages = []
+    for step in range(1200):
+        marker.set_offsets([[0.001 * step, 0.0]])
+        if step % 10 == 0:
+            trail.set_data(np.arange(step // 10 + 1) * 0.01, np.zeros(step // 10 + 1))
+        messages.append(watcher.changes(step))
+    key = next(k for k, spec in messages[0]["set"].items() if spec["kind"] == "line")
+    whole = [i for i, m in enumerate(messages) if key in m["set"]]
+    assert len(whole) >= 4 and max(b - a for a, b in zip(whole, whole[1:])) <= WHOLE_AFTER_MESSAGES + 10, whole
 
 
 def _circles(n, steps):

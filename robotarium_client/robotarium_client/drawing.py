@@ -140,9 +140,9 @@ def fingerprint(artist):
             artist.get_zorder(), artist.get_alpha(), artist.get_visible())
 
 
-# A grown line is sent whole again after this many grows: well within the topic's kept history
-# (robotarium_core.topics.OUTPUT_HISTORY, 1000 messages), so a viewer that matches late draws it whole.
-GROWS_BETWEEN_WHOLE = 250
+# A grown line is sent whole again once this many messages went since it last was: well within the topic's kept
+# history (robotarium_core.topics.OUTPUT_HISTORY, 1000 messages), so a viewer that matches late draws it whole.
+WHOLE_AFTER_MESSAGES = 250
 
 
 class DrawingWatcher:
@@ -155,7 +155,8 @@ class DrawingWatcher:
         self.sent = {}          # key -> the spec last sent (None: not drawable)
         self.dirty = set()
         self.prints = {}        # key -> fingerprint() when last serialized
-        self.lines = {}         # key -> (x, y, grown): a line's data as last sent, and grows since it was sent whole
+        self.lines = {}         # key -> (x, y, sent_whole_at): a line's data as last sent, the message it went whole in
+        self.messages = 0       # messages changes() made
         self.failed = set()
         self.next_key = 0
         self.ppm = None
@@ -223,7 +224,7 @@ class DrawingWatcher:
             self.sent[key] = spec
             if spec is not None and spec["kind"] == "line":
                 x, y = line_data(artist)
-                self.lines[key] = (x.copy(), y.copy(), 0)
+                self.lines[key] = (x.copy(), y.copy(), self.messages)
             else:
                 self.lines.pop(key, None)
         self.dirty.clear()
@@ -238,15 +239,16 @@ class DrawingWatcher:
             message["move"] = moved
         if grown:
             message["grow"] = grown
+        self.messages += 1
         return message
 
     def _growth(self, artist, key):
         """What was appended to a line's data since it was sent ({"x": [], "y": []} when nothing), or
-        None when it must be sent whole: its style changed, its old data is not where it was, or it
-        grew GROWS_BETWEEN_WHOLE times since it was last sent whole (a late reader of the topic's
+        None when it must be sent whole: its style changed, its old data is not where it was, or
+        WHOLE_AFTER_MESSAGES messages went since it was last sent whole (a late reader of the topic's
         history then still finds it whole). A trail set_data() with its whole history every step
         (ekf_experiment.py) costs the tail, not the history, each step."""
-        old_x, old_y, grows = self.lines[key]
+        old_x, old_y, whole_at = self.lines[key]
         if artist.get_transform() != self.axes.transData:
             return None
         try:
@@ -262,11 +264,11 @@ class DrawingWatcher:
             return None
         if len(x) == n:
             return {"x": [], "y": []}
-        if grows >= GROWS_BETWEEN_WHOLE:
+        if self.messages - whole_at >= WHOLE_AFTER_MESSAGES:
             return None
         tail = {"x": x[n:].tolist(), "y": y[n:].tolist()}
         self.sent[key] = dict(sent, x=sent["x"] + tail["x"], y=sent["y"] + tail["y"])
-        self.lines[key] = (x.copy(), y.copy(), grows + 1)
+        self.lines[key] = (x.copy(), y.copy(), whole_at)
         return tail
 
     def close(self):

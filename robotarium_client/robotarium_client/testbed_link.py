@@ -177,7 +177,7 @@ class OwnDdsWatch:
             time.sleep(0.05)
 
 
-_early = None   # (context, node): this process's participant, made before its run's options came (join_dds_early)
+_early = None   # (pid, context, node): this process's participant, made before its run's options came (join_dds_early)
 
 
 def join_dds_early(ns: str) -> None:
@@ -189,16 +189,17 @@ def join_dds_early(ns: str) -> None:
     if _early is None:
         context = Context()
         init_context(context=context, node=False, args=_client_args())
-        _early = (context, Node(_client_node_name(), namespace=ns, context=context))
+        _early = (os.getpid(), context, Node(_client_node_name(), namespace=ns, context=context))
 
 
 def leave_dds_early() -> None:
     """Leave what join_dds_early made if no TestbedLink took it (a script that never made a Robotarium)."""
     global _early
     if _early is not None:
-        (context, node), _early = _early, None
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
+        (pid, context, node), _early = _early, None
+        if pid == os.getpid():   # (a fork's copy is its parent's to leave)
+            node.destroy_node()
+            rclpy.try_shutdown(context=context)
 
 
 def _client_args() -> list[str]:
@@ -211,14 +212,16 @@ def _client_node_name() -> str:
 
 
 def _context_and_node(ns: str) -> tuple[Context, Node]:
-    """The participant and node of a new TestbedLink: those join_dds_early made, if any (the node made anew
-    where the run's namespace is not the one expected), else new ones."""
+    """The participant and node of a new TestbedLink: those join_dds_early made in this process, if any (the
+    node made anew where the run's namespace is not the one expected), else new ones (in a process the
+    script forked too: its copy of its parent's participant has none of its threads)."""
     global _early
-    if _early is None:
+    early, _early = _early, None
+    if early is None or early[0] != os.getpid():
         context = Context()
         init_context(context=context, node=False, args=_client_args())
         return context, Node(_client_node_name(), namespace=ns, context=context)
-    (context, node), _early = _early, None
+    _, context, node = early
     if node.get_namespace() != ns:
         # the new node first: the participant goes with a context's last node
         expected, node = node, Node(_client_node_name(), namespace=ns, context=context)
