@@ -324,6 +324,10 @@ def test_the_whole_flow_in_a_real_browser_with_a_restart_mid_run(tmp_path):
 
             serve = Serve(args, env)
             assert serve.wait_for_address() == base
+            # Off the run's page: its live stream, back once the service is, reloads it when the run completes, and
+            # that reload raced with the goto to the head-on experiment's page below (a whole suite: the head-on's
+            # state read from the run's page).
+            goto(page, base)
             wait_for_state(data, pk, ("running",), attempts=2)
             work = os.path.join(data, "experiments", str(pk), "run-2", "work")
             deadline = time.monotonic() + TIMEOUT
