@@ -187,9 +187,7 @@ def join_dds_early(ns: str) -> None:
     (rmw_fastrtps), so the node is made too, with the link's own name, in `ns` (the namespace expected)."""
     global _early
     if _early is None:
-        context = Context()
-        init_context(context=context, node=False, args=_client_args())
-        _early = (os.getpid(), context, Node(_client_node_name(), namespace=ns, context=context))
+        _early = (os.getpid(), *_join(ns))
 
 
 def leave_dds_early() -> None:
@@ -202,9 +200,13 @@ def leave_dds_early() -> None:
             rclpy.try_shutdown(context=context)
 
 
-def _client_args() -> list[str]:
+def _join(ns: str) -> tuple[Context, Node]:
+    """A participant of this process and the client's node in `ns`."""
+    context = Context()
     # With DDS Security (sros2/README.md) a script runs in the client enclave of the policy.
-    return ["--ros-args", "--enclave", "/robotarium/client"] if security_enabled() else []
+    init_context(context=context, node=False,
+                 args=["--ros-args", "--enclave", "/robotarium/client"] if security_enabled() else [])
+    return context, Node(_client_node_name(), namespace=ns, context=context)
 
 
 def _client_node_name() -> str:
@@ -218,9 +220,7 @@ def _context_and_node(ns: str) -> tuple[Context, Node]:
     global _early
     early, _early = _early, None
     if early is None or early[0] != os.getpid():
-        context = Context()
-        init_context(context=context, node=False, args=_client_args())
-        return context, Node(_client_node_name(), namespace=ns, context=context)
+        return _join(ns)
     _, context, node = early
     if node.get_namespace() != ns:
         # the new node first: the participant goes with a context's last node
