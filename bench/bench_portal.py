@@ -1,7 +1,8 @@
 """The portal (./robotarium serve) end to end: turnaround of a 300-step experiment on an empty queue, and the
-pages' response times under 20 users browsing while an experiment runs.
+pages' response times under 20 users browsing while an experiment runs: at a person's pace (a page every 1-3 s
+each), then as fast as each can (a load test).
 
-    ./robotarium bench portal [--users 20] [--steps 300] [--baseline [--baseline-env VAR=VALUE]] [--repeat N]
+    ./robotarium bench portal [--users 20] [--steps 300] [--think 2] [--baseline [--baseline-env VAR=VALUE]] [--repeat N]
                               [--back-to-back N]
 
 --baseline: the turnaround also with no warm testbeds (ROBOTARIUM_PORTAL_WARM_VERIFICATION=0 and
@@ -21,6 +22,7 @@ import argparse
 import http.cookiejar
 import json
 import os
+import random
 import re
 import shutil
 import signal
@@ -91,6 +93,9 @@ def main():
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--users", type=int, default=20, help="users browsing while an experiment runs")
     parser.add_argument("--steps", type=int, default=300, help="steps of the experiment's script")
+    parser.add_argument("--think", type=float, default=2.0, metavar="S",
+                        help="seconds a browsing user reads a page before the next (uniform in [S/2, 3S/2]); "
+                             "then the same users browse with none, as a load test")
     parser.add_argument("--baseline", action="store_true",
                         help="also measure the turnaround with no warm testbeds, interleaved")
     parser.add_argument("--baseline-env", metavar="VAR=VALUE", action="append", default=[],
@@ -283,7 +288,9 @@ def main():
         print("goal: back to back, each <= 3 s beyond its run: %.1f s (median, warm) -> %s" % (
             median(beyond[True][0]), "met" if max(beyond[True][0]) <= 3 else "not met"))
 
-    # 2. Pages under load while an experiment runs (on a service with the warm verification testbed).
+    # 2. Pages while an experiment runs (on a service with the warm verification testbed): 20 people browsing, each
+    # reading a page for a while before the next, then the same 20 as fast as each can (a load test: with no time
+    # between pages each answer waits for the others', so its latency is users / throughput, Little's law).
     serve, base = start_serve(True)
     try:
         owner = Session(base)
@@ -293,49 +300,64 @@ def main():
             session = Session(base)
             session.log_in(user.email)
             sessions.append(session)
-        experiment = new_experiment("under load")
-        submit(owner, experiment)
-        wait_until(experiment, ("running",))
         pages = ["/", "/?tab=completed", "/queue/", "/experiments/new/"]
-        latencies, errors, stop = {p: [] for p in pages + ["experiment"]}, [], threading.Event()
 
-        def browse(k, session):
-            own = "/experiments/%d/" % experiment.pk if k == 0 else None
-            i = 0
-            while not stop.is_set():
-                path = own if own and i % 2 else pages[i % len(pages)]
-                started = time.perf_counter()
-                try:
-                    session.get(path)
-                    latencies["experiment" if path == own else path].append(time.perf_counter() - started)
-                except Exception as error:   # noqa: BLE001 - counted and shown
-                    errors.append(repr(error))
-                i += 1
+        def browse_during_a_run(title, think):
+            """Each session browses while a fresh experiment runs, `think` s (uniform in [think/2, 3 think/2];
+            0: none) between its pages; prints the table and returns the p99 over every page (ms)."""
+            experiment = new_experiment(title)
+            submit(owner, experiment)
+            wait_until(experiment, ("running",))
+            latencies, errors, stop = {p: [] for p in pages + ["experiment"]}, [], threading.Event()
 
-        threads = [threading.Thread(target=browse, args=(k, s)) for k, s in enumerate(sessions)]
-        began = time.monotonic()
-        for t in threads:
-            t.start()
-        while experiment.state == "running":
-            time.sleep(0.2)
-            experiment.refresh_from_db(fields=["state"])
-        stop.set()
-        for t in threads:
-            t.join()
-        seconds = time.monotonic() - began
-        every = [v for values in latencies.values() for v in values]
-        print("%d users browsing for %.0f s while the experiment ran (%s at the end): %d pages, %.0f pages/s, "
-              "%d errors" % (args.users, seconds, experiment.state, len(every), len(every) / seconds, len(errors)))
-        print("  %-22s %6s %8s %8s" % ("page", "count", "p50 ms", "p99 ms"))
-        for name, values in list(latencies.items()) + [("all", every)]:
-            if values:
-                print("  %-22s %6d %8.0f %8.0f" % (name, len(values), 1000 * percentile(values, 50),
-                                                     1000 * percentile(values, 99)))
-        if errors:
-            print("  first error:", errors[0])
-        every_p99 = 1000 * percentile(every, 99) if every else float("nan")
-        print("goal: pages p99 <= 150 ms with %d users browsing during a run: %.0f ms -> %s"
-              % (args.users, every_p99, "met" if every_p99 <= 150 else "not met"))
+            def browse(k, session):
+                own = "/experiments/%d/" % experiment.pk if k == 0 else None
+                pause = random.Random(k)
+                i = 0
+                while not stop.is_set():
+                    path = own if own and i % 2 else pages[i % len(pages)]
+                    started = time.perf_counter()
+                    try:
+                        session.get(path)
+                        latencies["experiment" if path == own else path].append(time.perf_counter() - started)
+                    except Exception as error:   # noqa: BLE001 - counted and shown
+                        errors.append(repr(error))
+                    i += 1
+                    if think:
+                        stop.wait(pause.uniform(think / 2, 3 * think / 2))
+
+            threads = [threading.Thread(target=browse, args=(k, s)) for k, s in enumerate(sessions)]
+            began = time.monotonic()
+            for t in threads:
+                t.start()
+            while experiment.state == "running":
+                time.sleep(0.2)
+                experiment.refresh_from_db(fields=["state"])
+            stop.set()
+            for t in threads:
+                t.join()
+            seconds = time.monotonic() - began
+            every = [v for values in latencies.values() for v in values]
+            print("%d users browsing for %.0f s while the experiment ran (%s at the end), %s: %d pages, %.0f pages/s, "
+                  "%d errors" % (args.users, seconds, experiment.state,
+                                 "a page every %.1f-%.1f s each" % (think / 2, 3 * think / 2) if think
+                                 else "each as fast as it can (a load test)",
+                                 len(every), len(every) / seconds, len(errors)))
+            print("  %-22s %6s %8s %8s" % ("page", "count", "p50 ms", "p99 ms"))
+            for name, values in list(latencies.items()) + [("all", every)]:
+                if values:
+                    print("  %-22s %6d %8.0f %8.0f" % (name, len(values), 1000 * percentile(values, 50),
+                                                         1000 * percentile(values, 99)))
+            if errors:
+                print("  first error:", errors[0])
+            return (1000 * percentile(every, 99) if every else float("nan")), len(every) / seconds
+
+        people, _ = browse_during_a_run("browsed", args.think)
+        flat_out, rate = browse_during_a_run("under load", 0.0)
+        print("goal: pages p99 <= 150 ms with %d users browsing during a run (a page every %.1f-%.1f s each): %.0f ms "
+              "-> %s" % (args.users, args.think / 2, 3 * args.think / 2, people, "met" if people <= 150 else "not met"))
+        print("      the same users as fast as each can (%.0f pages/s): p99 %.0f ms -> %s" % (
+            rate, flat_out, "met" if flat_out <= 150 else "not met"))
     finally:
         stop_serve(serve)
         if keep:
