@@ -39,17 +39,23 @@ from pathlib import Path
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, REPO)
 PASSWORD = "bench-Passphrase-42"
-SCRIPT = """import numpy as np
+SCRIPT = """import time
+first = time.time()
+import numpy as np
 import rps.robotarium as robotarium
 N = 5
 r = robotarium.Robotarium(number_of_robots=N, show_figure=False, sim_in_real_time=True)
+built = time.time()
 for k in range(%d):
     r.get_poses()
     r.set_velocities(np.arange(N), np.vstack([np.zeros(N), 0.5 * np.ones(N)]))
     r.step()
 print("turned for", k + 1, "steps")
+print("bench marks: first %%.3f built %%.3f looped %%.3f" %% (first, built, time.time()))
 r.call_at_scripts_end()
 """
+# The script's own clock marks (its first line, its Robotarium made, its loop done): the turnaround's timeline.
+MARKS = re.compile(r"bench marks: first ([\d.]+) built ([\d.]+) looped ([\d.]+)")
 
 
 class Session:
@@ -193,7 +199,9 @@ def main():
         script = run.get("wall_time", 0.0)
         said = (experiment.folder / "verification-output.txt").read_text(errors="replace")
         job = experiment.folder / ("run-%d" % experiment.attempts) / "output.txt"
-        live_videos.append("made as the run went" in (job.read_text(errors="replace") if job.exists() else ""))
+        said_by_job = job.read_text(errors="replace") if job.exists() else ""
+        live_videos.append("made as the run went" in said_by_job)
+        timelines.append(timeline(experiment, MARKS.search(said), MARKS.search(said_by_job)))
         return {"total": experiment.finished_at.timestamp() - clicked,
                 "verification": (experiment.queued_at - experiment.submitted_at).total_seconds(),
                 "verify_command": experiment.timings.get("verify_command", 0.0),
@@ -205,7 +213,24 @@ def main():
     def median(values):
         return sorted(values)[len(values) // 2]
 
+    def timeline(experiment, verified, ran):
+        """{stage: s} of one turnaround from the database's timestamps and the script's own marks in its
+        verification and its run (None where a mark is missing)."""
+        if not (verified and ran):
+            return None
+        v, r = [float(x) for x in verified.groups()], [float(x) for x in ran.groups()]
+        return {"verify: submitted -> the script's first line": v[0] - experiment.submitted_at.timestamp(),
+                "verify: its Robotarium made": v[1] - v[0],
+                "verify: the loop, lockstep": v[2] - v[1],
+                "verify: the loop's end -> queued": experiment.queued_at.timestamp() - v[2],
+                "queued -> claimed": (experiment.started_at - experiment.queued_at).total_seconds(),
+                "run: claimed -> the script's first line": r[0] - experiment.started_at.timestamp(),
+                "run: its Robotarium made": r[1] - r[0],
+                "run: the loop, real time": r[2] - r[1],
+                "run: the loop's end -> completed": experiment.finished_at.timestamp() - r[2]}
+
     live_videos = []   # per turnaround, in order: its video drawn while the run went (live_video)
+    timelines = []     # per turnaround, in order: timeline() or None
     keep = []          # the folders of turnarounds far slower than the others, for a look
     kinds = [True, False] if args.baseline else [True]
     measured = {kind: [] for kind in kinds}
@@ -246,6 +271,12 @@ def main():
         for name, what in PARTS:
             print("  %-16s %6.1f s   (%s)" % (name, median([r[name] for r, _, _ in warm_runs]), what))
         print("  runs (total, s): %s" % " ".join("%.1f" % r["total"] for r, _, _ in warm_runs))
+    marked = [t for t in timelines[0::len(kinds)] if t]
+    if marked:
+        print("  where it goes, by the database's timestamps and the script's own clock marks (median of %d, warm):"
+              % len(marked))
+        for stage in marked[0]:
+            print("    %-42s %6.2f s" % (stage, median([t[stage] for t in marked])))
     for kind in kinds:   # a turnaround far from its kind's median: its parts, and its experiment kept
         usual = median([r["total"] for r, _, _ in measured[kind]])
         for parts, slow, _ in measured[kind]:
@@ -313,6 +344,8 @@ def main():
             def browse(k, session):
                 own = "/experiments/%d/" % experiment.pk if k == 0 else None
                 pause = random.Random(k)
+                if think:   # people come at their own moments, not all at the run's first instant
+                    stop.wait(pause.uniform(0, think))
                 i = 0
                 while not stop.is_set():
                     path = own if own and i % 2 else pages[i % len(pages)]
