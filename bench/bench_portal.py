@@ -335,7 +335,7 @@ def main():
 
         def browse_during_a_run(title, think):
             """Each session browses while a fresh experiment runs, `think` s (uniform in [think/2, 3 think/2];
-            0: none) between its pages; prints the table and returns the p99 over every page (ms)."""
+            0: none) between its pages; prints the table and returns (the p99 over every page in ms, pages/s)."""
             experiment = new_experiment(title)
             submit(owner, experiment)
             wait_until(experiment, ("running",))
