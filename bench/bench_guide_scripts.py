@@ -145,19 +145,19 @@ def main():
                                                       "ratio"))
         print("%-46s %-22s %-22s %9s %9s %9s" % ("script", "time  out col  act", "time  out col  act", "",
                                                  "script", "command"))
-        faster, ratios = 0, {}
+        ratios = {}   # script -> the reference's wall time / the stack's script wall time
         for script in scripts:
             ref, ref_wall = run_reference(script, args.seed, args.timeout)
             ours, our_wall, command_wall = run_stack(script, args.seed, env, args.real_time, args.timeout)
-            faster += ref_wall >= our_wall
-            ratios[os.path.basename(script)] = ref_wall / our_wall
+            ratio = ratios[os.path.basename(script)] = ref_wall / our_wall
             print("%-46s %s %s %8.1fs %8.1fs %8.1fs %6.2f" % (
-                os.path.basename(script)[:46], cell(ref), cell(ours), ref_wall, our_wall, command_wall,
-                ref_wall / our_wall), flush=True)
+                os.path.basename(script)[:46], cell(ref), cell(ours), ref_wall, our_wall, command_wall, ratio),
+                flush=True)
         print("time: the report's estimate of the real testbed's duration (steps x 0.033 s); out, col, act: "
               "iterations with robots outside the arena, colliding, over the actuator limits. ratio: reference "
               "wall time / the stack's script wall time (> 1: the stack is faster). Load average now %.1f."
               % os.getloadavg()[0])
+        faster = sum(ratio >= 1 for ratio in ratios.values())
         print("the stack's script at least as fast as the reference: %d of %d" % (faster, len(scripts)))
         if ratios:
             slowest = min(ratios, key=lambda name: ratios[name])

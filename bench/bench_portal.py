@@ -54,7 +54,7 @@ print("turned for", k + 1, "steps")
 print("bench marks: first %%.3f built %%.3f looped %%.3f" %% (first, built, time.time()))
 r.call_at_scripts_end()
 """
-# The script's own clock marks (its first line, its Robotarium made, its loop done): the turnaround's timeline.
+# The script's own clock marks (its first line, its imports and Robotarium made, its loop done): the turnaround's timeline.
 MARKS = re.compile(r"bench marks: first ([\d.]+) built ([\d.]+) looped ([\d.]+)")
 
 
@@ -220,12 +220,12 @@ def main():
             return None
         v, r = [float(x) for x in verified.groups()], [float(x) for x in ran.groups()]
         return {"verify: submitted -> the script's first line": v[0] - experiment.submitted_at.timestamp(),
-                "verify: its Robotarium made": v[1] - v[0],
+                "verify: imports, its Robotarium made": v[1] - v[0],
                 "verify: the loop, lockstep": v[2] - v[1],
                 "verify: the loop's end -> queued": experiment.queued_at.timestamp() - v[2],
                 "queued -> claimed": (experiment.started_at - experiment.queued_at).total_seconds(),
                 "run: claimed -> the script's first line": r[0] - experiment.started_at.timestamp(),
-                "run: its Robotarium made": r[1] - r[0],
+                "run: imports, its Robotarium made": r[1] - r[0],
                 "run: the loop, real time": r[2] - r[1],
                 "run: the loop's end -> completed": experiment.finished_at.timestamp() - r[2]}
 
@@ -276,7 +276,7 @@ def main():
         print("  where it goes, by the database's timestamps and the script's own clock marks (median of %d, warm):"
               % len(marked))
         for stage in marked[0]:
-            print("    %-42s %6.2f s" % (stage, median([t[stage] for t in marked])))
+            print("    %-46s %6.2f s" % (stage, median([t[stage] for t in marked])))
     for kind in kinds:   # a turnaround far from its kind's median: its parts, and its experiment kept
         usual = median([r["total"] for r, _, _ in measured[kind]])
         for parts, slow, _ in measured[kind]:
